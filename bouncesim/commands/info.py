@@ -1,0 +1,30 @@
+"""``bouncesim info ENV``: sizes of the cell model."""
+
+from __future__ import annotations
+
+from planners.cells import CellSpace
+
+from .common import add_env_args, load_env, print_json
+
+
+def register(sub) -> None:
+    p = sub.add_parser("info", help="print the cell model's sizes (P, N, K, ...)",
+                       description="Load ENV and print the number of free position cells P, "
+                       "configurations N = K*P, orientations K, cell size, bounds and radius.")
+    add_env_args(p)
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    env = load_env(args)
+    cs = CellSpace(env)
+    info = {"name": env.name, "P": cs.P, "N": cs.N, "K": cs.K, "cell_size": env.cell_size,
+            "bounds": list(env.bounds), "robot_radius": env.robot_radius,
+            "grid": list(env.grid_shape)}
+    if args.json:
+        print_json(info)
+    else:
+        for k, v in info.items():
+            print(f"{k:>13}: {v}")
+    return 0

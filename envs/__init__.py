@@ -1,0 +1,51 @@
+"""Environments: load by catalogue name or path, validate, and answer geometric queries.
+
+>>> import envs
+>>> sorted(envs.names())
+['complex', 'fig1', 'lab']
+>>> envs.load("lab").cell_size
+0.34
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .environment import Environment
+from .errors import InvalidEnvironment, UserError
+
+__all__ = ["Environment", "InvalidEnvironment", "UserError", "load", "names", "CATALOG_DIR"]
+
+CATALOG_DIR = Path(__file__).with_name("catalog")
+
+
+def names() -> list[str]:
+    """Names of the environments in the catalogue."""
+    return sorted(p.stem for p in CATALOG_DIR.glob("*.json"))
+
+
+def load(name_or_path: str | Path, *, cell_size: float | None = None,
+         orientations: int | None = None) -> Environment:
+    """Load a catalogue environment by name, or an env file by path.
+
+    Parameters
+    ----------
+    name_or_path : str or Path
+        A catalogue name (see :func:`names`) or a path to a JSON/YAML env file.
+    cell_size : float, optional
+        Override the file's cell size [m].
+    orientations : int, optional
+        Override the file's number of orientations K.
+    """
+    p = Path(name_or_path)
+    if str(name_or_path) in names():
+        env = Environment.from_file(CATALOG_DIR / f"{name_or_path}.json")
+    elif p.suffix or p.exists():
+        env = Environment.from_file(p)
+    else:
+        raise InvalidEnvironment(
+            f"{str(name_or_path)!r} is neither a catalogue environment "
+            f"({', '.join(names())}) nor an existing file.")
+    if cell_size is not None or orientations is not None:
+        env = env.with_discretization(cell_size, orientations)
+    return env

@@ -1,0 +1,215 @@
+"""The discrete cell model: free cells, configuration indices and the step table (MODEL §3-5).
+
+Position index p numbers the free cells row-major from the bottom; configuration index
+z = k * P + p with orientation k = 0..K-1 at heading 360° k / K. The step table says, for every
+configuration, where a forward step of one cell length lands (or that it bumps).
+
+Examples
+--------
+>>> from envs import Environment
+>>> env = Environment.from_dict({"boundary": [[0, 0], [1.02, 0], [1.02, 0.34], [0, 0.34]],
+...                              "robot_radius": 0.17,
+...                              "discretization": {"cell_size": 0.34, "orientations": 4}})
+>>> cs = CellSpace(env)
+>>> cs.P, cs.N
+(3, 12)
+>>> cs.forward[:3].tolist()          # facing east: 0 -> 1 -> 2 -> bump
+[1, 2, -1]
+>>> int(cs.rotate(2, 90.0))          # a 90° bump at p=2 facing east turns to face north
+5
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from envs import Environment, UserError
+
+__all__ = ["CellSpace", "AngleError", "angle_steps"]
+
+
+class AngleError(UserError):
+    """A bouncing angle that is not a multiple of 360°/K in (0°, 360°)."""
+
+
+def angle_steps(angle_deg: float, K: int, what: str = "bouncing angle",
+                allow_zero: bool = False) -> int:
+    """Convert an angle [deg] to a whole number of orientation steps Δ = 360°/K.
+
+    Raises :class:`AngleError` (one sentence naming the allowed multiples) otherwise.
+
+    >>> angle_steps(135, 8)
+    3
+    >>> angle_steps(100, 8)
+    Traceback (most recent call last):
+    ...
+    planners.cells.AngleError: bouncing angle 100° is not allowed with 8 orientations: use a multiple of 45° between 45° and 315°.
+    """
+    delta = 360.0 / K
+    try:
+        a = float(angle_deg)
+    except (TypeError, ValueError):
+        raise AngleError(f"{what} {angle_deg!r} is not a number of degrees.") from None
+    steps = a / delta
+    n = round(steps)
+    lo = 0 if allow_zero else 1
+    ok = math.isfinite(a) and abs(steps - n) <= 1e-9 * max(1.0, abs(steps)) and lo <= n < K
+    if not ok:
+        if allow_zero:
+            raise AngleError(
+                f"{what} {_fmt(a)}° is not allowed with {K} orientations: use a multiple of "
+                f"{_fmt(delta)}° between 0° and {_fmt(360 - delta)}°.")
+        raise AngleError(
+            f"{what} {_fmt(a)}° is not allowed with {K} orientations: use a multiple of "
+            f"{_fmt(delta)}° between {_fmt(delta)}° and {_fmt(360 - delta)}°.")
+    return int(n)
+
+
+def _fmt(x: float) -> str:
+    return f"{x:g}" if abs(x - round(x)) > 1e-9 else str(int(round(x)))
+
+
+@dataclass(frozen=True, eq=False)
+class CellSpace:
+    """Free position cells, configuration indices and the forward-step table of an environment.
+
+    Attributes
+    ----------
+    env : Environment
+    h : float            cell size [m]
+    K : int              orientations
+    P, N : int           free position cells, configurations (N = K * P)
+    cells_ij : (P, 2)    column i and row j of each free cell
+    centres : (P, 2)     cell centres [m]
+    index_grid : (rows, cols) int array, p of each grid cell or -1 when not free
+    forward : (N,) int array, z' after a forward move from z, or -1 for a bump
+    """
+
+    env: Environment
+
+    # ------------------------------------------------------------------ cells
+    @property
+    def h(self) -> float:
+        return self.env.cell_size
+
+    @property
+    def K(self) -> int:
+        return self.env.orientations
+
+    @property
+    def delta_deg(self) -> float:
+        """Orientation step Δ = 360° / K [deg]."""
+        return 360.0 / self.K
+
+    @cached_property
+    def index_grid(self) -> np.ndarray:
+        free = self.env.grid_centres_free()
+        grid = np.full(free.shape, -1, dtype=np.int64)
+        grid[free] = np.arange(int(free.sum()))  # row-major from the bottom row
+        return grid
+
+    @cached_property
+    def cells_ij(self) -> np.ndarray:
+        jj, ii = np.nonzero(self.index_grid >= 0)
+        return np.stack([ii, jj], axis=1)
+
+    @property
+    def P(self) -> int:
+        return int(self.cells_ij.shape[0])
+
+    @property
+    def N(self) -> int:
+        return self.K * self.P
+
+    @cached_property
+    def centres(self) -> np.ndarray:
+        x0, y0 = self.env.origin
+        return np.column_stack([x0 + (self.cells_ij[:, 0] + 0.5) * self.h,
+                                y0 + (self.cells_ij[:, 1] + 0.5) * self.h])
+
+    @cached_property
+    def headings(self) -> np.ndarray:
+        """Heading of each orientation k [rad]."""
+        return 2 * np.pi * np.arange(self.K) / self.K
+
+    # ------------------------------------------------------------------ indices
+    def z(self, p, k):
+        """Configuration index z = k * P + p."""
+        return np.asarray(k) * self.P + np.asarray(p)
+
+    def pk(self, z):
+        """(p, k) of configuration index z."""
+        z = np.asarray(z)
+        return z % self.P, z // self.P
+
+    def pose(self, z) -> tuple[float, float, float]:
+        """(x [m], y [m], heading [deg]) of configuration z's cell centre."""
+        p, k = self.pk(int(z))
+        x, y = self.centres[p]
+        return float(x), float(y), float(k * self.delta_deg)
+
+    def cell_of_point(self, xy) -> np.ndarray:
+        """p of the grid cell containing each point, or -1 outside the free cells."""
+        pts = np.asarray(xy, dtype=float).reshape(-1, 2)
+        x0, y0 = self.env.origin
+        i = np.floor((pts[:, 0] - x0) / self.h).astype(np.int64)
+        j = np.floor((pts[:, 1] - y0) / self.h).astype(np.int64)
+        nrows, ncols = self.index_grid.shape
+        ok = (i >= 0) & (i < ncols) & (j >= 0) & (j < nrows)
+        out = np.full(len(pts), -1, dtype=np.int64)
+        out[ok] = self.index_grid[j[ok], i[ok]]
+        return out
+
+    def orientation_of(self, heading_deg) -> np.ndarray:
+        """Nearest orientation k of each heading [deg]."""
+        return np.round(np.asarray(heading_deg, dtype=float) / self.delta_deg).astype(
+            np.int64) % self.K
+
+    def config_of_pose(self, x: float, y: float, heading_deg: float) -> int:
+        """Configuration z of a pose (x, y [m], heading [deg]), or -1 if its cell is not free."""
+        p = int(self.cell_of_point([[x, y]])[0])
+        if p < 0:
+            return -1
+        return int(self.z(p, int(self.orientation_of(heading_deg))))
+
+    def rotate(self, z, angle_deg: float):
+        """Configuration after an in-place CCW turn by angle_deg (a multiple of Δ)."""
+        s = angle_steps(angle_deg, self.K, allow_zero=True)
+        p, k = self.pk(z)
+        return self.z(p, (k + s) % self.K)
+
+    def angle_steps(self, angle_deg: float, what: str = "bouncing angle") -> int:
+        return angle_steps(angle_deg, self.K, what)
+
+    # ------------------------------------------------------------------ step table
+    @cached_property
+    def forward(self) -> np.ndarray:
+        """Forward-step table: z' after one step from z, or -1 where the robot bumps (§5)."""
+        P, K, h = self.P, self.K, self.h
+        if P == 0:
+            return np.zeros(0, dtype=np.int64)
+        u = np.column_stack([np.cos(self.headings), np.sin(self.headings)])      # (K, 2)
+        # Snap tiny components so that axis-aligned headings are exact (cos 90° = 6e-17).
+        u[np.abs(u) < 1e-12] = 0.0
+        c = np.broadcast_to(self.centres[None, :, :], (K, P, 2)).reshape(-1, 2)  # z order
+        uu = np.repeat(u, P, axis=0)
+        d = c + h * uu
+        dest = self.cell_of_point(d + 1e-6 * h * uu)
+        ok = dest >= 0
+        ok[ok] = self.env.segments_free(c[ok], d[ok])
+        k_of_z = np.repeat(np.arange(K), P)
+        out = np.full(self.N, -1, dtype=np.int64)
+        out[ok] = k_of_z[ok] * P + dest[ok]
+        return out
+
+    @property
+    def bumps(self) -> np.ndarray:
+        """Boolean (N,): configurations whose forward step is a bump."""
+        return self.forward < 0
+
+    def __repr__(self) -> str:
+        return f"CellSpace({self.env.name!r}, P={self.P}, K={self.K}, N={self.N}, h={self.h})"
