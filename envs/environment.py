@@ -56,10 +56,10 @@ def _polygon(coords: Any, what: str) -> Polygon:
     if len(np.unique(arr, axis=0)) < 3:
         raise InvalidEnvironment(f"{what} has fewer than 3 distinct vertices.")
     poly = Polygon(arr)
-    if poly.area <= 0:
-        raise InvalidEnvironment(f"{what} has zero area.")
     if not poly.is_valid:
         raise InvalidEnvironment(f"{what} is self-intersecting ({explain_validity(poly)}).")
+    if poly.area <= 0:
+        raise InvalidEnvironment(f"{what} has zero area.")
     return poly
 
 

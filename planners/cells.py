@@ -55,7 +55,7 @@ def angle_steps(angle_deg: float, K: int, what: str = "bouncing angle",
     except (TypeError, ValueError):
         raise AngleError(f"{what} {angle_deg!r} is not a number of degrees.") from None
     steps = a / delta
-    n = round(steps)
+    n = round(steps) if math.isfinite(steps) else -1
     lo = 0 if allow_zero else 1
     ok = math.isfinite(a) and abs(steps - n) <= 1e-9 * max(1.0, abs(steps)) and lo <= n < K
     if not ok:
@@ -70,7 +70,9 @@ def angle_steps(angle_deg: float, K: int, what: str = "bouncing angle",
 
 
 def _fmt(x: float) -> str:
-    return f"{x:g}" if abs(x - round(x)) > 1e-9 else str(int(round(x)))
+    if not math.isfinite(x) or abs(x - round(x)) > 1e-9:
+        return f"{x:g}"
+    return str(int(round(x)))
 
 
 @dataclass(frozen=True, eq=False)

@@ -44,5 +44,6 @@ def parse_angles(text: str) -> list[float]:
     return out
 
 
-def print_json(obj, file=sys.stdout) -> None:
-    print(json.dumps(obj, separators=(", ", ": ")), file=file)
+def print_json(obj, file=None) -> None:
+    print(json.dumps(obj, separators=(", ", ": "), ensure_ascii=False),
+          file=file or sys.stdout)

@@ -1,0 +1,124 @@
+"""``bouncesim plan``: shortest bouncing plans for one or many (start, goal) queries."""
+
+from __future__ import annotations
+
+import csv
+import sys
+from pathlib import Path
+
+from envs import UserError
+from planners.cells import CellSpace
+from planners.navigation import Navigator
+
+from .common import add_env_args, load_env, parse_angles, print_json
+
+__all__ = ["register", "run", "parse_config", "add_planner_args", "make_navigator"]
+
+EXIT_NO_PATH = 3
+
+
+def parse_config(text: str, cells: CellSpace, what: str = "start") -> int:
+    """A configuration index z, or a pose ``X,Y,DEG`` [m, m, deg] mapped to its free cell.
+
+    >>> import envs
+    >>> cs = CellSpace(envs.load("lab"))
+    >>> parse_config("8", cs), parse_config("2.55,0.17,90", cs)
+    (8, 103)
+    """
+    s = str(text).strip()
+    parts = [t for t in s.replace(";", ",").split(",") if t.strip()]
+    if len(parts) == 1:
+        try:
+            z = int(parts[0])
+        except ValueError:
+            raise UserError(f"{what} {s!r} is neither a configuration index nor a pose "
+                            "X,Y,DEG.") from None
+        if not 0 <= z < cells.N:
+            raise UserError(f"{what} {z} is out of range: configurations are 0 to "
+                            f"{cells.N - 1}.")
+        return z
+    if len(parts) != 3:
+        raise UserError(f"{what} {s!r} must be a configuration index or a pose X,Y,DEG.")
+    try:
+        x, y, deg = (float(t) for t in parts)
+    except ValueError:
+        raise UserError(f"{what} pose {s!r} has a part that is not a number.") from None
+    z = cells.config_of_pose(x, y, deg)
+    if z < 0:
+        raise UserError(f"{what} pose ({x:g}, {y:g}) is not in a free cell.")
+    return z
+
+
+def add_planner_args(p) -> None:
+    p.add_argument("--angles", required=True, metavar="A,B,...",
+                   help="bouncing angles [deg], multiples of 360/K, e.g. 45,90,135")
+    p.add_argument("--w1", type=float, default=1.0,
+                   help="weight of a step or a same-angle bump (default 1)")
+    p.add_argument("--w2", type=float, default=100.0,
+                   help="weight of a bump that changes the angle (default 100)")
+
+
+def make_navigator(args) -> Navigator:
+    env = load_env(args)
+    return Navigator(CellSpace(env), parse_angles(args.angles), args.w1, args.w2)
+
+
+def register(sub) -> None:
+    p = sub.add_parser(
+        "plan", help="shortest bouncing plan from a start to a goal configuration",
+        description="Find the minimum-weight observation string from START to GOAL on the "
+        "layered roadmap (MODEL §6). START and GOAL are configuration indices z = k*P + p "
+        "(0-based; the paper's id is z + 1) or poses X,Y,DEG [m, m, deg] mapped to their "
+        "cell. Exit status 3 when a single query has no path.",
+        epilog="examples:\n  bouncesim plan lab --angles 90,135 --start 8 --goal 0\n"
+        "  bouncesim plan lab --angles 45,90,135 --start 2.55,0.17,90 --goal 8 --json\n"
+        "  bouncesim plan complex --angles 45,90,135 --pairs queries.csv --json",
+        formatter_class=__import__("argparse").RawDescriptionHelpFormatter)
+    add_env_args(p)
+    add_planner_args(p)
+    p.add_argument("--start", metavar="S", help="start: z or X,Y,DEG")
+    p.add_argument("--goal", metavar="G", help="goal: z or X,Y,DEG")
+    p.add_argument("--pairs", type=Path, metavar="FILE.csv",
+                   help="many queries: a CSV with columns start,goal (z or \"X,Y,DEG\")")
+    p.add_argument("--json", action="store_true", help="one JSON object per query and line")
+    p.set_defaults(func=run)
+
+
+def _read_pairs(path: Path) -> list[tuple[str, str]]:
+    try:
+        with open(path, newline="") as fh:
+            reader = csv.DictReader(fh)
+            if reader.fieldnames is None or not {"start", "goal"} <= set(reader.fieldnames):
+                raise UserError(f"{path} needs the columns start,goal.")
+            return [(row["start"], row["goal"]) for row in reader]
+    except FileNotFoundError:
+        raise UserError(f"no pairs file at {path}.") from None
+
+
+def run(args) -> int:
+    if args.pairs is None and (args.start is None or args.goal is None):
+        raise UserError("give --start and --goal, or --pairs FILE.csv.")
+    if args.pairs is not None and (args.start is not None or args.goal is not None):
+        raise UserError("give either --start/--goal or --pairs, not both.")
+    nav = make_navigator(args)
+    cells = nav.cells
+    queries = ([(args.start, args.goal)] if args.pairs is None else _read_pairs(args.pairs))
+    resolved = [(parse_config(s, cells, "start"), parse_config(g, cells, "goal"))
+                for s, g in queries]
+    missing = 0
+    for s, g in resolved:
+        route = nav.plan(s, g)
+        if route is None:
+            missing += 1
+        if args.json:
+            print_json(route.to_json() if route else
+                       {"start": s, "goal": g, "plan": None, "plan_text": None, "cost": None,
+                        "angles_used": None, "path": None})
+        elif route is None:
+            print(f"{s} -> {g}: no path with angles "
+                  f"{', '.join(f'{a:g}°' for a in nav.angles)}")
+        else:
+            print(f"{s} -> {g}: {route.plan}  (cost {route.cost:g}, "
+                  f"{route.angles_used} angle(s), {len(route.plan)} observations)")
+    sys.stdout.flush()
+    return EXIT_NO_PATH if (args.pairs is None and missing) else 0

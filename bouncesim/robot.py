@@ -1,0 +1,157 @@
+"""The one Robot interface: only what a bump-and-clock robot has (ARCHITECTURE "one Robot
+interface, three bodies").
+
+The executors in :mod:`bouncesim.execute` use nothing but these methods, so the same code
+drives the kinematic twin, the PyBullet Create 2 and a real Create 2 over its Open Interface.
+Poses (:meth:`Robot.true_pose`) exist for logging in simulation only and are never used for
+control.
+
+Units: metres, seconds, degrees (angles at this interface), CCW positive.
+"""
+
+from __future__ import annotations
+
+import math
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+
+__all__ = ["Robot", "RobotSpec", "CREATE2", "BumpEvent", "RobotError"]
+
+
+class RobotError(RuntimeError):
+    """A robot that cannot go on (lost link, stuck, dropped out of Safe mode, ...)."""
+
+
+@dataclass(frozen=True)
+class RobotSpec:
+    """Body and drive figures of a differential-drive disk robot.
+
+    Attributes
+    ----------
+    radius : float            body radius [m]
+    wheel_base : float        distance between the drive wheels [m]
+    wheel_diameter : float    [m]
+    counts_per_rev : float    encoder counts per wheel revolution
+    max_wheel_speed : float   [m/s]
+    sensor_period : float     bumper/encoder polling period [s]
+    mass : float              [kg]
+    """
+
+    radius: float = 0.17
+    wheel_base: float = 0.235
+    wheel_diameter: float = 0.072
+    counts_per_rev: float = 508.8
+    max_wheel_speed: float = 0.5
+    sensor_period: float = 0.015
+    mass: float = 3.5
+
+    @property
+    def metres_per_count(self) -> float:
+        return math.pi * self.wheel_diameter / self.counts_per_rev
+
+    def turn_time(self, angle_deg: float, wheel_speed: float) -> float:
+        """Time [s] to turn in place by |angle| at wheel speeds ±wheel_speed [m/s] (by clock)."""
+        omega = 2 * wheel_speed / self.wheel_base
+        return abs(math.radians(angle_deg)) / omega
+
+
+CREATE2 = RobotSpec()
+"""The iRobot Create 2 (see shared CREATE2_OI.md)."""
+
+
+@dataclass(frozen=True)
+class BumpEvent:
+    """Outcome of :meth:`Robot.drive_until_bump`.
+
+    Attributes
+    ----------
+    bumped : bool     the bumper closed (False: the timeout ran out first)
+    left, right : bool  which side(s) of the bumper closed
+    elapsed : float   time spent driving [s]
+    """
+
+    bumped: bool
+    left: bool
+    right: bool
+    elapsed: float
+
+
+class Robot(ABC):
+    """A bump-and-clock robot.
+
+    Backends implement the abstract methods; :meth:`drive_until_bump` has a polling default
+    that any backend may replace by an exact or faster equivalent with the same meaning.
+    """
+
+    spec: RobotSpec = CREATE2
+
+    # -------------------------------------------------------------- what the robot has
+    @abstractmethod
+    def drive(self, speed: float) -> None:
+        """Start driving straight at ``speed`` [m/s] (negative: backwards) until told otherwise."""
+
+    @abstractmethod
+    def stop(self) -> None:
+        """Stop both wheels."""
+
+    @abstractmethod
+    def bumper(self) -> tuple[bool, bool]:
+        """(left, right) bumper state now."""
+
+    @abstractmethod
+    def clock(self) -> float:
+        """Time [s] since the robot was started (simulated time in simulation)."""
+
+    @abstractmethod
+    def wait(self, duration: float) -> None:
+        """Let ``duration`` [s] pass with the current drive command (simulators step physics)."""
+
+    @abstractmethod
+    def turn(self, angle_deg: float) -> None:
+        """Turn in place CCW by ``angle_deg`` [deg] (blocking), by clock or by encoders as the
+        backend is configured. Simulators add their seeded rotation noise here."""
+
+    def encoders(self) -> tuple[int, int] | None:
+        """(left, right) cumulative wheel encoder counts, or None where there are none."""
+        return None
+
+    def close(self) -> None:
+        """Stop and release the robot (idempotent)."""
+        self.stop()
+
+    # -------------------------------------------------------------- composite behaviour
+    def drive_until_bump(self, speed: float, timeout: float) -> BumpEvent:
+        """Drive forward at ``speed`` [m/s] until the bumper closes or ``timeout`` [s] passes,
+        then stop. Polls the bumper every sensor period."""
+        t0 = self.clock()
+        self.drive(speed)
+        try:
+            while True:
+                left, right = self.bumper()
+                elapsed = self.clock() - t0
+                if left or right:
+                    return BumpEvent(True, left, right, elapsed)
+                if elapsed >= timeout:
+                    return BumpEvent(False, False, False, elapsed)
+                self.wait(min(self.spec.sensor_period, max(timeout - elapsed, 1e-6)))
+        finally:
+            self.stop()
+
+    def drive_for(self, speed: float, duration: float) -> BumpEvent:
+        """Drive at ``speed`` [m/s] for ``duration`` [s] by the clock, stopping early on a bump."""
+        return self.drive_until_bump(speed, duration)
+
+    # -------------------------------------------------------------- simulation only
+    def place(self, x: float, y: float, heading_deg: float) -> None:
+        """Put the robot at a pose (simulators; on hardware a person places the robot)."""
+        raise NotImplementedError(f"{type(self).__name__} cannot be placed by software.")
+
+    def true_pose(self) -> tuple[float, float, float] | None:
+        """(x [m], y [m], heading [deg]) for logging in simulation; None on hardware."""
+        return None
+
+    def __enter__(self) -> "Robot":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()

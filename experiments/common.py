@@ -1,0 +1,72 @@
+"""Shared plumbing for experiments: argument parsing, output folders and config.json."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import subprocess
+import sys
+from datetime import datetime, timezone
+from importlib import metadata
+from pathlib import Path
+
+__all__ = ["experiment_parser", "output_dir", "write_config", "git_revision", "versions"]
+
+_PACKAGES = ["numpy", "scipy", "shapely", "networkx", "pandas", "matplotlib", "pybullet",
+             "bouncesim"]
+
+
+def experiment_parser(name: str, description: str, default_seed: int = 0
+                      ) -> argparse.ArgumentParser:
+    """An ArgumentParser with the common --quick, --seed and --out flags."""
+    p = argparse.ArgumentParser(prog=f"python -m experiments.{name}", description=description)
+    p.add_argument("--quick", action="store_true",
+                   help="small budget (what CI runs); the full run is the default")
+    p.add_argument("--seed", type=int, default=default_seed, help="root random seed")
+    p.add_argument("--out", type=Path, default=Path("results") / name,
+                   help=f"output folder (default results/{name}/)")
+    return p
+
+
+def output_dir(path: Path) -> Path:
+    path = Path(path)
+    path.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+def git_revision() -> str | None:
+    """The current git commit (with '-dirty' when the tree has changes), or None."""
+    root = Path(__file__).resolve().parent.parent
+    try:
+        rev = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True,
+                             text=True, timeout=10)
+        if rev.returncode != 0:
+            return None
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"],
+                               cwd=root, capture_output=True, text=True, timeout=10)
+        return rev.stdout.strip() + ("-dirty" if dirty.stdout.strip() else "")
+    except (OSError, subprocess.SubprocessError):
+        return None
+
+
+def versions() -> dict[str, str | None]:
+    out: dict[str, str | None] = {"python": sys.version.split()[0],
+                                  "platform": platform.platform()}
+    for name in _PACKAGES:
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = None
+    return out
+
+
+def write_config(out_dir: Path, config: dict) -> Path:
+    """Write ``config.json`` (the given parameters plus versions, git revision and time)."""
+    out = output_dir(out_dir) / "config.json"
+    full = dict(config)
+    full.setdefault("versions", versions())
+    full.setdefault("git_revision", git_revision())
+    full.setdefault("created", datetime.now(timezone.utc).isoformat(timespec="seconds"))
+    out.write_text(json.dumps(full, indent=2, default=str) + "\n")
+    return out

@@ -1,0 +1,252 @@
+"""Shortest bouncing plans: single queries and all pairs (MODEL §6; the paper's Alg. 1-2).
+
+Examples
+--------
+>>> import envs
+>>> from planners.cells import CellSpace
+>>> nav = Navigator(CellSpace(envs.load("lab")), [90, 135])
+>>> route = nav.plan(8, 0)            # bottom-right facing east -> bottom-left facing east
+>>> str(route.plan), route.cost
+('90° 90° 00000000 90° 90°', 12.0)
+>>> nav.plan(5, 5).cost               # start == goal: empty plan, cost 0
+0.0
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+from scipy.sparse.csgraph import dijkstra
+
+from envs import UserError
+
+from .cells import CellSpace
+from .plan import Plan
+from .roadmap import Roadmap
+
+__all__ = ["Navigator", "Route", "AllPairs"]
+
+
+@dataclass(frozen=True)
+class Route:
+    """A shortest plan from one configuration to another.
+
+    Attributes
+    ----------
+    start, goal : int      configuration indices z
+    plan : Plan            the observation string
+    cost : float           total weight (w1 per step and same-angle bump, w2 per angle change)
+    path : tuple of int    configurations visited, start first and goal last
+    """
+
+    start: int
+    goal: int
+    plan: Plan
+    cost: float
+    path: tuple
+
+    @property
+    def angles_used(self) -> int:
+        return self.plan.angles_used
+
+    def to_json(self) -> dict:
+        return {"start": self.start, "goal": self.goal, "plan": self.plan.to_list(),
+                "plan_text": str(self.plan), "cost": _num(self.cost),
+                "angles_used": self.angles_used, "path": list(self.path)}
+
+
+def _num(x: float):
+    return int(x) if float(x).is_integer() else float(x)
+
+
+class Navigator:
+    """Plans on the layered roadmap of an environment's cell space.
+
+    Parameters
+    ----------
+    cells : CellSpace
+    angles : sequence of float   bouncing angles Φ [deg]
+    w1, w2 : float               edge weights (defaults: the paper's 1 and 100)
+    cache : int                  number of single-source searches kept for repeated starts
+    """
+
+    def __init__(self, cells: CellSpace, angles, w1: float = 1.0, w2: float = 100.0,
+                 cache: int = 64) -> None:
+        self.cells = cells
+        self.roadmap = Roadmap(cells, tuple(angles), w1, w2)
+        self._cache: OrderedDict[int, tuple[np.ndarray, np.ndarray]] = OrderedDict()
+        self._cache_size = cache
+
+    @property
+    def angles(self) -> tuple:
+        return self.roadmap.angles
+
+    def _check(self, z, what: str) -> int:
+        try:
+            zi = int(z)
+        except (TypeError, ValueError):
+            raise UserError(f"{what} {z!r} is not a configuration index.") from None
+        if not 0 <= zi < self.cells.N:
+            raise UserError(f"{what} {zi} is out of range: configurations are 0 to "
+                            f"{self.cells.N - 1}.")
+        return zi
+
+    def _search(self, start: int) -> tuple[np.ndarray, np.ndarray]:
+        hit = self._cache.get(start)
+        if hit is not None:
+            self._cache.move_to_end(start)
+            return hit
+        dist, pred = dijkstra(self.roadmap.graph, directed=True,
+                              indices=int(self.roadmap.start_node(start)),
+                              return_predecessors=True)
+        self._cache[start] = (dist, pred)
+        if len(self._cache) > self._cache_size:
+            self._cache.popitem(last=False)
+        return dist, pred
+
+    def plan(self, start, goal) -> Route | None:
+        """The minimum-weight plan from configuration ``start`` to ``goal``, or None."""
+        s, g = self._check(start, "start"), self._check(goal, "goal")
+        if s == g:
+            return Route(s, g, Plan(()), 0.0, (s,))
+        dist, pred = self._search(s)
+        return _route_from_tree(self.roadmap, s, g, dist, pred)
+
+    def all_pairs(self, max_bytes: float = 4e9) -> "AllPairs":
+        """Algorithm 2: every ordered pair, one Dijkstra per source (in one C call)."""
+        rm = self.roadmap
+        need = self.cells.N * rm.n_nodes * 12.0
+        if need > max_bytes:
+            raise UserError(
+                f"all pairs at N = {self.cells.N} with {rm.m} angles needs about "
+                f"{need / 1e9:.1f} GB; use fewer orientations or a larger cell size.")
+        return AllPairs(rm)
+
+
+class AllPairs:
+    """All-pairs shortest plans (Algorithm 2) from one multi-source Dijkstra call.
+
+    Attributes
+    ----------
+    weights : (N, N) float array   L[i, j], the minimum weight, -1 where unreachable, 0 on i == j
+    angles_used : (N, N) int8      distinct angles in the plan, -1 where unreachable or i == j
+    n_labels : (N, N) int32        plan length (steps + bumps), -1 where unreachable
+    """
+
+    def __init__(self, roadmap: Roadmap) -> None:
+        self.roadmap = roadmap
+        N, m = roadmap.N, roadmap.m
+        starts = roadmap.start_node(np.arange(N))
+        dist, pred = dijkstra(roadmap.graph, directed=True, indices=starts,
+                              return_predecessors=True)
+        # the best end layer for every (source, goal)
+        layer_d = dist[:, : m * N].reshape(N, m, N)
+        best = np.argmin(layer_d, axis=1)                       # (N, N) layer index
+        L = np.take_along_axis(layer_d, best[:, None, :], axis=1)[:, 0, :]
+        reach = np.isfinite(L)
+        self._dist = dist
+        self._pred = pred.astype(np.int32, copy=False)
+        self._best = best.astype(np.int16)
+        goal_nodes = best * N + np.arange(N)[None, :]
+        mask, depth = self._tree_masks()
+        rows = np.arange(N)[:, None]
+        used_bits = mask[rows, goal_nodes]
+        used = _popcount(used_bits).astype(np.int8)
+        nlab = depth[rows, goal_nodes].astype(np.int32)
+        eye = np.eye(N, dtype=bool)
+        W = np.where(reach, L, -1.0)
+        W[eye] = 0.0
+        used[~reach | eye] = -1
+        nlab[~reach] = -1
+        nlab[eye] = 0
+        self.weights = W
+        self.angles_used = used
+        self.n_labels = nlab
+
+    def _tree_masks(self) -> tuple[np.ndarray, np.ndarray]:
+        """Per (source, node): bit mask of angles used on the tree path and its edge count.
+
+        Pointer jumping over the predecessor trees of all sources at once: log2(depth)
+        rounds of vectorised gathers instead of a Python walk per pair.
+        """
+        rm = self.roadmap
+        N, P, M = rm.N, rm.cells.P, rm.n_nodes
+        pred = self._pred
+        sink = M                                                  # a root for everything
+        anc = np.where(pred < 0, sink, pred).astype(np.int32)
+        anc = np.concatenate([anc, np.full((N, 1), sink, np.int32)], axis=1)
+        nodes = np.arange(M + 1)
+        node_conf = nodes % N
+        has_parent = anc[:, :M] != sink
+        parent_conf = anc[:, :M] % N
+        bump = has_parent & ((parent_conf % P) == (node_conf[None, :M] % P))
+        layer = np.minimum(nodes[:M] // N, rm.m)                  # m for start nodes
+        bit = np.where(layer < rm.m, np.left_shift(np.uint64(1), layer.astype(np.uint64)),
+                       np.uint64(0))
+        mask = np.zeros((N, M + 1), dtype=np.uint64)
+        mask[:, :M] = np.where(bump, bit[None, :], np.uint64(0))
+        depth = np.zeros((N, M + 1), dtype=np.int32)
+        depth[:, :M] = has_parent
+        while True:
+            live = anc != sink
+            if not live.any():
+                break
+            mask |= np.take_along_axis(mask, anc, axis=1)
+            depth += np.take_along_axis(depth, anc, axis=1)
+            anc = np.take_along_axis(anc, anc, axis=1)
+        return mask, depth
+
+    @property
+    def N(self) -> int:
+        return self.roadmap.N
+
+    def route(self, i: int, j: int) -> Route | None:
+        """The plan for the pair (i, j), rebuilt from the stored predecessor trees."""
+        i, j = int(i), int(j)
+        if i == j:
+            return Route(i, j, Plan(()), 0.0, (i,))
+        return _route_from_tree(self.roadmap, i, j, self._dist[i], self._pred[i])
+
+    def histogram(self) -> np.ndarray:
+        """Counts of plans by number of angles used (0..m) over reachable pairs i != j."""
+        used = self.angles_used[self.angles_used >= 0]
+        return np.bincount(used, minlength=self.roadmap.m + 1)
+
+    @cached_property
+    def reachable_fraction(self) -> float:
+        N = self.N
+        return float((self.weights[~np.eye(N, dtype=bool)] >= 0).mean()) if N > 1 else 1.0
+
+
+def _route_from_tree(rm: Roadmap, s: int, g: int, dist: np.ndarray, pred: np.ndarray
+                     ) -> Route | None:
+    N, m = rm.N, rm.m
+    goal_nodes = np.arange(m) * N + g
+    d = dist[goal_nodes]
+    b = int(np.argmin(d))
+    if not np.isfinite(d[b]):
+        return None
+    node = int(goal_nodes[b])
+    root = int(rm.start_node(s))
+    nodes = [node]
+    while node != root:
+        node = int(pred[node])
+        if node < 0:  # pragma: no cover - a tree without its root would be a bug
+            raise RuntimeError("broken predecessor tree")
+        nodes.append(node)
+    nodes.reverse()
+    labels = rm.labels_of_path(nodes)
+    path = tuple(int(z) for z in rm.config_of(nodes))
+    return Route(s, g, Plan(tuple(labels)), float(d[b]), path)
+
+
+def _popcount(x: np.ndarray) -> np.ndarray:
+    x = x.astype(np.uint64, copy=True)
+    count = np.zeros(x.shape, dtype=np.int64)
+    while x.any():
+        count += (x & np.uint64(1)).astype(np.int64)
+        x >>= np.uint64(1)
+    return count

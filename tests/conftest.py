@@ -1,0 +1,40 @@
+"""Shared fixtures: small hand-made environments whose answers can be worked out on paper."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from envs import Environment
+
+
+def room(cols: int, rows: int, obstacles=(), K: int = 8, h: float = 0.34,
+         name: str = "room") -> Environment:
+    """A cols x rows cell rectangle (cell h = 2 r) with grid-aligned obstacles given as
+    (i0, j0, i1, j1) cell ranges (inclusive-exclusive)."""
+    W, H = cols * h, rows * h
+    obs = [[[i0 * h, j0 * h], [i1 * h, j0 * h], [i1 * h, j1 * h], [i0 * h, j1 * h]]
+           for (i0, j0, i1, j1) in obstacles]
+    return Environment.from_dict({
+        "name": name, "boundary": [[0, 0], [W, 0], [W, H], [0, H]], "obstacles": obs,
+        "robot_radius": h / 2, "discretization": {"cell_size": h, "orientations": K}})
+
+
+def random_room(rng: np.random.Generator, K: int = 8) -> Environment:
+    """A small random rectilinear room with a few random (possibly wall-touching) blocks."""
+    cols, rows = int(rng.integers(3, 7)), int(rng.integers(2, 6))
+    obs = []
+    for _ in range(int(rng.integers(0, 3))):
+        i0, j0 = int(rng.integers(0, cols)), int(rng.integers(0, rows))
+        obs.append((i0, j0, min(cols, i0 + int(rng.integers(1, 3))),
+                    min(rows, j0 + int(rng.integers(1, 3)))))
+    try:
+        return room(cols, rows, obs, K=K, name="random")
+    except ValueError:
+        return room(cols, rows, (), K=K, name="random")
+
+
+@pytest.fixture
+def corridor():
+    """A 3 x 1 cell corridor at K = 4: P = 3, N = 12."""
+    return room(3, 1, K=4, name="corridor")
