@@ -150,7 +150,7 @@ class AllPairs:
         self._dist = dist
         self._pred = pred.astype(np.int32, copy=False)
         self._best = best.astype(np.int16)
-        goal_nodes = best * N + np.arange(N)[None, :]
+        goal_nodes = best.astype(np.int64) * N + np.arange(N)[None, :]
         mask, depth = self._tree_masks()
         rows = np.arange(N)[:, None]
         used_bits = mask[rows, goal_nodes]
@@ -167,37 +167,44 @@ class AllPairs:
         self.n_labels = nlab
 
     def _tree_masks(self) -> tuple[np.ndarray, np.ndarray]:
-        """Per (source, node): bit mask of angles used on the tree path and its edge count.
+        """Per (source, layer node): bit mask of the angles used on the tree path from the
+        source, and the path's edge count.
 
         Pointer jumping over the predecessor trees of all sources at once: log2(depth)
-        rounds of vectorised gathers instead of a Python walk per pair.
+        rounds of vectorised gathers instead of a Python walk per pair. Start nodes have no
+        in-edges, so the only one in a tree is its root; columns stop at the layer nodes and
+        one extra "sink" column stands for the root and for unreached nodes.
         """
         rm = self.roadmap
-        N, P, M = rm.N, rm.cells.P, rm.n_nodes
-        pred = self._pred
-        sink = M                                                  # a root for everything
-        anc = np.where(pred < 0, sink, pred).astype(np.int32)
-        anc = np.concatenate([anc, np.full((N, 1), sink, np.int32)], axis=1)
-        nodes = np.arange(M + 1)
-        node_conf = nodes % N
-        has_parent = anc[:, :M] != sink
-        parent_conf = anc[:, :M] % N
-        bump = has_parent & ((parent_conf % P) == (node_conf[None, :M] % P))
-        layer = np.minimum(nodes[:M] // N, rm.m)                  # m for start nodes
-        bit = np.where(layer < rm.m, np.left_shift(np.uint64(1), layer.astype(np.uint64)),
-                       np.uint64(0))
-        mask = np.zeros((N, M + 1), dtype=np.uint64)
-        mask[:, :M] = np.where(bump, bit[None, :], np.uint64(0))
-        depth = np.zeros((N, M + 1), dtype=np.int32)
+        N, P, m = rm.N, rm.cells.P, rm.m
+        M = m * N                                                 # layer nodes
+        sink = M
+        pred = self._pred[:, :M]
+        parent = np.where((pred < 0) | (pred >= M), sink, pred)  # root or unreached -> sink
+        has_parent = pred >= 0
+        node_p = np.arange(M) % N % P
+        bump = has_parent & ((pred % N % P) == node_p[None, :])
+        bit_t = np.uint8 if m <= 8 else np.uint64
+        bits = np.left_shift(1, np.arange(M) // N).astype(bit_t)
+        width = M + 1
+        off = (np.arange(N, dtype=np.int64) * width)[:, None]
+        anc = np.empty((N, width), dtype=np.int64)
+        anc[:, :M] = parent + off
+        anc[:, M] = sink + off[:, 0]
+        mask = np.zeros((N, width), dtype=bit_t)
+        mask[:, :M] = np.where(bump, bits[None, :], 0)
+        depth = np.zeros((N, width), dtype=np.int32)
         depth[:, :M] = has_parent
-        while True:
-            live = anc != sink
-            if not live.any():
-                break
-            mask |= np.take_along_axis(mask, anc, axis=1)
-            depth += np.take_along_axis(depth, anc, axis=1)
-            anc = np.take_along_axis(anc, anc, axis=1)
-        return mask, depth
+        mask, depth, anc = mask.ravel(), depth.ravel(), anc.ravel()
+        sinks = (np.arange(N, dtype=np.int64) * width + sink)
+        live = np.nonzero(~np.isin(anc, sinks))[0]
+        while live.size:
+            a = anc[live]
+            mask[live] |= mask[a]
+            depth[live] += depth[a]
+            anc[live] = anc[a]
+            live = live[(anc[live] % width) != sink]
+        return mask.reshape(N, width), depth.reshape(N, width)
 
     @property
     def N(self) -> int:

@@ -1,0 +1,136 @@
+"""Navigation hot paths on `complex` at 8 orientations, beside a straightforward networkx
+version measured in the same run.
+
+    python -m benchmarks.bench_navigation [--env complex] [--angles 45,90,135] [--ref-sources 0]
+
+Rows: roadmap build (step table + sparse layered graph), one plan query (cold: a fresh
+single-source search), all pairs with the angle-use histogram. The networkx reference builds
+an nx.DiGraph over (z, a) nodes and runs one multi-source Dijkstra (with paths) per source;
+``--ref-sources K`` times K random sources and extrapolates to all N (0 = all sources).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import networkx as nx
+import numpy as np
+
+import envs
+from planners.cells import CellSpace
+from planners.navigation import Navigator
+
+
+def best_of(fn, repeat: int):
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - t0)
+    return min(times), out
+
+
+def nx_build(cells: CellSpace, angles):
+    G = nx.DiGraph()
+    m = len(angles)
+    steps = [int(round(a / cells.delta_deg)) for a in angles]
+    fwd = cells.forward
+    for z in range(cells.N):
+        p, k = z % cells.P, z // cells.P
+        for a in range(m):
+            if fwd[z] >= 0:
+                G.add_edge((z, a), (int(fwd[z]), a), weight=1.0)
+            else:
+                for b in range(m):
+                    G.add_edge((z, a), (((k + steps[b]) % cells.K) * cells.P + p, b),
+                               weight=1.0 if a == b else 100.0)
+    return G
+
+
+def nx_from_source(G, cells, angles, s):
+    dist, paths = nx.multi_source_dijkstra(G, [(s, a) for a in range(len(angles))])
+    best: dict[int, tuple[float, list]] = {}
+    for (z, _b), d in dist.items():
+        if z not in best or d < best[z][0]:
+            best[z] = (d, paths[(z, _b)])
+    hist = np.zeros(len(angles) + 1, dtype=np.int64)
+    for z, (d, path) in best.items():
+        if z == s:
+            continue
+        used = {path[i + 1][1] for i in range(len(path) - 1)
+                if path[i + 1][0] % cells.P == path[i][0] % cells.P}
+        hist[len(used)] += 1
+    return hist
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--env", default="complex")
+    ap.add_argument("--orientations", type=int, default=8)
+    ap.add_argument("--angles", default="45,90,135")
+    ap.add_argument("--ref-sources", type=int, default=0,
+                    help="time the networkx all-pairs on this many sources and extrapolate "
+                    "(0: all)")
+    ap.add_argument("--repeat", type=int, default=3)
+    args = ap.parse_args(argv)
+    angles = [float(a) for a in args.angles.split(",")]
+    env = envs.load(args.env, orientations=args.orientations)
+
+    def build():
+        cells = CellSpace(env.with_discretization())   # fresh caches every time
+        nav = Navigator(cells, angles)
+        nav.roadmap.graph
+        return nav
+    t_build, nav = best_of(build, args.repeat)
+    cells = nav.cells
+    rng = np.random.default_rng(0)
+    pairs = rng.integers(0, cells.N, size=(50, 2))
+
+    def one_query():
+        for s, g in pairs:
+            nav._cache.clear()
+            nav.plan(s, g)
+    t_q, _ = best_of(one_query, args.repeat)
+    t_q /= len(pairs)
+    t_all, hist = best_of(lambda: nav.all_pairs().histogram(),
+                          max(1, args.repeat - 1))
+
+    t0 = time.perf_counter()
+    G = nx_build(cells, angles)
+    t_nx_build = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    for s, g in pairs[:10]:
+        d = nx.multi_source_dijkstra_path_length(G, [(s, a) for a in range(len(angles))])
+        min((v for (z, _b), v in d.items() if z == g), default=None)
+    t_nx_q = (time.perf_counter() - t0) / 10
+    sources = (np.arange(cells.N) if args.ref_sources <= 0 else
+               rng.choice(cells.N, size=min(args.ref_sources, cells.N), replace=False))
+    t0 = time.perf_counter()
+    nx_hist = np.zeros(len(angles) + 1, dtype=np.int64)
+    for s in sources:
+        nx_hist += nx_from_source(G, cells, angles, int(s))
+    t_nx_all = (time.perf_counter() - t0) * cells.N / len(sources)
+    extrap = "" if len(sources) == cells.N else f" (extrapolated from {len(sources)} sources)"
+
+    print(f"{args.env}: P = {cells.P}, K = {cells.K}, N = {cells.N}, "
+          f"Φ = {args.angles}, roadmap nodes = {nav.roadmap.n_nodes}, "
+          f"edges = {nav.roadmap.graph.nnz}")
+    print(f"{'operation':<28}{'bouncesim':>12}{'networkx':>12}{'speed-up':>10}{'target':>10}")
+    for name, ours, ref, target in (
+            ("roadmap build", t_build, t_nx_build, "0.5 s"),
+            ("one plan query", t_q, t_nx_q, "20 ms"),
+            ("all pairs + histogram", t_all, t_nx_all, "3 s")):
+        print(f"{name:<28}{_fmt(ours):>12}{_fmt(ref):>12}{ref / ours:>9.0f}x{target:>10}")
+    print(f"histogram (angles used 0..m): {hist.tolist()}{extrap}")
+    if len(sources) == cells.N:
+        print(f"networkx histogram:           {nx_hist.tolist()} "
+              f"(equal totals: {nx_hist.sum() == hist.sum()}; ties may split differently)")
+
+
+def _fmt(t: float) -> str:
+    return f"{t * 1e3:.1f} ms" if t < 1 else f"{t:.2f} s"
+
+
+if __name__ == "__main__":
+    main()
