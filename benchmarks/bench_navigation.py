@@ -55,7 +55,7 @@ def nx_from_source(G, cells, angles, s):
         if z not in best or d < best[z][0]:
             best[z] = (d, paths[(z, _b)])
     hist = np.zeros(len(angles) + 1, dtype=np.int64)
-    for z, (d, path) in best.items():
+    for z, (_d, path) in best.items():
         if z == s:
             continue
         used = {path[i + 1][1] for i in range(len(path) - 1)
@@ -80,7 +80,7 @@ def main(argv=None) -> None:
     def build():
         cells = CellSpace(env.with_discretization())   # fresh caches every time
         nav = Navigator(cells, angles)
-        nav.roadmap.graph
+        _ = nav.roadmap.graph
         return nav
     t_build, nav = best_of(build, args.repeat)
     cells = nav.cells
@@ -101,8 +101,8 @@ def main(argv=None) -> None:
     t_nx_build = time.perf_counter() - t0
     t0 = time.perf_counter()
     for s, g in pairs[:10]:
-        d = nx.multi_source_dijkstra_path_length(G, [(s, a) for a in range(len(angles))])
-        min((v for (z, _b), v in d.items() if z == g), default=None)
+        dist = nx.multi_source_dijkstra_path_length(G, [(s, a) for a in range(len(angles))])
+        min((v for (z, _b), v in dist.items() if z == g), default=None)
     t_nx_q = (time.perf_counter() - t0) / 10
     sources = (np.arange(cells.N) if args.ref_sources <= 0 else
                rng.choice(cells.N, size=min(args.ref_sources, cells.N), replace=False))

@@ -12,7 +12,7 @@ import sys
 
 from envs import UserError
 
-__all__ = ["main", "build_parser"]
+__all__ = ["build_parser", "main"]
 
 # Sub-command modules, in the order --help lists them. Each defines
 # ``register(subparsers)``, which adds a parser whose ``func(args)`` returns the exit status.

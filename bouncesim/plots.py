@@ -7,9 +7,10 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.patches import FancyArrow, Polygon as MplPolygon  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.patches import FancyArrow
+from matplotlib.patches import Polygon as MplPolygon
 
 __all__ = ["angle_use_bars", "draw_env", "draw_route"]
 

@@ -15,7 +15,7 @@ import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 
-__all__ = ["Robot", "RobotSpec", "CREATE2", "BumpEvent", "RobotError"]
+__all__ = ["CREATE2", "BumpEvent", "Robot", "RobotError", "RobotSpec"]
 
 
 class RobotError(RuntimeError):
@@ -150,7 +150,7 @@ class Robot(ABC):
         """(x [m], y [m], heading [deg]) for logging in simulation; None on hardware."""
         return None
 
-    def __enter__(self) -> "Robot":
+    def __enter__(self) -> Robot:
         return self
 
     def __exit__(self, *exc) -> None:

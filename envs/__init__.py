@@ -14,7 +14,7 @@ from pathlib import Path
 from .environment import Environment
 from .errors import InvalidEnvironment, UserError
 
-__all__ = ["Environment", "InvalidEnvironment", "UserError", "load", "names", "CATALOG_DIR"]
+__all__ = ["CATALOG_DIR", "Environment", "InvalidEnvironment", "UserError", "load", "names"]
 
 CATALOG_DIR = Path(__file__).with_name("catalog")
 

@@ -97,7 +97,7 @@ class Environment:
     # ------------------------------------------------------------------ construction
     @classmethod
     def from_dict(cls, data: dict, *, name: str | None = None,
-                  source: str | None = None) -> "Environment":
+                  source: str | None = None) -> Environment:
         """Validate a parsed env file (MODEL §2) and build the environment."""
         if not isinstance(data, dict):
             raise InvalidEnvironment("an environment file must hold a JSON/YAML object.")
@@ -140,7 +140,7 @@ class Environment:
         return env
 
     @classmethod
-    def from_file(cls, path: str | Path) -> "Environment":
+    def from_file(cls, path: str | Path) -> Environment:
         """Load a JSON (or YAML) env file."""
         path = Path(path)
         try:
@@ -187,7 +187,7 @@ class Environment:
                 f"at cell size {self.cell_size} m.")
 
     def with_discretization(self, cell_size: float | None = None,
-                            orientations: int | None = None) -> "Environment":
+                            orientations: int | None = None) -> Environment:
         """A copy with another cell size [m] and/or orientation count."""
         return replace(self,
                        cell_size=self.cell_size if cell_size is None else cell_size,

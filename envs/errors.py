@@ -1,6 +1,6 @@
 """The one error type a user can cause: it carries a one-sentence message."""
 
-__all__ = ["UserError", "InvalidEnvironment"]
+__all__ = ["InvalidEnvironment", "UserError"]
 
 
 class UserError(ValueError):

@@ -18,7 +18,7 @@ from planners.navigation import Navigator
 
 from .common import experiment_parser, output_dir, write_config
 
-__all__ = ["main", "claims"]
+__all__ = ["claims", "main"]
 
 
 def claims(env_name: str, counts: np.ndarray) -> list[tuple[str, bool]]:

@@ -7,11 +7,11 @@ import json
 import platform
 import subprocess
 import sys
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from importlib import metadata
 from pathlib import Path
 
-__all__ = ["experiment_parser", "output_dir", "write_config", "git_revision", "versions"]
+__all__ = ["experiment_parser", "git_revision", "output_dir", "versions", "write_config"]
 
 _PACKAGES = ["numpy", "scipy", "shapely", "networkx", "pandas", "matplotlib", "pybullet",
              "bouncesim"]
@@ -67,6 +67,6 @@ def write_config(out_dir: Path, config: dict) -> Path:
     full = dict(config)
     full.setdefault("versions", versions())
     full.setdefault("git_revision", git_revision())
-    full.setdefault("created", datetime.now(timezone.utc).isoformat(timespec="seconds"))
+    full.setdefault("created", datetime.now(UTC).isoformat(timespec="seconds"))
     out.write_text(json.dumps(full, indent=2, default=str) + "\n")
     return out

@@ -19,7 +19,7 @@ from planners.plan import Plan
 
 from .common import experiment_parser, output_dir, write_config
 
-__all__ = ["main", "PAPER_PLANS", "QUERIES"]
+__all__ = ["PAPER_PLANS", "QUERIES", "main"]
 
 QUERIES = [("plan 1", 9, 1), ("plan 2", 104, 9)]     # (label, paper start id, paper goal id)
 PAPER_PLANS = {"plan 1": None,   # the paper prints no string for plan 1: it "uses only 90°"
@@ -104,7 +104,8 @@ def main(argv=None) -> int:
     for _, r in table.iterrows():
         print(f"{r['plan']} (id {r['start_id']} → id {r['goal_id']}):")
         print(f"   ours : {r['ours']}   (cost {r['cost']:g}, angles {r['angles_used']})")
-        print(f"   paper: {r['paper'] if isinstance(r['paper'], str) else '(not printed)'}   (angles {r['paper_angles']})"
+        paper = r["paper"] if isinstance(r["paper"], str) else "(not printed)"
+        print(f"   paper: {paper}   (angles {r['paper_angles']})"
               f"  -> same angle set: {'yes' if r['same_angles_as_paper'] else 'no'}")
     config = {"experiment": "nav_fig3", "env": "lab", "angles": angles, "w1": 1.0,
               "w2": 100.0, "seed": args.seed, "quick": args.quick}

@@ -27,7 +27,7 @@ from .cells import CellSpace
 from .plan import Plan
 from .roadmap import Roadmap
 
-__all__ = ["Navigator", "Route", "AllPairs"]
+__all__ = ["AllPairs", "Navigator", "Route"]
 
 
 @dataclass(frozen=True)
@@ -115,7 +115,7 @@ class Navigator:
         dist, pred = self._search(s)
         return _route_from_tree(self.roadmap, s, g, dist, pred)
 
-    def all_pairs(self, max_bytes: float = 4e9) -> "AllPairs":
+    def all_pairs(self, max_bytes: float = 4e9) -> AllPairs:
         """Algorithm 2: every ordered pair, one Dijkstra per source (in one C call)."""
         rm = self.roadmap
         need = self.cells.N * rm.n_nodes * 12.0

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 from envs import UserError
 
-__all__ = ["Plan", "PolicyMix", "PlanParseError"]
+__all__ = ["Plan", "PlanParseError", "PolicyMix"]
 
 
 class PlanParseError(UserError):
@@ -53,7 +53,7 @@ class Plan:
 
     # ------------------------------------------------------------------ parsing/printing
     @classmethod
-    def parse(cls, text: str) -> "Plan":
+    def parse(cls, text: str) -> Plan:
         """Parse the paper's form (``000000 135° 90°``) or the plain one (``0 0 135 90``).
 
         A token of zeros only (``000``) is that many steps; any other number is an angle,

@@ -23,7 +23,7 @@ def replay(cs: CellSpace, start: int, plan: Plan, angles, w1=1.0, w2=100.0):
     """Run a plan through the step model; return (final z, cost), or None if it is
     inconsistent (a 0 where the robot bumps or an angle where it moves)."""
     z, cost, cur = start, 0.0, None
-    for i, lab in enumerate(plan.labels):
+    for lab in plan.labels:
         if lab == 0:
             if cs.forward[z] < 0:
                 return None

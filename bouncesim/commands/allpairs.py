@@ -12,7 +12,7 @@ import pandas as pd
 from .common import add_env_args
 from .plan import add_planner_args, make_navigator
 
-__all__ = ["register", "run", "histogram_frame"]
+__all__ = ["histogram_frame", "register", "run"]
 
 
 def register(sub) -> None:

@@ -12,7 +12,7 @@ from planners.navigation import Navigator
 
 from .common import add_env_args, load_env, parse_angles, print_json
 
-__all__ = ["register", "run", "parse_config", "add_planner_args", "make_navigator"]
+__all__ = ["add_planner_args", "make_navigator", "parse_config", "register", "run"]
 
 EXIT_NO_PATH = 3
 

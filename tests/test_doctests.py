@@ -1,0 +1,19 @@
+"""The docstring examples are runnable: run them."""
+
+from __future__ import annotations
+
+import doctest
+import importlib
+
+import pytest
+
+MODULES = ["envs", "envs.environment", "planners.cells", "planners.plan", "planners.roadmap",
+           "planners.navigation", "bouncesim.commands.plan"]
+
+
+@pytest.mark.parametrize("name", MODULES)
+def test_doctests(name):
+    mod = importlib.import_module(name)
+    result = doctest.testmod(mod, optionflags=doctest.ELLIPSIS)
+    assert result.attempted > 0, f"{name} has no examples"
+    assert result.failed == 0
