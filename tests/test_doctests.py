@@ -8,7 +8,7 @@ import importlib
 import pytest
 
 MODULES = ["envs", "envs.environment", "planners.cells", "planners.plan", "planners.roadmap",
-           "planners.navigation", "bouncesim.commands.plan"]
+           "planners.navigation", "bouncesim.commands.plan", "bouncesim.pybullet_world"]
 
 
 @pytest.mark.parametrize("name", MODULES)

@@ -1,0 +1,151 @@
+"""Speed and accuracy of the PyBullet Create 2 at several physics settings, beside a
+straightforward reference measured in the same run.
+
+    python -m benchmarks.bench_pybullet [--env lab] [--sim-seconds 60] [--angle 135]
+                                        [--repeat 2]
+
+Every row runs the same bounce loop: from the centre of cell 0 facing east, drive at 0.2 m/s
+until the bumper closes, turn CCW by ``--angle`` (by clock), repeat until ``--sim-seconds``
+of simulated time have passed. Columns:
+
+- ``setting``: physics rate, constraint solver (SI = PyBullet's default sequential impulse
+  with its iteration count, or Bullet's exact Dantzig MLCP solver);
+- ``step [ms]``, ``poll``: how often the bumper (the contact points) is read: every physics
+  step or every 15 ms sensor period;
+- ``rt wall`` and ``rt CPU``: simulated seconds per wall-clock second and per second of the
+  process's CPU time (the robot's construction is not timed; on an idle machine the two
+  agree, on a shared one the CPU figure is the robot's own speed); best of ``--repeat``
+  runs;
+- ``bumps``, ``gap mean/max [mm]``: at each bump, distance from the simulated body's edge to
+  the nearest wall (negative = penetration), from the exact polygon geometry;
+- ``turn |err| [deg]``: mean absolute difference between the body's heading change and the
+  commanded turn;
+- ``scrape [deg/m]``: heading change over 1 m of driving along a wall on the robot's left
+  with the heading 1° into it (0 for an ideal symmetric robot; the sequential-impulse solver's
+  constraint ordering turns the robot into the wall).
+
+The reference is PyBullet's defaults (240 Hz, sequential-impulse solver with 50 iterations)
+with the contacts read after every physics step; the other rows poll every 15 ms. A second
+table gives the turn accuracy of the default settings by clock and by encoders.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+import shapely
+
+import envs
+from bouncesim.pybullet_world import PyBulletRobot
+
+ROWS = [  # (label, time step [s], solver, solver iterations, poll every step?)
+    ("reference (PyBullet defaults)", 1 / 240, "si", 50, True),
+    ("240 Hz, SI 50 it", 1 / 240, "si", 50, False),
+    ("200 Hz, SI 50 it", 1 / 200, "si", 50, False),
+    ("200 Hz, SI 20 it", 1 / 200, "si", 20, False),
+    ("200 Hz, SI 10 it", 1 / 200, "si", 10, False),
+    ("400 Hz, Dantzig", 1 / 400, "dantzig", 10, False),
+    ("240 Hz, Dantzig", 1 / 240, "dantzig", 10, False),
+    ("200 Hz, Dantzig (default)", 1 / 200, "dantzig", 10, False),
+    ("133 Hz, Dantzig", 0.0075, "dantzig", 10, False),
+    ("100 Hz, Dantzig", 1 / 100, "dantzig", 10, False),
+]
+
+
+def bounce_loop(bot: PyBulletRobot, sim_seconds: float, angle: float, every_step: bool,
+                speed: float = 0.2):
+    """Run the bounce loop; return (wall seconds, CPU seconds, gaps [m], turn errors [deg])."""
+    walls = bot.env.walls
+    gaps, turn_err = [], []
+    t0, w0 = time.process_time(), time.perf_counter()
+    while bot.clock() < sim_seconds:
+        if every_step:
+            bot.drive(speed)
+            while not any(bot.bumper()) and bot.clock() < sim_seconds:
+                bot.wait(bot.time_step)
+            bot.stop()
+        else:
+            bot.drive_until_bump(speed, sim_seconds - bot.clock() + 1e-9)
+        if bot.clock() >= sim_seconds:
+            break
+        x, y, h0 = bot.true_pose()
+        gaps.append(shapely.distance(shapely.points(x, y), walls) - bot.body_radius)
+        bot.turn(angle)
+        h1 = bot.true_pose()[2]
+        turn_err.append((h1 - h0 - angle + 180) % 360 - 180)
+    return (time.perf_counter() - w0, time.process_time() - t0, np.array(gaps),
+            np.array(turn_err))
+
+
+def scrape_drift(bot: PyBulletRobot, speed: float = 0.2, dist: float = 1.0) -> float:
+    """Heading change [deg] over ``dist`` [m] of driving along the wall on the robot's left
+    with the heading 1° into it (an ideal symmetric robot keeps its heading)."""
+    x0, y0, x1, y1 = bot.env.bounds
+    bot.place(x0 + 0.25, y1 - bot.body_radius - 0.0005, 1.0)
+    bot.drive(speed)
+    bot.wait(dist / speed)
+    bot.stop()
+    return bot.true_pose()[2] - 1.0
+
+
+def turn_accuracy(env, mode: str, n: int = 20) -> np.ndarray:
+    """|error| [deg] of n bump-and-turn cycles (angles 45, 90, 135, 30, 75, 315 in turn) from
+    the centre of cell 0 facing east."""
+    angles = [45, 90, 135, 30, 75, 315]
+    errs = []
+    with PyBulletRobot(env, turn=mode) as bot:
+        for i in range(n):
+            a = angles[i % len(angles)]
+            if i % 2:
+                bot.drive_until_bump(0.2, 30.0)
+            h0 = bot.true_pose()[2]
+            bot.turn(a)
+            errs.append((bot.true_pose()[2] - h0 - a + 180) % 360 - 180)
+    return np.abs(errs)
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(prog="python -m benchmarks.bench_pybullet",
+                                 description=__doc__.split("\n\n")[0])
+    ap.add_argument("--env", default="lab")
+    ap.add_argument("--sim-seconds", type=float, default=60.0)
+    ap.add_argument("--angle", type=float, default=135.0)
+    ap.add_argument("--repeat", type=int, default=2)
+    args = ap.parse_args(argv)
+    env = envs.load(args.env)
+    print(f"env {env.name}, {args.sim_seconds:g} s simulated per row, bounce angle "
+          f"{args.angle:g}°, drive 0.2 m/s, turns by clock at 0.1 m/s")
+    head = (f"{'setting':<30} {'step [ms]':>9} {'poll':>6} {'rt wall':>7} {'rt CPU':>6} "
+            f"{'bumps':>5} {'gap mean [mm]':>13} {'gap max':>8} {'gap min':>8} "
+            f"{'turn |err| [deg]':>16} {'scrape [deg/m]':>14} {'vs ref':>6}")
+    print(head)
+    print("-" * len(head))
+    ref = None
+    for label, ts, solver, iters, every in ROWS:
+        rtf = rtw = 0.0
+        for _ in range(max(1, args.repeat)):   # deterministic: every repeat is the same run
+            with PyBulletRobot(env, time_step=ts, solver=solver,
+                               solver_iterations=iters) as bot:
+                wall, cpu, gaps, errs = bounce_loop(bot, args.sim_seconds, args.angle, every)
+                rtf = max(rtf, bot.clock() / cpu)
+                rtw = max(rtw, bot.clock() / wall)
+                drift = scrape_drift(bot)
+        ref = ref or rtf
+        poll = "step" if every else "15 ms"
+        print(f"{label:<30} {ts * 1e3:9.2f} {poll:>6} {rtw:7.0f} {rtf:6.0f} {len(gaps):5d} "
+              f"{gaps.mean() * 1e3:13.2f} {gaps.max() * 1e3:8.2f} {gaps.min() * 1e3:8.2f} "
+              f"{np.abs(errs).mean():16.3f} {drift:14.2f} {rtf / ref:5.1f}x")
+    print("(rt = simulated seconds per wall-clock / CPU second; vs ref compares rt CPU; "
+          "gap = body edge to the nearest wall at the bump, negative = penetration)")
+    print()
+    print("default settings, 20 bump-and-turn cycles (45, 90, 135, 30, 75, 315°):")
+    print(f"{'turn by':<10} {'mean |err| [deg]':>16} {'max |err| [deg]':>15}")
+    for mode in ("clock", "encoders"):
+        e = turn_accuracy(env, mode)
+        print(f"{mode:<10} {e.mean():16.3f} {e.max():15.3f}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,193 @@
+"""``bouncesim coverage ENV``: persistent groups, limiting distributions and the best policy mix.
+
+The paper's Algorithm 3 (MODEL §7): for every bouncing angle, the Markov chain of the
+noisy bouncing robot, its persistent groups, its limiting distribution π and coverage q;
+then the mix α over the angles whose mixed coverage best matches a target.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from envs import UserError
+from planners.cells import CellSpace
+from planners.coverage import (TARGET_FORMATS, CoverageResult, bump_turns, check_reliability,
+                               coverage_pipeline, load_target)
+
+from .common import add_env_args, load_env, parse_angles
+
+__all__ = ["register", "run", "write_outputs", "format_table"]
+
+DESCRIPTION = """\
+For every bouncing angle: the Markov chain of the bouncing robot with rotation noise (turn by
+exactly the angle with probability r, otherwise by the angle plus a uniform non-zero multiple
+of 360/K up to +-eps), its persistent groups (closed classes), its limiting distribution from
+a uniform start and the coverage q (probability of each position cell). Then the policy mix
+alpha (alpha >= 0, sum 1) minimising the 2-norm ||A alpha - b|| between the mixed coverage and
+the target b.
+
+Writes to --out: coverage.csv (columns angle,p,i,j,x,y,q; angle = each bouncing angle, "mix"
+for A alpha and "target" for b, over position cells), alpha.json (angles, alpha, residual =
+||A alpha - b||_2 not squared, tv = 0.5 ||A alpha - b||_1, and per angle the persistent
+groups, their sizes and the transient fraction), heatmap_angle_<A>.png per angle and
+heatmap_mix_vs_target.png. With --target-space configurations also
+coverage_configurations.csv (angle,z,p,k,pi).
+"""
+
+EXAMPLES = """\
+examples:
+  bouncesim coverage complex --orientations 360 --angles 30,75,315 --eps 5 --r 0.8 --out out/
+  bouncesim coverage lab --angles 90,135 --target my_target.csv --out out/
+
+""" + TARGET_FORMATS
+
+
+def register(sub) -> None:
+    import argparse
+    p = sub.add_parser("coverage", help="coverage of bouncing policies and the best policy mix",
+                       description=DESCRIPTION, epilog=EXAMPLES,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_env_args(p)
+    p.add_argument("--angles", required=True, metavar="A1,A2,...",
+                   help="bouncing angles [deg], multiples of 360/K")
+    p.add_argument("--eps", type=float, default=0.0, metavar="DEG",
+                   help="rotation error range eps [deg], a multiple of 360/K (default 0)")
+    p.add_argument("--r", type=float, default=1.0, metavar="R",
+                   help="reliability: probability of turning by exactly the angle, in [0, 1] "
+                   "(default 1)")
+    p.add_argument("--target", type=Path, default=None, metavar="FILE",
+                   help="target distribution file (formats below; default uniform)")
+    p.add_argument("--target-space", choices=("positions", "configurations"),
+                   default="positions",
+                   help="match the target over position cells (coverage q, default) or over "
+                   "configuration cells (limiting distribution pi)")
+    p.add_argument("--out", type=Path, default=None, metavar="DIR",
+                   help="output folder (CSV, JSON, PNG); without it only the table is printed")
+    p.add_argument("--no-plots", action="store_true", help="skip the PNG heatmaps")
+    p.add_argument("--json", action="store_true",
+                   help="print alpha.json's content instead of the table")
+    p.set_defaults(func=run)
+
+
+def _progress(total: int):
+    try:
+        from tqdm import tqdm
+    except ImportError:                          # pragma: no cover - tqdm is a dependency
+        return None
+
+    def wrap(it):
+        # delay: nothing is shown for short runs; disable=None: only on a terminal.
+        return tqdm(it, total=total, desc="chains", unit="angle", file=sys.stderr,
+                    delay=1.0, disable=None, leave=False)
+    return wrap
+
+
+def run(args) -> int:
+    env = load_env(args)
+    cs = CellSpace(env)
+    angles = parse_angles(args.angles)
+    r = check_reliability(args.r)
+    for a in angles:                          # fail fast, before any heavy work
+        bump_turns(cs.K, a, args.eps, r)
+    target, target_desc = None, f"uniform over {args.target_space}"
+    if args.target is not None:
+        target = load_target(args.target, cs, args.target_space)
+        target_desc = str(args.target)
+    result = coverage_pipeline(cs, angles, args.eps, r, target=target,
+                               space=args.target_space, progress=_progress(len(angles)))
+    summary = summarise(result, cs, env.name, target_desc)
+    if args.out is not None:
+        write_outputs(result, cs, args.out, summary, plots=not args.no_plots)
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        print(format_table(summary))
+        if args.out is not None:
+            print(f"wrote {args.out}/coverage.csv, alpha.json"
+                  + ("" if args.no_plots else " and heatmaps"))
+    return 0
+
+
+def summarise(result: CoverageResult, cs: CellSpace, env_name: str, target_desc: str) -> dict:
+    """The content of alpha.json."""
+    return {
+        "env": env_name, "K": cs.K, "P": cs.P, "N": cs.N, "cell_size": cs.h,
+        "eps": _num(result.eps), "r": result.r,
+        "target": target_desc, "target_space": result.space,
+        "angles": [_num(a) for a in result.angles],
+        "alpha": [float(a) for a in result.alpha],
+        "residual": result.mix.residual,
+        "residual_norm": "Euclidean 2-norm ||A alpha - b||_2 (not squared)",
+        "tv": result.mix.tv,
+        "solver": result.mix.method,
+        "per_angle": [a.summary() for a in result.per_angle],
+    }
+
+
+def format_table(summary: dict) -> str:
+    """A short human-readable table of alpha.json's content."""
+    lines = [f"{summary['env']}: K={summary['K']} P={summary['P']} N={summary['N']} "
+             f"eps={summary['eps']}° r={summary['r']} target={summary['target']}",
+             f"{'angle':>7} {'alpha':>10} {'groups':>7} {'largest':>8} {'transient':>10}"]
+    for a, pa in zip(summary["alpha"], summary["per_angle"]):
+        largest = max(pa["group_sizes"]) if pa["group_sizes"] else 0
+        lines.append(f"{str(pa['angle']) + '°':>7} {a:10.6f} {pa['persistent_groups']:7d} "
+                     f"{largest:8d} {100 * pa['transient_fraction']:9.1f}%")
+    lines.append(f"residual ||A alpha - b||_2 = {summary['residual']:.6g}, "
+                 f"TV = {summary['tv']:.6g}")
+    return "\n".join(lines)
+
+
+def write_outputs(result: CoverageResult, cs: CellSpace, out_dir, summary: dict,
+                  plots: bool = True) -> Path:
+    """Write coverage.csv, alpha.json (and the heatmaps) into out_dir."""
+    out = Path(out_dir)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UserError(f"cannot create the output folder {out} ({exc.strerror}).") from None
+    ij, xy = cs.cells_ij, cs.centres
+    mixed = result.mixed_q()
+    target_q = result.target if result.space == "positions" else \
+        result.target.reshape(cs.K, cs.P).sum(axis=0)
+    series = [(_num(a.angle), a.q) for a in result.per_angle]
+    series += [("mix", mixed), ("target", target_q)]
+    with open(out / "coverage.csv", "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["angle", "p", "i", "j", "x", "y", "q"])
+        for name, q in series:
+            for p in range(cs.P):
+                w.writerow([name, p, int(ij[p, 0]), int(ij[p, 1]), f"{xy[p, 0]:.6g}",
+                            f"{xy[p, 1]:.6g}", repr(float(q[p]))])
+    if result.space == "configurations":
+        z = np.arange(cs.N)
+        cols = [(_num(a.angle), a.pi) for a in result.per_angle]
+        cols += [("mix", result.A @ result.alpha), ("target", result.target)]
+        with open(out / "coverage_configurations.csv", "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["angle", "z", "p", "k", "pi"])
+            for name, v in cols:
+                for zz, val in zip(z.tolist(), v.tolist()):
+                    w.writerow([name, zz, zz % cs.P, zz // cs.P, repr(val)])
+    (out / "alpha.json").write_text(json.dumps(summary, indent=2) + "\n")
+    if plots:
+        from bouncesim.coverage_plots import save_heatmap, save_mix_vs_target
+        for a in result.per_angle:
+            save_heatmap(out / f"heatmap_angle_{_num(a.angle)}.png", cs, a.q,
+                         title=f"{cs.env.name}: coverage of {_num(a.angle)}° "
+                         f"(eps {_num(result.eps)}°, r {result.r:g})")
+        save_mix_vs_target(out / "heatmap_mix_vs_target.png", cs, mixed, target_q,
+                           title="alpha = " + ", ".join(
+                               f"{_num(a)}°: {al:.3f}" for a, al in
+                               zip(result.angles, result.alpha)))
+    return out
+
+
+def _num(x):
+    x = float(x)
+    return int(round(x)) if abs(x - round(x)) < 1e-9 else x

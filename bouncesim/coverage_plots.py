@@ -1,0 +1,149 @@
+"""Heatmaps of coverage over the position cells, drawn on the map (matplotlib, Agg).
+
+All functions take plain arrays over the P position cells (or group labels over the N
+configuration cells) plus the cell space, so figures can be drawn from CSV files alone.
+
+- :func:`draw_map`: walls and obstacles of an environment.
+- :func:`heatmap`: one value per position cell as coloured squares on the map.
+- :func:`save_heatmap`: one heatmap per file.
+- :func:`save_mix_vs_target`: the mixed coverage next to the target (same colour scale) and
+  their difference.
+- :func:`save_group_slices`: persistent groups drawn on the map for a few orientations.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib.colors import ListedColormap  # noqa: E402
+
+__all__ = ["draw_map", "heatmap", "save_heatmap", "save_mix_vs_target", "save_group_slices",
+           "position_grid"]
+
+
+def position_grid(cs, values) -> np.ndarray:
+    """(rows, cols) array with values[p] at each free cell and NaN elsewhere (row 0 = bottom)."""
+    grid = np.full(cs.index_grid.shape, np.nan)
+    ij = cs.cells_ij
+    grid[ij[:, 1], ij[:, 0]] = np.asarray(values, dtype=float)
+    return grid
+
+
+def draw_map(ax, env, color: str = "k", lw: float = 1.2) -> None:
+    """Draw the outer wall and obstacles [m]; obstacles are filled grey."""
+    x, y = env.boundary.exterior.xy
+    ax.plot(x, y, color=color, lw=lw)
+    for ob in env.obstacles:
+        ox, oy = ob.exterior.xy
+        ax.fill(ox, oy, color="0.55", zorder=3)
+        ax.plot(ox, oy, color=color, lw=lw * 0.8, zorder=4)
+    x0, y0, x1, y1 = env.bounds
+    pad = 0.05 * max(x1 - x0, y1 - y0)
+    ax.set_xlim(x0 - pad, x1 + pad)
+    ax.set_ylim(y0 - pad, y1 + pad)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+
+
+def _extent(cs):
+    x0, y0 = cs.env.origin
+    rows, cols = cs.index_grid.shape
+    return (x0, x0 + cols * cs.h, y0, y0 + rows * cs.h)
+
+
+def heatmap(ax, cs, values, title: str | None = None, vmax: float | None = None,
+            cmap: str = "viridis", colorbar: bool = True, label: str = "probability"):
+    """Colour every free position cell by ``values[p]`` on the map; returns the image."""
+    grid = position_grid(cs, values)
+    vmax = float(np.nanmax(grid)) if vmax is None else vmax
+    im = ax.imshow(np.ma.masked_invalid(grid), origin="lower", extent=_extent(cs),
+                   cmap=cmap, vmin=0.0, vmax=vmax if vmax > 0 else 1.0,
+                   interpolation="nearest", zorder=1)
+    draw_map(ax, cs.env)
+    if title:
+        ax.set_title(title, fontsize=10)
+    if colorbar:
+        ax.figure.colorbar(im, ax=ax, shrink=0.8, label=label)
+    return im
+
+
+def save_heatmap(path, cs, values, title: str | None = None, vmax: float | None = None) -> Path:
+    """Write one heatmap PNG [values over position cells]."""
+    fig, ax = plt.subplots(figsize=(6, 5))
+    heatmap(ax, cs, values, title=title, vmax=vmax)
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def save_mix_vs_target(path, cs, mixed, target, title: str | None = None) -> Path:
+    """Three panels: mixed coverage Aα, target b (same colour scale) and Aα − b."""
+    mixed = np.asarray(mixed, dtype=float)
+    target = np.asarray(target, dtype=float)
+    vmax = float(max(mixed.max(), target.max()))
+    fig, axes = plt.subplots(1, 3, figsize=(16, 4.8))
+    heatmap(axes[0], cs, mixed, title="mixed coverage Aα", vmax=vmax)
+    heatmap(axes[1], cs, target, title="target b", vmax=vmax)
+    diff = mixed - target
+    lim = float(np.abs(diff).max()) or 1.0
+    grid = position_grid(cs, diff)
+    im = axes[2].imshow(np.ma.masked_invalid(grid), origin="lower", extent=_extent(cs),
+                        cmap="RdBu_r", vmin=-lim, vmax=lim, interpolation="nearest")
+    draw_map(axes[2], cs.env)
+    axes[2].set_title("Aα − b", fontsize=10)
+    fig.colorbar(im, ax=axes[2], shrink=0.8)
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def save_group_slices(path, cs, labels, orientations, title: str | None = None) -> Path:
+    """Persistent groups on the map, one panel per orientation k.
+
+    Parameters
+    ----------
+    labels : array (N,) of int
+        Group of every configuration z = k*P + p, or -1 for transient ones.
+    orientations : sequence of int
+        Orientation indices k to draw (heading 360° k / K).
+    """
+    labels = np.asarray(labels)
+    ngroups = int(labels.max()) + 1 if labels.size and labels.max() >= 0 else 0
+    base = plt.get_cmap("tab10" if ngroups <= 10 else "tab20")
+    colors = [base(i % base.N) for i in range(max(ngroups, 1))]
+    cmap = ListedColormap(colors)
+    ks = list(orientations)
+    fig, axes = plt.subplots(1, len(ks), figsize=(4.2 * len(ks), 4.2), squeeze=False)
+    for ax, k in zip(axes[0], ks):
+        lab = labels[k * cs.P:(k + 1) * cs.P].astype(float)
+        lab[lab < 0] = np.nan
+        grid = position_grid(cs, lab)
+        ax.imshow(np.ma.masked_invalid(grid), origin="lower", extent=_extent(cs), cmap=cmap,
+                  vmin=-0.5, vmax=len(colors) - 0.5, interpolation="nearest")
+        draw_map(ax, cs.env)
+        x, y = cs.centres[:, 0], cs.centres[:, 1]
+        th = np.deg2rad(k * cs.delta_deg)
+        rec = ~np.isnan(lab)
+        ax.quiver(x[rec], y[rec], np.cos(th), np.sin(th), angles="xy", scale_units="xy",
+                  scale=1 / (0.35 * cs.h), width=0.004, color="k", zorder=5)
+        ax.set_title(f"heading {k * cs.delta_deg:g}° ({int(rec.sum())} persistent cells)",
+                     fontsize=9)
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

@@ -1,0 +1,493 @@
+"""Executors: run a plan or a policy mix on any :class:`bouncesim.robot.Robot` (MODEL §8-9).
+
+Both executors control the robot through the bump-and-clock interface only (drive, stop,
+bumper, clock, wait, turn and the composite drive_until_bump / drive_for). Simulators are
+additionally *placed* at the start (``Robot.place``; on hardware a person places the robot)
+and their true pose (``Robot.true_pose``) is logged for the trace, the success check and the
+visit histogram; it never feeds back into control.
+
+- :func:`execute_plan` runs an observation string: for every segment (n zeros, angle) drive
+  until a bump, log a deviation when the travelled distance (speed x elapsed time: the robot
+  only has a clock) differs from n·h by more than one cell, optionally back off, turn CCW by
+  the angle; a trailing run of n zeros drives n·h by the clock and stops.
+- :func:`execute_mix` time-shares a policy mix: epochs of ``epoch`` steps, each with one
+  angle drawn with probabilities α; a step drives h by the clock or until a bump, and on a
+  bump turns by the epoch's angle (the robot's own noise model perturbs the turn).
+
+Runs always end: every drive has a timeout, a plan has finitely many segments, a coverage run
+has a step budget (and optionally a limit on bumps in a row without moving, and on time).
+
+Examples
+--------
+>>> import envs
+>>> from planners.plan import Plan
+>>> from bouncesim.kinematic import KinematicRobot
+>>> env = envs.load("lab")
+>>> run = execute_plan(Plan.parse("90° 90° 00000000 90° 90°"), KinematicRobot(env), env,
+...                    start=8, goal=0)
+>>> run.success, run.reason, len(run.deviations)
+(True, 'reached the goal', 0)
+>>> round(run.position_error, 6), run.heading_error
+(0.0, 0.0)
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from envs import Environment, UserError
+from planners.cells import CellSpace
+from planners.plan import Plan, PolicyMix
+
+from .robot import Robot, RobotError
+from .trace import Trace
+
+__all__ = ["execute_plan", "execute_mix", "PlanRun", "MixRun", "Deviation", "STEP_TOL"]
+
+STEP_TOL = 1e-6
+"""[m] in a coverage step, a bump within this of the full step length h completes the step."""
+
+
+@dataclass(frozen=True)
+class Deviation:
+    """A bump more than one cell length early or late (MODEL §8).
+
+    Attributes
+    ----------
+    segment : int        index into ``plan.segments()``
+    expected : float     planned travel n·h [m]
+    travelled : float    speed x elapsed time [m]
+    kind : str           'early' or 'late'
+    t : float            robot clock at the bump [s]
+    """
+
+    segment: int
+    expected: float
+    travelled: float
+    kind: str
+    t: float
+
+
+@dataclass(frozen=True)
+class PlanRun:
+    """Outcome of :func:`execute_plan`.
+
+    Attributes
+    ----------
+    plan : Plan
+    success : bool or None    None when there is no goal or no true pose (hardware)
+    reason : str              'reached the goal', or why not
+    completed : bool          every segment was executed
+    final_pose : (x [m], y [m], heading [deg]) or None
+    position_error : float or None   distance from the goal cell's centre [m]
+    heading_error : float or None    final minus goal heading, wrapped to (−180, 180] [deg]
+    deviations : tuple of Deviation
+    bumps : int
+    elapsed : float           robot clock from start to end [s]
+    start_pose, goal_pose : (x, y, heading) or None
+    trace : Trace
+    """
+
+    plan: Plan
+    success: bool | None
+    reason: str
+    completed: bool
+    final_pose: tuple | None
+    position_error: float | None
+    heading_error: float | None
+    deviations: tuple
+    bumps: int
+    elapsed: float
+    start_pose: tuple | None
+    goal_pose: tuple | None
+    trace: Trace
+
+    def to_json(self) -> dict:
+        def num(v):
+            return None if v is None else round(float(v), 6)
+        return {"plan": str(self.plan), "success": self.success, "reason": self.reason,
+                "completed": self.completed,
+                "final_pose": None if self.final_pose is None else
+                [num(v) for v in self.final_pose],
+                "position_error": num(self.position_error),
+                "heading_error": num(self.heading_error),
+                "deviations": [{"segment": d.segment, "expected": num(d.expected),
+                                "travelled": num(d.travelled), "kind": d.kind}
+                               for d in self.deviations],
+                "bumps": self.bumps, "elapsed": num(self.elapsed)}
+
+
+@dataclass(frozen=True)
+class MixRun:
+    """Outcome of :func:`execute_mix`.
+
+    Attributes
+    ----------
+    counts : (P,) int array or None   steps counted per free position cell (None on hardware)
+    dropped : int        steps counted in no free cell
+    steps : int          steps executed (may fall short of the budget when the run stopped)
+    bumps : int          bump steps
+    reason : str         'finished', or why the run stopped early
+    epoch_angles : tuple of float     the angle drawn for each epoch [deg]
+    final_pose : tuple or None
+    elapsed : float      robot clock [s]
+    trace : Trace
+    """
+
+    counts: np.ndarray | None
+    dropped: int
+    steps: int
+    bumps: int
+    reason: str
+    epoch_angles: tuple
+    final_pose: tuple | None
+    elapsed: float
+    trace: Trace
+
+    @property
+    def coverage(self) -> np.ndarray | None:
+        """(P,) fraction of the counted steps per position cell (MODEL §9)."""
+        if self.counts is None:
+            return None
+        s = self.counts.sum()
+        return self.counts / s if s > 0 else self.counts.astype(float)
+
+
+# ============================================================================ helpers
+def _wrap180(deg: float) -> float:
+    """Wrap an angle [deg] into (−180, 180]."""
+    w = math.fmod(deg, 360.0)
+    if w > 180.0:
+        w -= 360.0
+    elif w <= -180.0:
+        w += 360.0
+    return w
+
+
+def _resolve_pose(spec, cells: CellSpace, what: str) -> tuple[int | None, tuple | None]:
+    """(z or None, pose) of a configuration index or an (x, y, heading) pose."""
+    if spec is None:
+        return None, None
+    if isinstance(spec, (int, np.integer)):
+        z = int(spec)
+        if not 0 <= z < cells.N:
+            raise UserError(f"{what} {z} is out of range: configurations are 0 to "
+                            f"{cells.N - 1}.")
+        return z, cells.pose(z)
+    try:
+        x, y, h = (float(v) for v in spec)
+    except (TypeError, ValueError):
+        raise UserError(f"{what} must be a configuration index or a pose (x, y, heading).") \
+            from None
+    z = cells.config_of_pose(x, y, h)
+    return (z if z >= 0 else None), (x, y, h)
+
+
+def _place(robot: Robot, pose) -> bool:
+    """Place a simulated robot; False on hardware (a person places it)."""
+    if pose is None:
+        return False
+    try:
+        robot.place(*pose)
+        return True
+    except NotImplementedError:
+        return False
+
+
+def _check_speed(speed: float, robot: Robot) -> float:
+    speed = float(speed)
+    vmax = robot.spec.max_wheel_speed
+    if not (math.isfinite(speed) and 0 < speed <= vmax):
+        raise UserError(f"speed must lie in (0, {vmax:g}] m/s, got {speed:g}.")
+    return speed
+
+
+def _back_off(robot: Robot, speed: float, distance: float) -> None:
+    """Reverse ``distance`` [m] by the clock. Not drive_for: the bumper is still pressed."""
+    robot.drive(-speed)
+    try:
+        robot.wait(distance / speed)
+    finally:
+        robot.stop()
+
+
+def _side(ev) -> str:
+    return "+".join(s for s, on in (("left", ev.left), ("right", ev.right)) if on) or "none"
+
+
+# ============================================================================ plans
+def execute_plan(plan, robot: Robot, env: Environment, start, goal=None,
+                 cells: CellSpace | None = None, *, speed: float = 0.2,
+                 back_off: float = 0.0, max_factor: float = 2.0,
+                 max_time: float | None = None) -> PlanRun:
+    """Run an observation string on a robot (MODEL §8).
+
+    Parameters
+    ----------
+    plan : Plan or str
+    robot : Robot
+    env : Environment
+    start : int, (x, y, heading) or None
+        Start configuration z or pose [m, m, deg]; simulators are placed there (on hardware,
+        or with None, the robot is assumed to be there already).
+    goal : int or (x, y, heading), optional
+        Goal configuration (or a pose mapped to its cell) for the success check.
+    cells : CellSpace, optional
+    speed : float
+        Drive speed [m/s].
+    back_off : float
+        Distance [m] to back off after every bump before turning (0: none; the Create 2
+        manual suggests about 0.01 m so the bumper does not drag on the wall).
+    max_factor : float
+        A segment of n zeros may drive at most ``max_factor * (n + 2) * h`` before the run is
+        declared failed ("no bump"), and never more than the bounding-box diagonal plus h
+        (no straight line in the room is longer).
+    max_time : float, optional
+        Give up when the robot clock passes this many seconds after the start.
+
+    Returns
+    -------
+    PlanRun
+    """
+    plan = Plan.parse(plan) if not isinstance(plan, Plan) else plan
+    cells = cells if cells is not None else CellSpace(env)
+    speed = _check_speed(speed, robot)
+    back_off = float(back_off)
+    if back_off < 0 or not math.isfinite(back_off):
+        raise UserError(f"back-off must be a non-negative distance in metres, got {back_off:g}.")
+    h = cells.h
+    _, start_pose = _resolve_pose(start, cells, "start")
+    goal_z, goal_pose = _resolve_pose(goal, cells, "goal")
+    if goal is not None and goal_z is None:
+        raise UserError(f"goal pose {goal_pose} is not in a free cell.")
+    if goal_z is not None:
+        goal_pose = cells.pose(goal_z)
+    x0, y0, x1, y1 = env.bounds
+    cap = math.hypot(x1 - x0, y1 - y0) + h
+
+    trace = Trace()
+    deviations: list[Deviation] = []
+    bumps = 0
+    completed = False
+    reason = ""
+    _place(robot, start_pose)
+    t0 = robot.clock()
+    trace.add(0.0, robot.true_pose(), "start", str(plan))
+    try:
+        segs = plan.segments()
+        for i, (zeros, angle) in enumerate(segs):
+            if max_time is not None and robot.clock() - t0 > max_time:
+                reason = f"time limit of {max_time:g} s exceeded"
+                break
+            expected = zeros * h
+            if angle is None:                           # trailing zeros: drive n·h and stop
+                ev = robot.drive_for(speed, expected / speed)
+                travelled = speed * ev.elapsed
+                if ev.bumped and travelled < expected - STEP_TOL:   # not just touching at the end
+                    bumps += 1
+                    trace.add(robot.clock() - t0, robot.true_pose(), "bump", _side(ev))
+                    if expected - travelled > h:
+                        dev = Deviation(i, expected, travelled, "early", robot.clock() - t0)
+                        deviations.append(dev)
+                        trace.add(dev.t, robot.true_pose(), "deviation",
+                                  f"early: {travelled:.3f} m of {expected:.3f} m")
+                continue
+            limit = min(max_factor * (zeros + 2) * h, cap)
+            ev = robot.drive_until_bump(speed, limit / speed)
+            travelled = speed * ev.elapsed
+            if not ev.bumped:
+                trace.add(robot.clock() - t0, robot.true_pose(), "no_bump",
+                          f"segment {i}: {travelled:.3f} m")
+                reason = f"no bump within {limit:.2f} m (segment {i + 1} of {len(segs)})"
+                break
+            bumps += 1
+            trace.add(robot.clock() - t0, robot.true_pose(), "bump", _side(ev))
+            if abs(travelled - expected) > h:
+                kind = "early" if travelled < expected else "late"
+                dev = Deviation(i, expected, travelled, kind, robot.clock() - t0)
+                deviations.append(dev)
+                trace.add(dev.t, robot.true_pose(), "deviation",
+                          f"{kind}: {travelled:.3f} m instead of {expected:.3f} m")
+            if back_off > 0:
+                _back_off(robot, speed, back_off)
+                trace.add(robot.clock() - t0, robot.true_pose(), "back_off", f"{back_off:g} m")
+            robot.turn(angle)
+            trace.add(robot.clock() - t0, robot.true_pose(), "turn", f"{angle:g}")
+        else:
+            completed = True
+    except RobotError as exc:
+        reason = f"robot error: {exc}"
+        trace.add(robot.clock() - t0, robot.true_pose(), "error", str(exc))
+    finally:
+        robot.stop()
+    elapsed = robot.clock() - t0
+    final = robot.true_pose()
+    trace.add(elapsed, final, "stop", reason or "plan finished")
+
+    success: bool | None = None
+    pos_err = head_err = None
+    if final is not None and goal_pose is not None:
+        gx, gy, gh = goal_pose
+        pos_err = math.hypot(final[0] - gx, final[1] - gy)
+        head_err = _wrap180(final[2] - gh)
+    if completed:
+        if goal_z is None:
+            reason = "plan finished (no goal to check)"
+        elif final is None:
+            reason = "plan finished (success unknown without a pose)"
+        else:
+            p_goal = int(cells.pk(goal_z)[0])
+            p_end = int(cells.cell_of_point([final[:2]])[0])
+            in_cell = p_end == p_goal
+            head_ok = abs(head_err) <= cells.delta_deg / 2 + 1e-9
+            success = in_cell and head_ok
+            if success:
+                reason = "reached the goal"
+            elif not in_cell:
+                reason = (f"ended {pos_err:.3f} m from the goal cell's centre, outside the "
+                          f"goal cell")
+            else:
+                reason = (f"heading off by {head_err:+.1f}° (allowed ±"
+                          f"{cells.delta_deg / 2:g}°)")
+    elif goal_z is not None and final is not None:
+        success = False
+    return PlanRun(plan=plan, success=success, reason=reason, completed=completed,
+                   final_pose=final, position_error=pos_err, heading_error=head_err,
+                   deviations=tuple(deviations), bumps=bumps, elapsed=elapsed,
+                   start_pose=start_pose, goal_pose=goal_pose, trace=trace)
+
+
+# ============================================================================ policy mixes
+def execute_mix(policy_mix, robot: Robot, env: Environment, steps: int, epoch: int,
+                rng: np.random.Generator, *, speed: float = 0.2, start=None,
+                cells: CellSpace | None = None, back_off: float = 0.0,
+                max_stuck: int | None = None, max_time: float | None = None,
+                record_trace: bool = True) -> MixRun:
+    """Run a policy mix by time-sharing (MODEL §8) and count visits per step (MODEL §9).
+
+    Parameters
+    ----------
+    policy_mix : PolicyMix or float
+        Angles [deg] and probabilities α (a single angle is a mix of one). The mix's eps and r
+        are *not* applied here: the robot's own noise model perturbs its turns (build it with
+        ``bouncesim.noise.noise_for_mix(mix, delta)`` for the §7 model).
+    robot : Robot
+    env : Environment
+    steps : int            step budget
+    epoch : int            steps per epoch; each epoch draws one angle with probabilities α
+    rng : numpy.random.Generator
+        Draws the epoch angles (and the start when ``start`` is None).
+    speed : float          drive speed [m/s]
+    start : int or (x, y, heading), optional
+        Start configuration or pose; default uniform over the N configurations (MODEL §9).
+    back_off : float       distance [m] to back off after a bump before turning
+    max_stuck : int, optional
+        Stop ("stuck") after this many bumps in a row without moving. Default None: no such
+        stop, because the step budget already bounds the run and immobile bump cycles are
+        part of the dynamics (two angles in a row bump at once; 180° turns between two
+        blocked diagonal headings in a corridor exactly one robot wide repeat until the
+        epoch changes the angle, just as the discrete chain does).
+    max_time : float, optional   stop when the robot clock passes this [s]
+    record_trace : bool     log every step (False: only start and stop)
+
+    Returns
+    -------
+    MixRun
+        A step is counted in the position cell where it starts (a forward step of h) or at the
+        contact position (a bump step: the move to contact plus the turn). A bump within
+        ``STEP_TOL`` of the full h completes a forward step; the robot then bumps at once.
+    """
+    if not isinstance(policy_mix, PolicyMix):
+        policy_mix = PolicyMix((float(policy_mix),), (1.0,))
+    cells = cells if cells is not None else CellSpace(env)
+    speed = _check_speed(speed, robot)
+    angles = np.asarray(policy_mix.angles, dtype=float)
+    alpha = np.asarray(policy_mix.alpha, dtype=float)
+    alpha = alpha / alpha.sum()
+    epoch = int(epoch)
+    if epoch < 1:
+        raise UserError(f"epoch must be at least one step, got {epoch}.")
+    steps = int(steps)
+    if steps < 0:
+        raise UserError(f"the step budget must be non-negative, got {steps}.")
+    h = cells.h
+    max_stuck = None if max_stuck is None else int(max_stuck)
+    if start is None:
+        start = int(rng.integers(0, cells.N))
+    _, start_pose = _resolve_pose(start, cells, "start")
+    _place(robot, start_pose)
+
+    counts = np.zeros(cells.P, dtype=np.int64)
+    known = robot.true_pose() is not None
+    dropped = bumps = done = 0
+    stuck = 0
+    epoch_angles: list[float] = []
+    trace = Trace()
+    t0 = robot.clock()
+    trace.add(0.0, robot.true_pose(), "start", f"angles {list(angles)} alpha {list(alpha)}")
+    reason = "finished"
+
+    x0, y0 = env.origin
+    grid = cells.index_grid
+    rows, cols = grid.shape
+
+    def count(pose) -> None:
+        nonlocal dropped
+        if pose is None:
+            return
+        i, j = math.floor((pose[0] - x0) / h), math.floor((pose[1] - y0) / h)
+        p = int(grid[j, i]) if 0 <= i < cols and 0 <= j < rows else -1
+        if p < 0:
+            dropped += 1
+        else:
+            counts[p] += 1
+
+    angle = float(angles[0])
+    try:
+        for s in range(steps):
+            if max_time is not None and robot.clock() - t0 > max_time:
+                reason = f"time limit of {max_time:g} s exceeded"
+                break
+            if s % epoch == 0:
+                angle = float(angles[rng.choice(len(angles), p=alpha)]) if len(angles) > 1 \
+                    else float(angles[0])
+                epoch_angles.append(angle)
+            pose0 = robot.true_pose()
+            ev = robot.drive_for(speed, h / speed)
+            travelled = speed * ev.elapsed
+            if not ev.bumped or travelled >= h - STEP_TOL:
+                count(pose0)
+                stuck = 0
+                if record_trace:
+                    trace.add(robot.clock() - t0, robot.true_pose(), "step")
+            else:
+                pose_c = robot.true_pose()
+                count(pose_c)
+                bumps += 1
+                stuck = stuck + 1 if travelled <= STEP_TOL else 0
+                if record_trace:
+                    trace.add(robot.clock() - t0, pose_c, "bump", _side(ev))
+                if max_stuck is not None and stuck > max_stuck:
+                    done += 1
+                    reason = f"stuck: {stuck} bumps in a row without moving"
+                    break
+                if back_off > 0:
+                    _back_off(robot, speed, back_off)
+                robot.turn(angle)
+                if record_trace:
+                    trace.add(robot.clock() - t0, robot.true_pose(), "turn", f"{angle:g}")
+            done += 1
+    except RobotError as exc:
+        reason = f"robot error: {exc}"
+        trace.add(robot.clock() - t0, robot.true_pose(), "error", str(exc))
+    finally:
+        robot.stop()
+    elapsed = robot.clock() - t0
+    final = robot.true_pose()
+    trace.add(elapsed, final, "stop", reason)
+    return MixRun(counts=counts if known else None, dropped=dropped, steps=done, bumps=bumps,
+                  reason=reason, epoch_angles=tuple(epoch_angles), final_pose=final,
+                  elapsed=elapsed, trace=trace)

@@ -1,0 +1,256 @@
+"""Seeded rotation-noise models for simulated turns (MODEL §7-8).
+
+A noise model maps a commanded in-place turn [deg] to the turn the body actually makes.
+Every model is a frozen dataclass with
+
+- ``sample(rng, commanded_deg) -> float``: one actual turn [deg];
+- ``sample_many(rng, commanded, n=None) -> ndarray``: many at once (``commanded`` a scalar
+  with ``n`` draws, or an array of commands, one draw each).
+
+Randomness comes only from the ``rng`` argument (a :class:`numpy.random.Generator`): the same
+seed gives the same turns.
+
+Models
+------
+- :class:`NoNoise`: exact turns.
+- :class:`SteppedNoise`: the MODEL §7 model. Exact with probability ``r``; otherwise the turn
+  is off by a uniform non-zero multiple of Δ in [−ε, ε].
+- :class:`GaussianNoise`: commanded + N(0, σ²).
+
+Examples
+--------
+>>> import numpy as np
+>>> NoNoise().sample(np.random.default_rng(0), 90.0)
+90.0
+>>> m = SteppedNoise(eps_deg=2, r=0.0, delta_deg=1)
+>>> sorted(set(m.sample_many(np.random.default_rng(1), 90.0, 1000).tolist()))
+[88.0, 89.0, 91.0, 92.0]
+>>> parse_noise("model:eps=5,r=0.8", delta_deg=1.0)
+SteppedNoise(eps_deg=5.0, r=0.8, delta_deg=1.0)
+>>> parse_noise("gauss:2")
+GaussianNoise(sigma_deg=2.0)
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from envs import UserError
+
+__all__ = ["NoiseModel", "NoNoise", "SteppedNoise", "GaussianNoise", "parse_noise",
+           "noise_for_mix"]
+
+
+class NoiseModel:
+    """Base class: a rotation-noise model (subclasses are frozen dataclasses)."""
+
+    def sample(self, rng: np.random.Generator, commanded_deg: float) -> float:
+        """The actual turn [deg] for one commanded turn [deg]."""
+        return float(self.sample_many(rng, commanded_deg, 1)[0])
+
+    def sample_many(self, rng: np.random.Generator, commanded, n: int | None = None
+                    ) -> np.ndarray:
+        """Actual turns [deg]: ``n`` draws for a scalar command, or one per array element."""
+        raise NotImplementedError
+
+    @property
+    def exact(self) -> bool:
+        """True when the model never perturbs a turn."""
+        return False
+
+
+def _commands(commanded, n: int | None) -> np.ndarray:
+    c = np.asarray(commanded, dtype=float)
+    if n is not None:
+        c = np.broadcast_to(c, (int(n),) if c.ndim == 0 else c.shape)
+        if c.shape[0] != int(n):
+            raise ValueError(f"n = {n} does not match {c.shape[0]} commands.")
+    return np.array(c, dtype=float)
+
+
+@dataclass(frozen=True)
+class NoNoise(NoiseModel):
+    """Exact turns: the body turns by exactly the commanded angle."""
+
+    def sample(self, rng, commanded_deg: float) -> float:
+        return float(commanded_deg)
+
+    def sample_many(self, rng, commanded, n=None) -> np.ndarray:
+        return _commands(commanded, n)
+
+    @property
+    def exact(self) -> bool:
+        return True
+
+    def __str__(self) -> str:
+        return "none"
+
+
+@dataclass(frozen=True)
+class SteppedNoise(NoiseModel):
+    """The MODEL §7 rotation model.
+
+    With probability ``r`` the turn is exact; otherwise it is off by δ drawn uniformly from
+    {−ε, …, −Δ, Δ, …, ε} (non-zero multiples of Δ), i.e. each such δ has probability
+    (1 − r) / (2ε/Δ). ε = 0 means exact turns whatever r is.
+
+    Parameters
+    ----------
+    eps_deg : float    error range ε [deg], a non-negative multiple of ``delta_deg``
+    r : float          reliability in [0, 1]
+    delta_deg : float  the error quantum Δ [deg] (the environment's 360°/K)
+    """
+
+    eps_deg: float
+    r: float
+    delta_deg: float
+
+    def __post_init__(self) -> None:
+        for name in ("eps_deg", "r", "delta_deg"):
+            v = getattr(self, name)
+            try:
+                v = float(v)
+            except (TypeError, ValueError):
+                raise UserError(f"noise parameter {name} must be a number, got {v!r}.") \
+                    from None
+            if not math.isfinite(v):
+                raise UserError(f"noise parameter {name} must be finite, got {v}.")
+            object.__setattr__(self, name, v)
+        if self.delta_deg <= 0:
+            raise UserError(f"the noise quantum delta must be positive, got {self.delta_deg:g}°.")
+        if not 0.0 <= self.r <= 1.0:
+            raise UserError(f"reliability r must lie in [0, 1], got {self.r:g}.")
+        if self.eps_deg < 0:
+            raise UserError(f"error range eps must be non-negative, got {self.eps_deg:g}°.")
+        m = self.eps_deg / self.delta_deg
+        if abs(m - round(m)) > 1e-9 * max(1.0, m):
+            raise UserError(f"error range eps = {self.eps_deg:g}° is not a multiple of the "
+                            f"orientation step {self.delta_deg:g}°.")
+
+    @property
+    def m(self) -> int:
+        """Number of error quanta on each side: ε / Δ."""
+        return int(round(self.eps_deg / self.delta_deg))
+
+    @property
+    def exact(self) -> bool:
+        return self.m == 0 or self.r == 1.0
+
+    def offsets(self) -> tuple[np.ndarray, np.ndarray]:
+        """The support δ [deg] and its probabilities (δ = 0 first)."""
+        m = self.m
+        if m == 0:
+            return np.zeros(1), np.ones(1)
+        k = np.concatenate([[0], np.arange(-m, 0), np.arange(1, m + 1)])
+        p = np.concatenate([[self.r], np.full(2 * m, (1.0 - self.r) / (2 * m))])
+        return k * self.delta_deg, p
+
+    def sample_many(self, rng, commanded, n=None) -> np.ndarray:
+        c = _commands(commanded, n)
+        if self.exact:
+            return c
+        size = c.shape
+        wrong = rng.random(size) >= self.r
+        k = rng.integers(1, self.m + 1, size=size)
+        sign = np.where(rng.random(size) < 0.5, -1, 1)
+        return c + np.where(wrong, sign * k * self.delta_deg, 0.0)
+
+    def __str__(self) -> str:
+        return f"model:eps={self.eps_deg:g},r={self.r:g}"
+
+
+@dataclass(frozen=True)
+class GaussianNoise(NoiseModel):
+    """Turn error δ ~ N(0, σ²) [deg] added to every commanded turn.
+
+    Parameters
+    ----------
+    sigma_deg : float   standard deviation σ [deg], non-negative
+    """
+
+    sigma_deg: float
+
+    def __post_init__(self) -> None:
+        try:
+            s = float(self.sigma_deg)
+        except (TypeError, ValueError):
+            raise UserError(f"Gaussian noise sigma must be a number of degrees, "
+                            f"got {self.sigma_deg!r}.") from None
+        if not math.isfinite(s) or s < 0:
+            raise UserError(f"Gaussian noise sigma must be a non-negative number of degrees, "
+                            f"got {s:g}.")
+        object.__setattr__(self, "sigma_deg", s)
+
+    @property
+    def exact(self) -> bool:
+        return self.sigma_deg == 0
+
+    def sample_many(self, rng, commanded, n=None) -> np.ndarray:
+        c = _commands(commanded, n)
+        if self.exact:
+            return c
+        return c + rng.normal(0.0, self.sigma_deg, size=c.shape)
+
+    def __str__(self) -> str:
+        return f"gauss:{self.sigma_deg:g}"
+
+
+_FORMS = "use none, gauss:SIGMA or model:eps=E,r=R (degrees)"
+
+
+def parse_noise(text: str, delta_deg: float | None = None) -> NoiseModel:
+    """Parse a CLI noise spec.
+
+    ``none`` | ``gauss:SIGMA`` (also ``gauss:sigma=SIGMA``) | ``model:eps=E,r=R`` (optionally
+    ``,delta=D``; by default Δ is ``delta_deg``, the environment's 360°/K).
+
+    Raises
+    ------
+    UserError
+        One sentence naming the accepted forms.
+    """
+    s = str(text).strip().lower().replace(" ", "")
+    if s in {"", "none", "off", "exact"}:
+        return NoNoise()
+    kind, _, rest = s.partition(":")
+    if kind in {"gauss", "gaussian", "normal"}:
+        val = rest.removeprefix("sigma=")
+        try:
+            sigma = float(val)
+        except ValueError:
+            raise UserError(f"noise {text!r} needs a number of degrees after 'gauss:'; "
+                            f"{_FORMS}.") from None
+        return GaussianNoise(sigma)
+    if kind in {"model", "stepped"}:
+        params = {}
+        for tok in rest.split(","):
+            key, eq, val = tok.partition("=")
+            if not eq or key not in {"eps", "r", "delta"} or key in params:
+                raise UserError(f"noise {text!r} is not understood; {_FORMS}.")
+            try:
+                params[key] = float(val)
+            except ValueError:
+                raise UserError(f"noise parameter {key} in {text!r} is not a number.") \
+                    from None
+        if not {"eps", "r"} <= set(params):
+            raise UserError(f"noise {text!r} needs both eps and r; {_FORMS}.")
+        delta = params.get("delta", delta_deg)
+        if delta is None:
+            raise UserError("the model noise needs the orientation step delta (give delta=D).")
+        m = params["eps"] / delta if delta > 0 else 0.0
+        if delta > 0 and abs(m - round(m)) > 1e-9 * max(1.0, abs(m)):
+            raise UserError(f"model noise eps = {params['eps']:g}° is not a multiple of the "
+                            f"orientation step {delta:g}°; use a multiple or more orientations "
+                            f"(e.g. --orientations 360).")
+        return SteppedNoise(params["eps"], params["r"], delta)
+    raise UserError(f"unknown noise {text!r}; {_FORMS}.")
+
+
+def noise_for_mix(mix, delta_deg: float) -> NoiseModel:
+    """The §7 noise model of a :class:`planners.plan.PolicyMix` (its eps and r) at Δ [deg]."""
+    if mix.eps == 0 or mix.r == 1:
+        return NoNoise()
+    return SteppedNoise(mix.eps, mix.r, delta_deg)

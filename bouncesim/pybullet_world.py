@@ -1,0 +1,812 @@
+"""The PyBullet Create 2: a wheeled rigid body in a walled world built from an environment.
+
+:class:`PyBulletRobot` implements the :class:`~bouncesim.robot.Robot` interface with a
+physics simulation: a 0.17 m disk body on two driven wheels (velocity-controlled revolute
+joints with friction against the floor), a frictionless front caster and rear skid, walls
+extruded from the environment's polygons, a bumper read from the contact points on the front
+half of the body, wheel encoders read from the wheel joint angles and a simulated clock.
+
+Each robot owns its own PyBullet client (``DIRECT`` by default, never the global default
+client), so several robots/worlds coexist in one process. PyBullet in ``DIRECT`` mode is
+deterministic; the only randomness is the rotation noise, drawn from the robot's seeded
+``rng``: the same seed gives the same trajectory.
+
+Geometry (world frame of MODEL §1: x east, y north, headings CCW from east):
+
+- the outer boundary becomes one thin convex slab per boundary edge, lying outside the free
+  space (:func:`wall_pieces`), extended past convex corners and mitred at reflex ones;
+- every obstacle becomes extruded convex pieces (:func:`convex_pieces`): convex polygons as
+  they are, non-convex ones triangulated and greedily merged into convex parts;
+- walls are 0.2 m high, the robot body 0.09 m.
+
+Examples
+--------
+>>> from shapely.geometry import Polygon
+>>> L = Polygon([(0, 0), (2, 0), (2, 1), (1, 1), (1, 2), (0, 2)])
+>>> parts = convex_pieces(L)
+>>> round(sum(p.area for p in parts), 9), all(_is_convex(p) for p in parts)
+(3.0, True)
+>>> [round(p.area, 3) for p in wall_pieces(Polygon([(0, 0), (1, 0), (1, 1), (0, 1)]), 0.1)]
+[0.12, 0.12, 0.12, 0.12]
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import os
+import sys
+import time as _time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import shapely
+from shapely.geometry import Polygon
+from shapely.geometry.polygon import orient
+
+from envs import Environment, UserError
+
+from .robot import CREATE2, Robot, RobotError, RobotSpec
+
+__all__ = ["PyBulletRobot", "convex_pieces", "wall_pieces", "ear_clip",
+           "DEFAULT_SPEED", "DEFAULT_TURN_SPEED", "DEFAULT_TIME_STEP"]
+
+DEFAULT_SPEED = 0.2
+"""Default forward speed [m/s]: 3 mm of travel per 15 ms bumper poll, so a bump is caught
+and the robot stopped within a few millimetres of first contact (well inside 1 cm)."""
+
+DEFAULT_TURN_SPEED = 0.1
+"""Default wheel speed while turning in place [m/s] (ω = 2 v / 0.235 m ≈ 48.8 °/s)."""
+
+DEFAULT_TIME_STEP = 1 / 200
+"""Physics step [s]: 5 ms, so the 15 ms sensor period is exactly 3 steps."""
+
+_WALL_HEIGHT = 0.2          # [m]
+_WALL_THICKNESS = 0.1       # [m]
+_BODY_HEIGHT = 0.09         # [m]
+_BODY_CLEARANCE = 0.01      # floor to the underside of the body [m]
+_WHEEL_MASS = 0.1           # each [kg]
+_CASTER_RADIUS = 0.01       # [m]
+_CASTER_OFFSET = 0.13       # caster/skid distance ahead of / behind the axle [m]
+_CASTER_GAP = 0.001         # casters hang this far above the floor at rest [m]
+_MESH_MARGIN = 1e-4         # collision margin of the wall prisms [m]
+_CONTACT_TOLERANCE = 1e-3   # a contact point within this distance [m] closes the bumper
+_BUMP_CENTRE_DEG = 10.0     # contacts within ± this of straight ahead close both switches
+_SETTLE_STEPS = 2
+
+
+# ---------------------------------------------------------------------------- geometry
+def _is_convex(poly: Polygon) -> bool:
+    """Whether a polygon is convex (its hull adds no area, up to rounding)."""
+    return poly.convex_hull.area - poly.area <= 1e-9 * max(poly.area, 1.0)
+
+
+def ear_clip(poly: Polygon) -> list[Polygon]:
+    """Triangulate a simple polygon without holes by ear clipping.
+
+    The fallback for shapely < 2.1 (which lacks ``constrained_delaunay_triangles``).
+    Collinear vertices are dropped; the triangles partition the polygon.
+
+    >>> tris = ear_clip(Polygon([(0, 0), (2, 0), (2, 1), (1, 1), (1, 2), (0, 2)]))
+    >>> len(tris), round(sum(t.area for t in tris), 9)
+    (4, 3.0)
+    """
+    if len(poly.interiors):
+        raise ValueError("ear_clip handles polygons without holes only.")
+    pts = np.asarray(orient(poly, 1.0).exterior.coords)[:-1]
+    idx = list(range(len(pts)))
+    scale = max(float(np.ptp(pts, axis=0).max()), 1e-12)
+    eps = 1e-12 * scale * scale
+
+    def cross(i: int, j: int, k: int) -> float:
+        a, b, c = pts[i], pts[j], pts[k]
+        return float((b[0] - a[0]) * (c[1] - b[1]) - (b[1] - a[1]) * (c[0] - b[0]))
+
+    def inside(q: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> bool:
+        d1 = (b[0] - a[0]) * (q[1] - a[1]) - (b[1] - a[1]) * (q[0] - a[0])
+        d2 = (c[0] - b[0]) * (q[1] - b[1]) - (c[1] - b[1]) * (q[0] - b[0])
+        d3 = (a[0] - c[0]) * (q[1] - c[1]) - (a[1] - c[1]) * (q[0] - c[0])
+        return d1 >= -eps and d2 >= -eps and d3 >= -eps
+
+    tris: list[Polygon] = []
+    while len(idx) > 3:
+        n = len(idx)
+        for k in range(n):
+            i0, i1, i2 = idx[k - 1], idx[k], idx[(k + 1) % n]
+            if cross(i0, i1, i2) <= eps:
+                continue
+            a, b, c = pts[i0], pts[i1], pts[i2]
+            if any(inside(pts[m], a, b, c) for m in idx
+                   if m not in (i0, i1, i2) and not (np.allclose(pts[m], a)
+                                                    or np.allclose(pts[m], b)
+                                                    or np.allclose(pts[m], c))):
+                continue
+            tris.append(Polygon([a, b, c]))
+            idx.pop(k)
+            break
+        else:  # no ear: drop a collinear vertex, which does not change the shape
+            for k in range(n):
+                if abs(cross(idx[k - 1], idx[k], idx[(k + 1) % n])) <= eps:
+                    idx.pop(k)
+                    break
+            else:
+                raise ValueError("ear_clip found no ear (is the polygon simple?).")
+    if abs(cross(*idx)) > eps:
+        tris.append(Polygon(pts[idx]))
+    return tris
+
+
+def _triangulate(poly: Polygon) -> list[Polygon]:
+    if hasattr(shapely, "constrained_delaunay_triangles"):
+        tris = shapely.get_parts(shapely.constrained_delaunay_triangles(poly))
+        return [t for t in tris if t.area > 0]
+    return ear_clip(poly)
+
+
+def convex_pieces(poly: Polygon) -> list[Polygon]:
+    """Split a polygon into convex pieces whose union is the polygon.
+
+    A convex polygon is returned as it is; a non-convex one is triangulated (shapely's
+    constrained Delaunay triangulation, or :func:`ear_clip`) and neighbouring pieces are
+    merged greedily while their union stays convex.
+
+    Parameters
+    ----------
+    poly : Polygon
+        A simple polygon [m] (holes are triangulated around when shapely ≥ 2.1).
+
+    Returns
+    -------
+    list of Polygon
+    """
+    if _is_convex(poly):
+        return [poly]
+    return _merge_convex(_triangulate(poly), 1e-9 * max(math.sqrt(poly.area), 1.0))
+
+
+def _merge_convex(pieces: list[Polygon], tol: float = 1e-9) -> list[Polygon]:
+    """Greedily merge pieces that share an edge while their union stays convex."""
+    pieces = list(pieces)
+    merged = True
+    while merged:
+        merged = False
+        for i in range(len(pieces)):
+            for j in range(i + 1, len(pieces)):
+                a, b = pieces[i], pieces[j]
+                if a.boundary.intersection(b.boundary).length <= tol:
+                    continue
+                u = shapely.union(a, b)
+                if isinstance(u, Polygon) and not len(u.interiors) and _is_convex(u):
+                    pieces[i] = u.simplify(0.0)
+                    pieces.pop(j)
+                    merged = True
+                    break
+            if merged:
+                break
+    return pieces
+
+
+def wall_pieces(boundary: Polygon, thickness: float = _WALL_THICKNESS) -> list[Polygon]:
+    """Convex wall slabs along every edge of the outer boundary, on its outer side.
+
+    Each slab's inner side is its edge and it is ``thickness`` deep. At a convex corner both
+    slabs run on by ``thickness`` past the corner (that extension lies outside the room), so
+    the corner is sealed; at a reflex corner (non-convex rooms) both end on the corner's
+    bisector (a mitre), since a square end would cut into the room across the other edge.
+    Works for either winding.
+
+    Parameters
+    ----------
+    boundary : Polygon   the outer wall polygon W [m]
+    thickness : float    wall thickness [m]
+
+    Returns
+    -------
+    list of Polygon, one convex quadrilateral per edge [m]
+    """
+    pts = np.asarray(orient(boundary, 1.0).exterior.coords)[:-1]   # CCW: inside on the left
+    n = len(pts)
+    t = float(thickness)
+    units, normals = [], []
+    for i in range(n):
+        e = pts[(i + 1) % n] - pts[i]
+        u = e / np.hypot(*e)
+        units.append(u)
+        normals.append(np.array([u[1], -u[0]]))                 # right of the edge = outside
+
+    def convex_at(k: int) -> bool:
+        u0, u1 = units[k - 1], units[k]
+        return float(u0[0] * u1[1] - u0[1] * u1[0]) > 0
+
+    def mitre(k: int) -> np.ndarray:
+        """Outward offset of vertex k [m] where the two offset edges meet."""
+        n1, n2 = normals[k - 1], normals[k]
+        return pts[k] + t * (n1 + n2) / (1.0 + float(n1 @ n2))
+
+    pieces = []
+    for i in range(n):
+        j = (i + 1) % n
+        a, b, u, nn = pts[i], pts[j], units[i], normals[i]
+        if convex_at(i):
+            a0 = a - t * u
+            ring = [a0, a0 + t * nn]
+        else:
+            ring = [a, mitre(i)]
+        if convex_at(j):
+            b0 = b + t * u
+            ring = [ring[0], b0, b0 + t * nn, ring[1]]
+        else:
+            ring = [ring[0], b, mitre(j), ring[1]]
+        pieces.append(Polygon(ring))
+    return pieces
+
+
+def _wrap_deg(a: float) -> float:
+    return (a + 180.0) % 360.0 - 180.0
+
+
+# ---------------------------------------------------------------------------- the robot
+@contextlib.contextmanager
+def _quiet_stdout():
+    """Silence C-level writes to the process's stdout (file descriptor 1) meanwhile."""
+    try:
+        sys.stdout.flush()
+        saved = os.dup(1)
+    except (AttributeError, OSError, ValueError):
+        yield
+        return
+    try:
+        with open(os.devnull, "w") as null:
+            os.dup2(null.fileno(), 1)
+        yield
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
+
+
+def _import_pybullet():
+    try:
+        import pybullet
+    except ImportError:
+        raise UserError("the PyBullet world needs pybullet: pip install 'bouncesim[sim]'.") \
+            from None
+    return pybullet
+
+
+class PyBulletRobot(Robot):
+    """An iRobot Create 2 in a PyBullet world built from an environment.
+
+    Parameters
+    ----------
+    env : Environment or str
+        The environment (or a catalogue name / env file path).
+    noise : object, optional
+        Rotation noise: anything with ``sample(rng, commanded_deg) -> actual_deg`` (the models
+        of :mod:`bouncesim.noise`). None: turns are commanded exactly.
+    rng : numpy.random.Generator or int, optional
+        Random source for the noise (an int is a seed). Default: ``default_rng(seed)``.
+    seed : int, optional
+        Seed for the default ``rng`` (default 0: runs are reproducible unless asked not to be).
+    gui : bool
+        Open the PyBullet GUI (needs a display) and pace the simulation to real time.
+    record : str or Path, optional
+        Write a top-down video of the run at :meth:`close` (``.gif``; ``.mp4`` needs
+        imageio-ffmpeg). Frames every ``record_period`` [s] of simulated time.
+    turn : {"clock", "encoders"}
+        Turn by clock (wheels at ±turn_speed for φ / ω, ω = 2 v / wheel_base) or by the
+        simulated wheel encoders (turn until the encoder heading change reaches φ).
+    back_off : float
+        Drive back this far [m] before each turn (the Create 2 advice is about 0.01 m, so the
+        bumper does not drag on the wall). Default 0.
+    time_step : float
+        Physics step [s]. Waits are rounded to whole steps; 1/200 s makes the 15 ms sensor
+        period exactly 3 steps.
+    turn_speed : float
+        Wheel speed while turning [m/s].
+    solver : {"dantzig", "si"}
+        Constraint solver. "dantzig" (default): Bullet's exact MLCP solver for the small
+        contact problem of one robot; it has no constraint-ordering bias, so a robot pushing
+        along a wall keeps its heading and turns come out within ~0.2°. "si": PyBullet's
+        default sequential-impulse solver (with 10 iterations it turns a robot that scrapes a
+        wall on its left into that wall, a few degrees per second).
+    solver_iterations : int
+        Iterations of the sequential-impulse solver (PyBullet's default is 50), also used by
+        the Dantzig solver's fallback.
+    wheel_torque : float
+        Maximum wheel motor torque [N m] of the velocity controllers.
+    bumper_arc_deg : float
+        Contacts within ± this angle of the heading close the bumper. The Create 2's bumper
+        spans the front half (±90°); the default 80° leaves out contacts with a wall the robot
+        runs parallel to (after a 90° turn at a wall), which do not press a real bumper.
+    spec : RobotSpec, optional
+        Body and drive figures (default the Create 2 with the environment's robot radius).
+    record_period : float
+        Simulated time between video frames [s].
+    record_width : int
+        Video frame width [px]; the height follows the environment's aspect ratio.
+    clearance : float
+        The collision body is this much [m] smaller in radius than ``spec.radius``. The cell
+        model lets the disk pass walls and corners at exactly zero distance (cell centres
+        next to a wall are exactly r from it); in a physics engine exact tangency is fragile
+        (a 0.1 mm drift turns a passing corner into a glancing collision), so the body keeps
+        a 2 mm margin by default.
+    start : (x, y, heading_deg), optional
+        Initial pose; default the centre of the first free cell (p = 0) facing east.
+
+    Notes
+    -----
+    Encoders are cumulative signed counts (508.8 per wheel revolution, truncated toward zero)
+    without the Create 2's 16-bit wrap-around, which a simulated run never needs.
+    Wheel speeds are not quantised to the Create 2's 28.5 mm/s steps.
+
+    Examples
+    --------
+    >>> with PyBulletRobot("lab") as bot:                            # doctest: +SKIP
+    ...     bot.place(0.17, 0.17, 0.0)
+    ...     ev = bot.drive_until_bump(0.2, timeout=30.0)
+    ...     bot.turn(90)
+    """
+
+    def __init__(self, env: Environment | str, *, noise=None,
+                 rng: np.random.Generator | None = None, seed: int | None = 0,
+                 gui: bool = False, record: str | Path | None = None,
+                 turn: str = "clock", back_off: float = 0.0,
+                 time_step: float = DEFAULT_TIME_STEP,
+                 turn_speed: float = DEFAULT_TURN_SPEED, solver: str = "dantzig",
+                 solver_iterations: int = 10,
+                 wheel_torque: float = 2.0, bumper_arc_deg: float = 80.0,
+                 spec: RobotSpec | None = None, record_period: float = 0.1,
+                 record_width: int = 320, clearance: float = 0.002,
+                 start: tuple[float, float, float] | None = None) -> None:
+        self._cid = None
+        if isinstance(env, (str, Path)):
+            import envs
+            env = envs.load(env)
+        self.env = env
+        spec = spec if spec is not None else replace(CREATE2, radius=env.robot_radius)
+        self.spec = spec
+        if solver not in ("dantzig", "si"):
+            raise UserError(f"solver must be 'dantzig' or 'si', got {solver!r}.")
+        self.solver = solver
+        if turn not in ("clock", "encoders"):
+            raise UserError(f"turn must be 'clock' or 'encoders', got {turn!r}.")
+        if not (time_step > 0 and math.isfinite(time_step)):
+            raise UserError(f"time_step must be a positive number of seconds, got {time_step}.")
+        if not 0 < turn_speed <= spec.max_wheel_speed:
+            raise UserError(f"turn_speed must be in (0, {spec.max_wheel_speed}] m/s, "
+                            f"got {turn_speed}.")
+        if not 0 <= back_off < env.cell_size:
+            raise UserError(f"back_off must be between 0 and one cell ({env.cell_size} m), "
+                            f"got {back_off}.")
+        self.noise = noise
+        if rng is None or isinstance(rng, (int, np.integer)):
+            rng = np.random.default_rng(seed if rng is None else int(rng))
+        self.rng = rng
+        self.turn_mode = turn
+        self.back_off = float(back_off)
+        self.time_step = float(time_step)
+        self.turn_speed = float(turn_speed)
+        self.wheel_torque = float(wheel_torque)
+        self.bumper_arc_deg = float(bumper_arc_deg)
+        self.gui = bool(gui)
+        if not 0 <= clearance < spec.radius / 2:
+            raise UserError(f"clearance must be in [0, {spec.radius / 2}) m, got {clearance}.")
+        self.body_radius = spec.radius - float(clearance)
+        self._record = Path(record) if record is not None else None
+        self._record_every = max(1, round(record_period / self.time_step))
+        self._record_period = self._record_every * self.time_step
+        self._record_width = int(record_width)
+        self._frames: list[np.ndarray] = []
+        if self._record is not None:
+            self._check_record_format(self._record)
+
+        p = self._p = _import_pybullet()
+        if self.gui:
+            # Without a display PyBullet's GUI ends the whole process: check first.
+            if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY")
+                                                         or os.environ.get("WAYLAND_DISPLAY")):
+                raise UserError("the PyBullet GUI needs a display (DISPLAY is not set): "
+                                "use gui=False, or record= a video instead.")
+            cid = p.connect(p.GUI)
+            if cid < 0:
+                raise UserError("cannot open the PyBullet GUI (only one per process, and it "
+                                "needs a display): use gui=False.")
+        else:
+            cid = p.connect(p.DIRECT)
+        self._cid = cid
+        self._kw = {"physicsClientId": cid}
+        self._closed = False
+        self._steps = 0
+        self._t_goal = 0.0
+        self._wall_t0 = _time.perf_counter()
+        self._speeds = (0.0, 0.0)
+        self._wheel_r = spec.wheel_diameter / 2
+        self._visual = self.gui or self._record is not None
+        try:
+            self._build(solver_iterations)
+            if start is None:
+                start = self._default_start()
+            self.place(*start)
+        except BaseException:
+            self._disconnect()
+            raise
+
+    # ------------------------------------------------------------------ construction
+    @staticmethod
+    def _check_record_format(path: Path) -> None:
+        ext = path.suffix.lower()
+        if ext == ".gif":
+            return
+        if ext in (".mp4", ".avi", ".mkv", ".mov"):
+            try:
+                import imageio_ffmpeg  # noqa: F401
+            except ImportError:
+                raise UserError(f"recording {ext} video needs imageio-ffmpeg "
+                                f"(pip install imageio-ffmpeg); record to a .gif instead.") \
+                    from None
+            return
+        raise UserError(f"cannot record to {path.name!r}: use a .gif or .mp4 file name.")
+
+    def _default_start(self) -> tuple[float, float, float]:
+        grid = self.env.grid_centres_free()
+        j, i = np.argwhere(grid)[0]
+        x0, y0 = self.env.origin
+        h = self.env.cell_size
+        return x0 + (i + 0.5) * h, y0 + (j + 0.5) * h, 0.0
+
+    def _build(self, solver_iterations: int) -> None:
+        p, kw = self._p, self._kw
+        p.resetSimulation(**kw)
+        p.setGravity(0, 0, -9.81, **kw)
+        p.setPhysicsEngineParameter(fixedTimeStep=self.time_step,
+                                    numSolverIterations=int(solver_iterations),
+                                    deterministicOverlappingPairs=1, **kw)
+        if self.solver == "dantzig":
+            with _quiet_stdout():   # Bullet announces the switch on stdout
+                p.setPhysicsEngineParameter(
+                    constraintSolverType=p.CONSTRAINT_SOLVER_LCP_DANTZIG, **kw)
+        if self.gui:
+            p.configureDebugVisualizer(p.COV_ENABLE_GUI, 0, **kw)
+        # floor
+        plane = p.createCollisionShape(p.GEOM_PLANE, **kw)
+        self._floor = p.createMultiBody(0, plane, **kw)
+        p.changeDynamics(self._floor, -1, lateralFriction=1.0, **kw)
+        x0, y0, x1, y1 = self.env.bounds
+        if self._visual:
+            m = _WALL_THICKNESS
+            vis = p.createVisualShape(p.GEOM_BOX, halfExtents=[(x1 - x0) / 2 + m,
+                                                               (y1 - y0) / 2 + m, 0.0005],
+                                      rgbaColor=[0.93, 0.93, 0.88, 1], **kw)
+            p.createMultiBody(0, -1, vis, basePosition=[(x0 + x1) / 2, (y0 + y1) / 2, -0.0005],
+                              **kw)
+        # walls: the boundary slabs and the obstacles' convex pieces, extruded
+        self._walls: list[int] = []
+        self._wall_slabs = wall_pieces(self.env.boundary, _WALL_THICKNESS)
+        for slab in self._wall_slabs:
+            self._add_prism(slab, [0.35, 0.35, 0.38, 1])
+        self._pieces = [pc for ob in self.env.obstacles for pc in convex_pieces(ob)]
+        for pc in self._pieces:
+            self._add_prism(pc, [0.62, 0.40, 0.22, 1])
+        self._wall_set = frozenset(self._walls)
+        for w in self._walls:
+            p.changeDynamics(w, -1, lateralFriction=0.0, **kw)
+        self._build_robot()
+
+    def _add_prism(self, piece: Polygon, rgba) -> None:
+        """A static body: the convex polygon extruded from the floor to the wall height."""
+        p, kw = self._p, self._kw
+        ring = np.asarray(orient(piece, 1.0).exterior.coords)[:-1]
+        cx, cy = ring.mean(axis=0)
+        local = ring - [cx, cy]
+        verts = [[float(x), float(y), z] for z in (0.0, _WALL_HEIGHT) for x, y in local]
+        col = p.createCollisionShape(p.GEOM_MESH, vertices=verts, **kw)
+        vis = -1
+        if self._visual:
+            k = len(local)
+            idx = []
+            for i in range(1, k - 1):                      # bottom and top fans
+                idx += [0, i + 1, i, k, k + i, k + i + 1]
+            for i in range(k):                             # sides
+                j = (i + 1) % k
+                idx += [i, j, k + j, i, k + j, k + i]
+            vis = p.createVisualShape(p.GEOM_MESH, vertices=verts, indices=idx,
+                                      rgbaColor=rgba, **kw)
+        body = p.createMultiBody(0, col, vis, basePosition=[cx, cy, 0.0], **kw)
+        # A convex hull is padded by its collision margin (about 1 mm by default), which
+        # would stop the robot that far short of the wall: keep 0.1 mm.
+        p.changeDynamics(body, -1, collisionMargin=_MESH_MARGIN, **kw)
+        self._walls.append(body)
+
+    def _build_robot(self) -> None:
+        p, kw, s = self._p, self._kw, self.spec
+        R = self._wheel_r
+        # The base frame sits at axle height on the axle midpoint = the disk centre.
+        body_z = _BODY_CLEARANCE + _BODY_HEIGHT / 2 - R
+        caster_z = _CASTER_RADIUS + _CASTER_GAP - R
+        body = p.createCollisionShapeArray(
+            [p.GEOM_CYLINDER, p.GEOM_SPHERE, p.GEOM_SPHERE],
+            radii=[self.body_radius, _CASTER_RADIUS, _CASTER_RADIUS], lengths=[_BODY_HEIGHT, 0, 0],
+            collisionFramePositions=[[0, 0, body_z], [_CASTER_OFFSET, 0, caster_z],
+                                     [-_CASTER_OFFSET, 0, caster_z]], **kw)
+        wheel = p.createCollisionShape(p.GEOM_SPHERE, radius=R, **kw)
+        vis = -1
+        if self._visual:
+            vis = p.createVisualShapeArray(
+                [p.GEOM_CYLINDER, p.GEOM_BOX], radii=[self.body_radius, 0],
+                lengths=[_BODY_HEIGHT, 0],
+                halfExtents=[[0, 0, 0], [0.035, 0.025, 0.005]],
+                rgbaColors=[[0.25, 0.45, 0.85, 1], [1.0, 0.85, 0.1, 1]],
+                visualFramePositions=[[0, 0, body_z],
+                                      [s.radius - 0.05, 0, body_z + _BODY_HEIGHT / 2 + 0.006]],
+                **kw)
+        base_mass = s.mass - 2 * _WHEEL_MASS
+        half_base = s.wheel_base / 2
+        self._robot = p.createMultiBody(
+            base_mass, body, vis, basePosition=[0, 0, R],
+            linkMasses=[_WHEEL_MASS, _WHEEL_MASS], linkCollisionShapeIndices=[wheel, wheel],
+            linkVisualShapeIndices=[-1, -1],
+            linkPositions=[[0, half_base, 0], [0, -half_base, 0]],   # left (+y), right
+            linkOrientations=[[0, 0, 0, 1]] * 2, linkInertialFramePositions=[[0, 0, 0]] * 2,
+            linkInertialFrameOrientations=[[0, 0, 0, 1]] * 2, linkParentIndices=[0, 0],
+            linkJointTypes=[p.JOINT_REVOLUTE] * 2, linkJointAxis=[[0, 1, 0]] * 2, **kw)
+        # Centre of mass over the axle: all weight on the drive wheels, casters nearly idle.
+        ixx = base_mass * (3 * self.body_radius ** 2 + _BODY_HEIGHT ** 2) / 12
+        izz = base_mass * self.body_radius ** 2 / 2
+        p.changeDynamics(self._robot, -1, lateralFriction=0.0, rollingFriction=0.0,
+                         spinningFriction=0.0, localInertiaDiagonal=[ixx, ixx, izz], **kw)
+        for j in (0, 1):
+            # (no damping arguments here: PyBullet applies those, and with them this
+            # call's friction, to the base)
+            p.changeDynamics(self._robot, j, lateralFriction=1.0, rollingFriction=0.0,
+                             spinningFriction=0.0, **kw)
+        self._set_wheels(0.0, 0.0)
+
+    # ------------------------------------------------------------------ internals
+    def _check_open(self) -> None:
+        if self._closed:
+            raise RobotError("this PyBulletRobot is closed.")
+
+    def _set_wheels(self, v_left: float, v_right: float) -> None:
+        R = self._wheel_r
+        self._p.setJointMotorControlArray(
+            self._robot, [0, 1], self._p.VELOCITY_CONTROL,
+            targetVelocities=[v_left / R, v_right / R],
+            forces=[self.wheel_torque, self.wheel_torque], **self._kw)
+        self._speeds = (v_left, v_right)
+
+    def _step(self, n: int) -> None:
+        p, kw = self._p, self._kw
+        step = p.stepSimulation
+        if not self._visual:
+            for _ in range(n):
+                step(**kw)
+            self._steps += n
+            return
+        for _ in range(n):
+            step(**kw)
+            self._steps += 1
+            if self._record is not None and self._steps % self._record_every == 0:
+                self._frames.append(self._render())
+        if self.gui:   # pace to real time
+            ahead = self._steps * self.time_step - (_time.perf_counter() - self._wall_t0)
+            if ahead > 0:
+                _time.sleep(ahead)
+
+    def _render(self) -> np.ndarray:
+        p, kw = self._p, self._kw
+        x0, y0, x1, y1 = self.env.bounds
+        m = 0.15
+        w, h = (x1 - x0) + 2 * m, (y1 - y0) + 2 * m
+        W = self._record_width
+        H = max(16, int(round(W * h / w)) // 2 * 2)
+        fov = 20.0
+        dist = (h / 2) / math.tan(math.radians(fov / 2)) + _WALL_HEIGHT
+        cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
+        view = p.computeViewMatrix([cx, cy, dist], [cx, cy, 0], [0, 1, 0])
+        proj = p.computeProjectionMatrixFOV(fov, W / H, dist / 4, dist * 2)
+        img = p.getCameraImage(W, H, view, proj, renderer=p.ER_TINY_RENDERER, shadow=0,
+                               flags=p.ER_NO_SEGMENTATION_MASK, **kw)
+        return np.reshape(np.asarray(img[2], dtype=np.uint8), (H, W, 4))[:, :, :3].copy()
+
+    def _wheel_angles(self) -> tuple[float, float]:
+        st = self._p.getJointStates(self._robot, [0, 1], **self._kw)
+        return st[0][0], st[1][0]
+
+    def _encoder_heading(self, enc: tuple[int, int]) -> float:
+        """Heading [rad] from encoder counts (CREATE2_OI: Δθ = (Δs_r − Δs_l) / b)."""
+        mpc = self.spec.metres_per_count
+        return (enc[1] - enc[0]) * mpc / self.spec.wheel_base
+
+    # ------------------------------------------------------------------ Robot interface
+    def drive(self, speed: float) -> None:
+        """Drive straight at ``speed`` [m/s] (|speed| ≤ 0.5 m/s, the Create 2's limit)."""
+        self._check_open()
+        speed = float(speed)
+        if not math.isfinite(speed) or abs(speed) > self.spec.max_wheel_speed + 1e-12:
+            raise UserError(f"speed {speed} m/s exceeds the wheel speed limit "
+                            f"{self.spec.max_wheel_speed} m/s.")
+        self._set_wheels(speed, speed)
+
+    def stop(self) -> None:
+        """Stop both wheels (the velocity motors brake at full torque)."""
+        if not self._closed:
+            self._set_wheels(0.0, 0.0)
+
+    def bumper(self) -> tuple[bool, bool]:
+        """(left, right) bumper switches from the body's contacts with walls.
+
+        A contact point closer than 1 mm on the front arc (± ``bumper_arc_deg`` of the
+        heading) closes the switch on its side; within ±10° of straight ahead both close.
+        """
+        self._check_open()
+        p, kw = self._p, self._kw
+        contacts = p.getContactPoints(bodyA=self._robot, linkIndexA=-1, **kw)
+        if not contacts:
+            return False, False
+        (x, y, _), orn = p.getBasePositionAndOrientation(self._robot, **kw)
+        yaw = math.degrees(p.getEulerFromQuaternion(orn)[2])
+        left = right = False
+        for c in contacts:
+            if c[2] not in self._wall_set or c[8] > _CONTACT_TOLERANCE:
+                continue
+            pos = c[5]
+            rel = _wrap_deg(math.degrees(math.atan2(pos[1] - y, pos[0] - x)) - yaw)
+            if abs(rel) > self.bumper_arc_deg:
+                continue
+            if rel >= -_BUMP_CENTRE_DEG:
+                left = True
+            if rel <= _BUMP_CENTRE_DEG:
+                right = True
+        return left, right
+
+    def clock(self) -> float:
+        """Simulated time [s]: whole physics steps × time_step."""
+        return self._steps * self.time_step
+
+    def wait(self, duration: float) -> None:
+        """Step the physics for ``duration`` [s], rounded to whole steps without drift."""
+        self._check_open()
+        duration = float(duration)
+        if not duration >= 0:
+            raise UserError(f"cannot wait a negative or undefined time ({duration} s).")
+        self._t_goal += duration
+        n = int(round(self._t_goal / self.time_step)) - self._steps
+        if n > 0:
+            self._step(n)
+
+    def encoders(self) -> tuple[int, int]:
+        """(left, right) cumulative encoder counts (no 16-bit wrap in simulation)."""
+        self._check_open()
+        k = self.spec.counts_per_rev / (2 * math.pi)
+        a_l, a_r = self._wheel_angles()
+        return int(a_l * k), int(a_r * k)
+
+    def turn(self, angle_deg: float) -> None:
+        """Turn in place CCW by ``angle_deg`` [deg] plus the rotation noise (blocking).
+
+        The noise model maps the commanded angle to the executed one; a negative executed
+        angle turns clockwise. With ``back_off`` > 0 the robot first backs off that far.
+        """
+        self._check_open()
+        cmd = float(angle_deg)
+        actual = float(self.noise.sample(self.rng, cmd)) if self.noise is not None else cmd
+        if self.back_off > 0:
+            v = self.turn_speed
+            self.drive(-v)
+            self.wait(round(self.back_off / v / self.time_step) * self.time_step)
+            self.stop()
+        if actual == 0:
+            return
+        if self.turn_mode == "clock":
+            self._turn_by_clock(actual)
+        else:
+            self._turn_by_encoders(actual)
+
+    def _turn_by_clock(self, angle_deg: float) -> None:
+        v = math.copysign(self.turn_speed, angle_deg)
+        n = round(self.spec.turn_time(angle_deg, self.turn_speed) / self.time_step)
+        self._set_wheels(-v, v)
+        self.wait(n * self.time_step)
+        self.stop()
+        self.wait(_SETTLE_STEPS * self.time_step)
+
+    def _turn_by_encoders(self, angle_deg: float) -> None:
+        """Turn until the encoder heading change reaches the target, polling every sensor
+        period; the wheel speed ramps down near the target (never below 0.03 m/s, about the
+        Create 2's speed resolution) and the turn stops at the poll nearest the target."""
+        target = math.radians(angle_deg)
+        sign = 1.0 if target > 0 else -1.0
+        remaining_total = abs(target)
+        period = self.spec.sensor_period
+        b = self.spec.wheel_base
+        e0 = self.encoders()
+        limit = 2.0 * remaining_total / (2 * 0.03 / b) + 5.0   # generous time-out [s]
+        t0 = self.clock()
+        while True:
+            e = self.encoders()
+            done = sign * self._encoder_heading((e[0] - e0[0], e[1] - e0[1]))
+            remaining = remaining_total - done
+            # speed that would cover the rest in about two periods, clipped
+            v = min(self.turn_speed, max(0.03, remaining * b / 2 / (2 * period)))
+            step = 2 * v / b * period
+            if remaining <= step / 2 or self.clock() - t0 > limit:
+                break
+            self._set_wheels(-sign * v, sign * v)
+            self.wait(period)
+        self.stop()
+        self.wait(_SETTLE_STEPS * self.time_step)
+
+    # ------------------------------------------------------------------ simulation only
+    def place(self, x: float, y: float, heading_deg: float) -> None:
+        """Put the robot at (x [m], y [m]) facing ``heading_deg`` [deg], at rest, stopped.
+
+        Raises :class:`~envs.UserError` when the body would overlap a wall there.
+        """
+        self._check_open()
+        p, kw = self._p, self._kw
+        pt = shapely.points(float(x), float(y))
+        if not (self.env.free_space.covers(pt)
+                and shapely.distance(pt, self.env.walls) >= self.body_radius - 1e-6):
+            raise UserError(f"cannot place the robot at ({x:g}, {y:g}): its body would "
+                            f"overlap a wall.")
+        orn = p.getQuaternionFromEuler([0, 0, math.radians(heading_deg)])
+        p.resetBasePositionAndOrientation(self._robot, [x, y, self._wheel_r], orn, **kw)
+        p.resetBaseVelocity(self._robot, [0, 0, 0], [0, 0, 0], **kw)
+        a_l, a_r = self._wheel_angles()
+        p.resetJointState(self._robot, 0, a_l, 0.0, **kw)
+        p.resetJointState(self._robot, 1, a_r, 0.0, **kw)
+        self._set_wheels(0.0, 0.0)
+        p.performCollisionDetection(**kw)
+
+    def true_pose(self) -> tuple[float, float, float]:
+        """(x [m], y [m], heading [deg] in (−180, 180]) of the body centre."""
+        self._check_open()
+        p, kw = self._p, self._kw
+        (x, y, _), orn = p.getBasePositionAndOrientation(self._robot, **kw)
+        return x, y, math.degrees(p.getEulerFromQuaternion(orn)[2])
+
+    @property
+    def frames(self) -> list[np.ndarray]:
+        """Video frames recorded so far (RGB uint8 arrays)."""
+        return self._frames
+
+    def close(self) -> None:
+        """Stop, write the recording (if any) and disconnect (idempotent)."""
+        if self._closed or self._cid is None:
+            return
+        try:
+            self.stop()
+            if self._record is not None and self._frames:
+                self._write_video()
+        finally:
+            self._disconnect()
+
+    def _write_video(self) -> None:
+        import imageio.v3 as iio
+        path = self._record
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if path.suffix.lower() == ".gif":
+            iio.imwrite(path, np.stack(self._frames), duration=1000 * self._record_period,
+                        loop=0)
+        else:
+            iio.imwrite(path, np.stack(self._frames), fps=1 / self._record_period,
+                        plugin="FFMPEG")
+
+    def _disconnect(self) -> None:
+        if self._cid is not None and not getattr(self, "_closed", True):
+            try:
+                self._p.disconnect(**self._kw)
+            except Exception:  # noqa: BLE001 - already gone
+                pass
+        self._closed = True
+
+    def __del__(self) -> None:
+        try:
+            self._disconnect()
+        except Exception:  # noqa: BLE001
+            pass
+
+    def __repr__(self) -> str:
+        return (f"PyBulletRobot(env={self.env.name!r}, turn={self.turn_mode!r}, "
+                f"time_step={self.time_step:g}, back_off={self.back_off})")

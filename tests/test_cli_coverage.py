@@ -1,0 +1,109 @@
+"""``bouncesim coverage``: outputs, their consistency, and one-sentence errors (exit 2)."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import numpy as np
+import pytest
+
+from bouncesim.cli import main
+
+
+def read_csv(path):
+    with open(path, newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def test_writes_csv_json_and_heatmaps(tmp_path, capsys):
+    out = tmp_path / "cov"
+    rc = main(["coverage", "lab", "--angles", "90,135", "--eps", "45", "--r", "0.8",
+               "--out", str(out)])
+    assert rc == 0
+    printed = capsys.readouterr().out
+    assert "alpha" in printed and "135°" in printed and "TV" in printed
+    for f in ("coverage.csv", "alpha.json", "heatmap_angle_90.png", "heatmap_angle_135.png",
+              "heatmap_mix_vs_target.png"):
+        assert (out / f).stat().st_size > 0, f
+    summary = json.loads((out / "alpha.json").read_text())
+    assert summary["angles"] == [90, 135]
+    assert summary["K"] == 8 and summary["P"] == 48 and summary["N"] == 384
+    assert summary["env"] == "lab" and summary["eps"] == 45 and summary["r"] == 0.8
+    alpha = np.array(summary["alpha"])
+    assert alpha.min() >= 0 and alpha.sum() == pytest.approx(1.0)
+    for pa in summary["per_angle"]:
+        assert pa["persistent_groups"] == len(pa["group_sizes"]) >= 1
+        assert 0 <= pa["transient_fraction"] < 1
+    rows = read_csv(out / "coverage.csv")
+    assert list(rows[0]) == ["angle", "p", "i", "j", "x", "y", "q"]
+    by = {}
+    for r in rows:
+        by.setdefault(r["angle"], np.zeros(48))[int(r["p"])] = float(r["q"])
+    assert set(by) == {"90", "135", "mix", "target"}
+    for q in by.values():
+        assert q.sum() == pytest.approx(1.0)
+    # the mix row is A alpha, and the JSON's residual and TV are computed from it
+    mixed = alpha[0] * by["90"] + alpha[1] * by["135"]
+    np.testing.assert_allclose(by["mix"], mixed, atol=1e-12)
+    diff = by["mix"] - by["target"]
+    assert summary["residual"] == pytest.approx(np.linalg.norm(diff), rel=1e-9)
+    assert summary["tv"] == pytest.approx(0.5 * np.abs(diff).sum(), rel=1e-9)
+
+
+def test_json_output_and_custom_target(tmp_path, capsys):
+    target = tmp_path / "t.csv"
+    target.write_text("p,weight\n0,1\n47,1\n")
+    rc = main(["coverage", "lab", "--angles", "45,90", "--target", str(target), "--json"])
+    assert rc == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["target"] == str(target)
+    assert len(summary["alpha"]) == 2
+
+
+def test_configuration_space(tmp_path, capsys):
+    target = tmp_path / "z.csv"
+    target.write_text("z,weight\n" + "\n".join(f"{z},1" for z in range(0, 384, 7)))
+    out = tmp_path / "o"
+    rc = main(["coverage", "lab", "--angles", "90,135", "--target", str(target),
+               "--target-space", "configurations", "--out", str(out), "--no-plots"])
+    assert rc == 0
+    summary = json.loads((out / "alpha.json").read_text())
+    assert summary["target_space"] == "configurations"
+    rows = read_csv(out / "coverage_configurations.csv")
+    assert list(rows[0]) == ["angle", "z", "p", "k", "pi"]
+    assert len(rows) == 4 * 384
+    assert not list(out.glob("*.png"))
+
+
+@pytest.mark.parametrize("argv, match", [
+    (["--angles", "30"], "bouncing angle 30° is not allowed with 8 orientations"),
+    (["--angles", "90", "--eps", "10"], "error range eps 10° is not allowed"),
+    (["--angles", "90", "--r", "1.5"], "reliability r must lie in [0, 1]"),
+    (["--angles", "90,abc"], "--angles takes numbers"),
+    (["--angles", "90", "--target", "{missing}"], "no target file"),
+    (["--angles", "90", "--target", "{neg}"], "negative weight"),
+    (["--angles", "90", "--target", "{zero}"], "sum to zero"),
+    (["--angles", "90", "--target", "{short}"], "must have 6 rows x 9 columns"),
+    (["--angles", "90", "--target", "{neg}", "--target-space", "configurations"],
+     "needs columns z and weight"),
+])
+def test_user_errors_exit_2_with_one_sentence(tmp_path, capsys, argv, match):
+    files = {"missing": tmp_path / "missing.csv", "neg": tmp_path / "neg.csv",
+             "zero": tmp_path / "zero.csv", "short": tmp_path / "short.txt"}
+    files["neg"].write_text("p,weight\n0,1\n1,-2\n")
+    files["zero"].write_text("p,weight\n0,0\n1,0\n")
+    files["short"].write_text("1 1 1\n1 1 1\n")
+    argv = [a.format(**files) for a in argv]
+    rc = main(["coverage", "lab", *argv])
+    assert rc == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("bouncesim: error: ") and match in err
+    assert "\n" not in err and "Traceback" not in err
+
+
+def test_help_documents_target_formats(capsys):
+    with pytest.raises(SystemExit):
+        main(["coverage", "--help"])
+    text = capsys.readouterr().out
+    assert "top row first" in text and "p and weight" in text and "z and weight" in text

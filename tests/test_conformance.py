@@ -1,0 +1,74 @@
+"""The Robot conformance suite (tests/conformance.py) run against every simulated backend."""
+
+from __future__ import annotations
+
+import importlib.util
+
+import pytest
+
+from bouncesim.kinematic import KinematicRobot
+
+from .conformance import CHECKS
+
+
+def _kinematic(env):
+    return KinematicRobot(env)
+
+
+def _pybullet(env):
+    pytest.importorskip("pybullet")
+    if importlib.util.find_spec("bouncesim.pybullet_world") is None:
+        pytest.skip("bouncesim.pybullet_world is not there yet")
+    from bouncesim.pybullet_world import PyBulletRobot
+    return PyBulletRobot(env)
+
+
+BACKENDS = [
+    pytest.param(_kinematic, id="kinematic"),
+    pytest.param(_pybullet, id="pybullet", marks=pytest.mark.physics),
+]
+
+
+@pytest.mark.parametrize("make_robot", BACKENDS)
+@pytest.mark.parametrize("check", sorted(CHECKS))
+def test_conformance(check, make_robot):
+    CHECKS[check](make_robot)
+
+
+def test_suite_is_not_empty():
+    assert len(CHECKS) >= 12
+
+
+# ---------------------------------------------------------------- the checks can fail
+class _SwappedBumper(KinematicRobot):
+    def bumper(self):
+        left, right = super().bumper()
+        return right, left
+
+
+class _ShortTurns(KinematicRobot):
+    def turn(self, angle_deg):
+        super().turn(0.9 * angle_deg)
+
+
+class _NoStop(KinematicRobot):
+    def stop(self):
+        pass
+
+
+class _SlowClock(KinematicRobot):
+    def wait(self, duration):
+        super().wait(duration)
+        self._t -= 0.5 * duration
+
+
+@pytest.mark.parametrize("broken,check", [
+    (_SwappedBumper, "bump_sides"),
+    (_ShortTurns, "turn_90"),
+    (_ShortTurns, "four_quarter_turns"),
+    (_NoStop, "stop_stops"),
+    (_SlowClock, "clock_advances_with_wait"),
+])
+def test_conformance_catches_broken_backends(broken, check):
+    with pytest.raises(AssertionError):
+        CHECKS[check](lambda env: broken(env))
