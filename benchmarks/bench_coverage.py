@@ -11,6 +11,7 @@ Usage::
 
     python -m benchmarks.bench_coverage            # K ladder + the N = 65880 headline
     python -m benchmarks.bench_coverage --big      # complex at 0.05 m cells, K = 360 (~2.4M)
+    python -m benchmarks.bench_coverage --big --no-matrix   # ... without the full-matrix run
     python -m benchmarks.bench_coverage --budget 120   # time budget for the reference [s]
 
 Run ``--big`` on its own: its peak resident memory is read from the process as a whole.
@@ -156,7 +157,7 @@ def _fmt_row(row) -> str:
                 f"q {row['max_q_diff']:.1e}, alpha {row['max_alpha_diff']:.1e} |")
 
 
-def big() -> None:
+def big(with_matrix: bool = True) -> None:
     t0 = time.perf_counter()
     env = envs.load("complex", cell_size=0.05, orientations=360)
     cs = CellSpace(env)
@@ -167,7 +168,7 @@ def big() -> None:
     t_fwd = time.perf_counter() - t0
     print(f"complex at 0.05 m cells, K=360: P={cs.P}, N={cs.N}")
     print(f"cells {t_cells:.2f} s, step table (CellSpace.forward, shapely) {t_fwd:.2f} s")
-    print("| angle | groups | largest | transient | time [s] |")
+    print("| angle | groups | largest | transient | runs method [s] |")
     print("|---|---|---|---|---|")
     per = []
     t_all = time.perf_counter()
@@ -186,6 +187,15 @@ def big() -> None:
           f"TV {mix.tv:.4g} (mix {t_mix * 1e3:.1f} ms)")
     print(f"chains + groups + limiting + alpha: {t_chain:.2f} s; with cells and step table: "
           f"{t_chain + t_fwd + t_cells:.2f} s; peak RSS {_rss_gb():.2f} GB")
+    if with_matrix:
+        print("full-matrix method (planners.markov.analyse_chain on the N x N chain):")
+        for a, ac in zip(ANGLES, per):
+            t0 = time.perf_counter()
+            am = analyse_angle(cs, a, 5.0, R, method="matrix")
+            dt = time.perf_counter() - t0
+            print(f"  {a:g}°: {dt:.2f} s, max |q_matrix - q_runs| = "
+                  f"{np.abs(am.q - ac.q).max():.1e}", flush=True)
+        print(f"peak RSS including the full-matrix runs {_rss_gb():.2f} GB")
 
 
 def main(argv=None) -> int:
@@ -193,11 +203,13 @@ def main(argv=None) -> int:
                                  description=__doc__.splitlines()[0])
     ap.add_argument("--big", action="store_true",
                     help="only the ~2.4M-configuration case (complex, 0.05 m, K=360)")
+    ap.add_argument("--no-matrix", action="store_true",
+                    help="with --big: skip the full-matrix comparison")
     ap.add_argument("--budget", type=float, default=240.0,
                     help="stop growing the reference once one run exceeds budget/8 [s]")
     args = ap.parse_args(argv)
     if args.big:
-        big()
+        big(with_matrix=not args.no_matrix)
         return 0
     print(f"angles {ANGLES}, r={R}; eps = 5° where K allows it, else one step 360°/K; "
           "times are best of 3 for the sparse pipeline (step table excluded: built once "

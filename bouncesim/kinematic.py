@@ -31,6 +31,9 @@ Contact conventions (shared by both)
   point relative to the heading: |β| <= 10° closes both switches, β > 10° the left one and
   β < −10° the right one. A contact behind the centre line (driving backwards into a wall) is
   not a bump: the robot stalls there, its clock runs on and the bumper stays open.
+- Opt-in for the single robot only (``KinematicRobot(glance_deg=...)``): contacts more than
+  ``glance_deg`` from the heading do not press the bumper; the body slides along the wall.
+  The default and the batch keep the front-half bumper above.
 
 Examples
 --------
@@ -73,6 +76,7 @@ STEP_TOL = 1e-6
 CENTRE_ZONE_DEG = 10.0
 """[deg] contacts within ±this of straight ahead close both bumper switches."""
 _EXACT = NoNoise()
+_MAX_EVENTS = 64         # contacts and slides handled within one forward drive
 _SCALAR_MAX = 8          # batches up to this size cast robot by robot in plain Python
 _APPROACH_MIN = 1e-12   # a side is approached only when u . n exceeds this
 _GRAZE_TOL = 1e-7       # [m] a corner is hit only when the ray passes closer than r - this
@@ -111,7 +115,7 @@ def _cast_scalar(sides, verts, r, r2, graze, x, y, ux, uy, within=None):
             elif t <= within:
                 cx, cy = x + t * ux - Ax, y + t * uy - Ay
                 k = min(max(cx * ex + cy * ey, 0.0), L)
-                hits.append((Ax + k * ex, Ay + k * ey))
+                hits.append((Ax + k * ex, Ay + k * ey, (Ax, Ay, ex, ey, L)))
     for Vx, Vy in verts:
         vx = x - Vx
         vy = y - Vy
@@ -128,7 +132,7 @@ def _cast_scalar(sides, verts, r, r2, graze, x, y, ux, uy, within=None):
             if t < best:
                 best = t
         elif t <= within:
-            hits.append((Vx, Vy))
+            hits.append((Vx, Vy, None))
     return best if hits is None else hits
 
 
@@ -237,7 +241,8 @@ class WallCaster:
         """Scalar :meth:`cast` for one disk (plain Python floats, bitwise the same numbers).
 
         Returns the contact distance [m]; with ``within`` [m], instead the list of wall points
-        (x, y) the disk touches when moving up to ``within`` along (ux, uy).
+        (x, y, side) the disk touches when moving up to ``within`` along (ux, uy); side is the
+        segment (Ax, Ay, ex, ey, L) or None for a corner.
         """
         return _cast_scalar(self._side_list, self._vert_list, self.r, self._r2, self._graze,
                             x, y, ux, uy, within)
@@ -246,7 +251,7 @@ class WallCaster:
         """For one disk: the wall points (x, y) it touches moving ``within`` [m] along u."""
         x, y = (float(v) for v in np.asarray(pos, dtype=float).reshape(2))
         ux, uy = (float(v) for v in np.asarray(u, dtype=float).reshape(2))
-        return self.cast_one(x, y, ux, uy, within)
+        return [(px, py) for px, py, _ in self.cast_one(x, y, ux, uy, within)]
 
 
 class LocalCaster:
@@ -389,6 +394,14 @@ class KinematicRobot(Robot):
     turn : {"clock", "encoders"}
         Accepted for parity with the PyBullet robot; in the twin both are exact (the wheels
         turn by exactly the commanded arc) and take the same time.
+    glance_deg : float, optional
+        Opt-in glancing-contact model. Default None: every contact on the front half stops
+        the robot and closes the bumper (the MODEL §8 twin). With a value in (0°, 90°), a
+        contact whose bearing from the heading exceeds it (a wall met at less than
+        90° − glance_deg) does not press the bumper: the body slides along the wall (heading
+        kept, speed v·sin β along the wall; around a corner it wraps on the corner's circle
+        until it can go straight on). 80 matches the PyBullet robot's bumper arc. Two
+        glancing contacts at once (a pocket) stall the robot without a bump.
     spec : RobotSpec, optional
         Body figures; default the Create 2 with the environment's radius.
 
@@ -402,7 +415,7 @@ class KinematicRobot(Robot):
 
     def __init__(self, env: Environment, noise: NoiseModel | None = None, rng=None, *,
                  turn_speed: float = 0.1, turn: str = "clock",
-                 spec: RobotSpec | None = None) -> None:
+                 spec: RobotSpec | None = None, glance_deg: float | None = None) -> None:
         self.env = env
         self.noise = noise if noise is not None else NoNoise()
         if rng is None and not self.noise.exact:
@@ -417,6 +430,9 @@ class KinematicRobot(Robot):
         if turn not in ("clock", "encoders"):
             raise UserError(f"turn must be 'clock' or 'encoders', got {turn!r}.")
         self.turn_mode = turn
+        if glance_deg is not None and not 0 < float(glance_deg) < 90:
+            raise UserError(f"glance_deg must lie in (0, 90) degrees, got {glance_deg}.")
+        self.glance_deg = None if glance_deg is None else float(glance_deg)
         self.caster, self.local = casters(env)
         cells = CellSpace(env)
         x, y = cells.centres[0]
@@ -470,17 +486,24 @@ class KinematicRobot(Robot):
     def stop(self) -> None:
         self._speed = 0.0
 
-    def bumper(self) -> tuple[bool, bool]:
+    def _contacts(self) -> list[tuple[float, float, float, tuple | None]]:
+        """Front contacts within BUMP_RANGE ahead: (bearing β [deg], x, y, side or None)."""
         x, y, ux, uy = self._x, self._y, self._ux, self._uy
-        pts = self.local.cast_one(x, y, ux, uy, BUMP_RANGE)
-        left = right = False
-        for px, py in pts:
+        out = []
+        for px, py, side in self.local.cast_one(x, y, ux, uy, BUMP_RANGE):
             wx, wy = px - x, py - y
             beta = math.degrees(math.atan2(ux * wy - uy * wx, ux * wx + uy * wy))
-            if abs(beta) >= 90.0:       # behind the centre line: not the bumper
-                continue
-            left |= beta >= -CENTRE_ZONE_DEG
-            right |= beta <= CENTRE_ZONE_DEG
+            if abs(beta) < 90.0:       # behind the centre line: not the bumper
+                out.append((beta, px, py, side))
+        return out
+
+    def bumper(self) -> tuple[bool, bool]:
+        arc = 90.0 if self.glance_deg is None else self.glance_deg
+        left = right = False
+        for beta, _, _, _ in self._contacts():
+            if abs(beta) <= arc:
+                left |= beta >= -CENTRE_ZONE_DEG
+                right |= beta <= CENTRE_ZONE_DEG
         return bool(left), bool(right)
 
     def clock(self) -> float:
@@ -490,7 +513,10 @@ class KinematicRobot(Robot):
         duration = float(duration)
         if duration < 0 or not math.isfinite(duration):
             raise ValueError(f"cannot wait {duration} s.")
-        self._move(self._speed * duration)
+        if self._speed > 0:
+            self._forward(self._speed, duration)
+        else:
+            self._move(self._speed * duration)
         self._t += duration
 
     def turn(self, angle_deg: float) -> None:
@@ -507,6 +533,89 @@ class KinematicRobot(Robot):
         mpc = self.spec.metres_per_count
         return int(round(self._wheel[0] / mpc)), int(round(self._wheel[1] / mpc))
 
+    def _forward(self, speed: float, duration: float) -> tuple[float | None, float]:
+        """Drive forward at ``speed`` > 0 [m/s] for up to ``duration`` [s] (clock untouched).
+
+        Returns (time of the bump that stopped the robot, or None; free distance left ahead
+        [m] at the end). After a bump, or when wedged, the robot stays put.
+        """
+        t = 0.0
+        for _ in range(_MAX_EVENTS):
+            reach = speed * (duration - t)
+            ahead = self._free_distance(1.0, reach + CONTACT_GAP + BUMP_RANGE)
+            dist = max(ahead - CONTACT_GAP, 0.0)
+            if dist > reach:
+                self._advance(reach)
+                return None, dist - reach
+            self._advance(dist)
+            t += dist / speed
+            if self.glance_deg is None:
+                return t, 0.0
+            contacts = self._contacts()
+            if not contacts or any(abs(b) <= self.glance_deg for b, *_ in contacts):
+                return t, 0.0
+            used = self._slide(contacts, speed, duration - t)
+            if used is None:                     # wedged: pushes on without moving
+                return None, 0.0
+            t += used
+            if t >= duration:
+                return None, self._free_distance(1.0, BUMP_RANGE)
+        return None, 0.0
+
+    def _slide(self, contacts, speed: float, budget: float) -> float | None:
+        """Slide along the one glancing contact for at most ``budget`` [s]; the time used,
+        or None when the robot is wedged (two walls at once, or the slide is blocked)."""
+        pts = {(round(px, 9), round(py, 9)): (b, px, py, side) for b, px, py, side in contacts}
+        if len(pts) != 1:
+            sides = [c for c in contacts if c[3] is not None]
+            if len(sides) != 1 or len({(round(c[1], 9), round(c[2], 9)) for c in contacts}) > 1:
+                return None
+            contacts = sides
+        beta, px, py, side = contacts[0]
+        x, y, ux, uy = self._x, self._y, self._ux, self._uy
+        nx, ny = x - px, y - py
+        nn = math.hypot(nx, ny)
+        nx, ny = nx / nn, ny / nn                       # wall -> centre
+        un = ux * nx + uy * ny
+        tx, ty = ux - un * nx, uy - un * ny              # the push along the wall
+        ts = math.hypot(tx, ty)
+        if ts < 1e-12:
+            return None
+        tx, ty = tx / ts, ty / ts
+        if side is not None:                             # slide along a straight wall
+            Ax, Ay, ex, ey, L = side
+            lam = (x - Ax) * ex + (y - Ay) * ey
+            along = tx * ex + ty * ey
+            to_end = (L - lam if along > 0 else lam) / abs(along) + 1e-9
+            block = self.caster.cast_one(x, y, tx, ty)
+            d = min(to_end, max(block - CONTACT_GAP, 0.0), speed * ts * budget)
+            if d <= 0:
+                return None
+            self._x += d * tx
+            self._y += d * ty
+            self._wheel[0] += d
+            self._wheel[1] += d
+            return d / (speed * ts)
+        # wrap around a corner V = (px, py) on the circle of radius r until the contact is
+        # abeam (bearing 90°): time (r / v) ln(tan(45°) / tan(β0 / 2))
+        r = self.env.robot_radius
+        b0 = math.radians(abs(beta))
+        full = (r / speed) * -math.log(math.tan(b0 / 2))
+        used = min(full, budget)
+        b1 = 2 * math.atan(math.tan(b0 / 2) * math.exp(speed * used / r))
+        turn = b1 - b0
+        sgn = 1.0 if (nx * ty - ny * tx) > 0 else -1.0   # the normal turns toward the push
+        c, s_ = math.cos(sgn * turn), math.sin(sgn * turn)
+        mx, my = c * nx - s_ * ny, s_ * nx + c * ny
+        qx, qy = px + r * mx, py + r * my
+        # the arc is at most 90° - glance_deg long: check that its end is clear of the walls
+        if not bool(self.env.points_free([[qx, qy]])[0]):
+            return None
+        self._x, self._y = qx, qy
+        self._wheel[0] += r * turn
+        self._wheel[1] += r * turn
+        return used
+
     def drive_until_bump(self, speed: float, timeout: float) -> BumpEvent:
         """Exact equivalent of the polling default: jump to the contact or to the timeout.
 
@@ -521,20 +630,18 @@ class KinematicRobot(Robot):
             timeout = max(float(timeout), 0.0)
             reach = max(speed, 0.0) * timeout
             ahead = self._free_distance(1.0, reach + CONTACT_GAP + BUMP_RANGE)
-            if ahead <= BUMP_RANGE:              # pressed already (forward contacts only)
+            if ahead <= BUMP_RANGE:              # touching something ahead: pressed?
                 left, right = self.bumper()
                 if left or right:
                     return BumpEvent(True, left, right, 0.0)
             if speed > 0:
-                dist = max(ahead - CONTACT_GAP, 0.0)
-                if dist <= reach:
-                    self._advance(dist)
-                    self._t += dist / speed
+                t_bump, left_ahead = self._forward(speed, timeout)
+                if t_bump is not None:
+                    self._t += t_bump
                     left, right = self.bumper()
-                    return BumpEvent(True, left, right, self._t - t0)
-                self._advance(reach)
+                    return BumpEvent(True, left, right, t_bump)
                 self._t += timeout
-                if dist - reach <= BUMP_RANGE:
+                if left_ahead <= BUMP_RANGE:
                     left, right = self.bumper()
                     return BumpEvent(bool(left or right), left, right, timeout)
                 return BumpEvent(False, False, False, timeout)
@@ -618,6 +725,12 @@ class KinematicBatch:
     step : float, optional   step length [m] (default the cell size h)
     starts : (n_robots,) int array, optional
         Start configurations z (default: drawn uniformly from the N configurations).
+
+    Attributes
+    ----------
+    pos : (n, 2) array      robot centres [m]
+    heading : (n,) array    headings [deg]; change it by assignment, not in place (the cached
+                            unit vectors follow assignments and the batch's own turns)
 
     Notes
     -----

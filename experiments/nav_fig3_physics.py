@@ -13,12 +13,16 @@ from tqdm import tqdm
 __all__ = ["execute_fig3", "make_robot", "BACKENDS"]
 
 BACKENDS = ("pybullet", "kinematic")
+# The twin's bumper ignores contacts more than this far from the heading, like the PyBullet
+# body's ±80° bumper arc: in lab's one-robot-wide bottom corridor a strict front-half bumper
+# bumps on every grazing contact after a noisy turn (see docs/readme_physics_twin.md).
+TWIN_GLANCE_DEG = 80.0
 
 
 def make_robot(backend: str, env, noise, rng):
     if backend == "kinematic":
         from bouncesim.kinematic import KinematicRobot
-        return KinematicRobot(env, noise=noise, rng=rng)
+        return KinematicRobot(env, noise=noise, rng=rng, glance_deg=TWIN_GLANCE_DEG)
     if backend == "pybullet":
         from bouncesim.pybullet_world import PyBulletRobot
         return PyBulletRobot(env, noise=noise, rng=rng)
@@ -79,6 +83,7 @@ def execute_fig3(env, cells, routes, table, args, out):
     print(summary.to_string(float_format=lambda x: f"{x:.2f}"))
     return traces, {"backends": backends, "noisy_runs_per_level": n_noisy,
                     "noise_levels": ["none"] + [f"gauss:{s:g}" for s in sigmas],
+                    "twin_glance_deg": TWIN_GLANCE_DEG,
                     "seeding": "numpy SeedSequence(seed).spawn(number of runs), in runs.csv "
                     "order"}
 

@@ -367,11 +367,12 @@ Target files (--target FILE), weights need not be normalised:
   * positions, long form: a CSV with a header row naming the columns p and weight (others
     ignored), one row per position cell p = 0..P-1 (cells not listed get weight 0);
   * positions, image-like grid: numbers only (commas or whitespace), one text line per grid
-    row with the top row first (as the map looks), rows x columns = the env's grid shape;
-    entries at cells that are not free are ignored (write 0 or nan there);
+    row with the top row first (as the map looks), rows x columns = the env's grid shape
+    (`bouncesim info ENV` prints it as "grid: [rows, columns]"); entries at cells that are
+    not free are ignored (write 0, nan or - there);
   * configurations (--target-space configurations): a CSV with columns z and weight,
     z = k*P + p = 0..N-1 (unlisted configurations get weight 0).
-All weights must be non-negative with a positive sum."""
+All weights must be non-negative with a positive sum; lines starting with # are ignored."""
 
 
 def uniform_target(cs: CellSpace, space: str = "positions") -> np.ndarray:

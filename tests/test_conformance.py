@@ -15,6 +15,10 @@ def _kinematic(env):
     return KinematicRobot(env)
 
 
+def _kinematic_glance(env):
+    return KinematicRobot(env, glance_deg=80)
+
+
 def _pybullet(env):
     pytest.importorskip("pybullet")
     if importlib.util.find_spec("bouncesim.pybullet_world") is None:
@@ -25,6 +29,7 @@ def _pybullet(env):
 
 BACKENDS = [
     pytest.param(_kinematic, id="kinematic"),
+    pytest.param(_kinematic_glance, id="kinematic-glance80"),
     pytest.param(_pybullet, id="pybullet", marks=pytest.mark.physics),
 ]
 

@@ -286,6 +286,14 @@ def test_cli_failure_exit_4(capsys):
     assert "failure: " in capsys.readouterr().out
 
 
+def test_cli_glance_makes_the_noisy_corridor_passable(capsys):
+    args = ["run-plan", "lab", "--angles", "90,135", "--start", "8", "--goal", "0",
+            "--noise", "gauss:1", "--seed", "0"]
+    assert main(args) == 4                   # the front-half bumper bumps in the corridor
+    assert main([*args, "--glance", "80"]) == 0
+    assert main([*args, "--glance", "95"]) == 2
+
+
 def test_cli_no_path_exit_3(capsys):
     assert main(["run-plan", "lab", "--angles", "180", "--start", "0", "--goal", "96"]) == 3
 

@@ -363,3 +363,66 @@ def test_scalar_and_vector_casts_are_bitwise_equal(complex_env):
     near = vec_local < local.max_dist
     assert np.array_equal(vec_local[near], np.array(sc_local)[near])
     assert np.all(np.array(sc_local)[~near] >= local.max_dist)
+
+
+# ------------------------------------------------------------------ glancing contacts (opt-in)
+def test_glancing_contact_in_a_corridor_by_hand():
+    env = room(5, 1)                         # a corridor exactly one robot wide, 1.70 m long
+    default = KinematicRobot(env)
+    default.place(0.17, 0.17, 1.0)
+    ev = default.drive_until_bump(SPEED, 20.0)
+    # the front-half bumper: the north wall at bearing 89° closes the left switch at once
+    assert ev.bumped and ev.elapsed == 0.0 and (ev.left, ev.right) == (True, False)
+
+    bot = KinematicRobot(env, glance_deg=80)
+    bot.place(0.17, 0.17, 1.0)
+    assert bot.bumper() == (False, False)
+    ev = bot.drive_until_bump(SPEED, 20.0)
+    # slides along the north wall at v cos 1° to the east wall, which it meets head-on
+    assert ev.bumped and ev.left and ev.right
+    assert bot.true_pose()[:2] == pytest.approx((1.53, 0.17), abs=1e-8)
+    assert ev.elapsed == pytest.approx(1.36 / (SPEED * math.cos(math.radians(1.0))), rel=1e-9)
+    assert bot.true_pose()[2] == 1.0
+
+
+def test_glancing_corner_wrap_by_hand():
+    # block [1.0, 1.34] x [0.5, 0.84]; the robot passes 1 mm too close to its corner (1.0, 0.5)
+    env = envs.Environment.from_dict({
+        "boundary": [[0, 0], [2.04, 0], [2.04, 1.36], [0, 1.36]],
+        "obstacles": [[[1.0, 0.5], [1.34, 0.5], [1.34, 0.84], [1.0, 0.84]]],
+        "robot_radius": 0.17, "discretization": {"cell_size": 0.34, "orientations": 8}})
+    r, d, y0 = 0.17, 0.169, 0.5 - 0.169
+    bot = KinematicRobot(env, glance_deg=80)
+    bot.place(0.3, y0, 0.0)
+    ev = bot.drive_until_bump(SPEED, 60.0)
+    x_touch = 1.0 - math.sqrt(r * r - d * d)
+    beta0 = math.atan2(d, math.sqrt(r * r - d * d))          # bearing of the corner, 83.8°
+    assert math.degrees(beta0) > 80
+    wrap = (r / SPEED) * -math.log(math.tan(beta0 / 2))
+    # wraps to abeam the corner (y = 0.5 - r), then straight on to the east wall
+    assert ev.bumped
+    assert bot.true_pose()[:2] == pytest.approx((2.04 - r, 0.5 - r), abs=1e-8)
+    expected = (x_touch - 0.3) / SPEED + wrap + (2.04 - r - 1.0) / SPEED
+    assert ev.elapsed == pytest.approx(expected, rel=1e-9)
+    # the default twin stops at the corner instead
+    bot = KinematicRobot(env)
+    bot.place(0.3, y0, 0.0)
+    ev = bot.drive_until_bump(SPEED, 60.0)
+    assert ev.bumped and ev.left and not ev.right
+    assert bot.true_pose()[0] == pytest.approx(x_touch, abs=1e-8)
+
+
+def test_glancing_model_never_penetrates(complex_env):
+    env = complex_env
+    bot = KinematicRobot(env, GaussianNoise(20.0), np.random.default_rng(8), glance_deg=80)
+    bot.place(*CellSpace(env).pose(7))
+    r = env.robot_radius
+    slid = 0
+    for _ in range(300):
+        ev = bot.drive_until_bump(SPEED, 30.0)
+        x, y, _ = bot.true_pose()
+        d = _wall_distance(env, x, y)
+        assert d >= r - 1e-9, d - r
+        slid += not ev.bumped
+        bot.turn(135.0)
+    assert slid < 30   # almost every drive still ends in a bump

@@ -48,6 +48,10 @@ def register(sub) -> None:
                    help="drive speed [m/s] (default 0.2)")
     p.add_argument("--back-off", type=float, default=0.0, metavar="M",
                    help="back off this far [m] after each bump before turning (default 0)")
+    p.add_argument("--glance", type=float, default=None, metavar="DEG",
+                   help="kinematic only: a wall met more than DEG from the heading does not "
+                   "press the bumper, the robot slides along it (80 matches the PyBullet "
+                   "bumper arc; default: every front contact is a bump)")
     p.add_argument("--record", metavar="FILE", default=None,
                    help="record a video of the run (pybullet only)")
     p.add_argument("--gui", action="store_true", help="show the PyBullet window (pybullet only)")
@@ -57,14 +61,18 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def make_robot(kind: str, env, noise, rng, *, gui: bool = False, record=None):
+def make_robot(kind: str, env, noise, rng, *, gui: bool = False, record=None,
+               glance: float | None = None):
     """Build a simulated robot by name (``kinematic`` or ``pybullet``, imported lazily)."""
     if kind == "kinematic":
         if gui or record:
             raise UserError("--gui and --record need --robot pybullet.")
         from bouncesim.kinematic import KinematicRobot
-        return KinematicRobot(env, noise=noise, rng=rng)
+        return KinematicRobot(env, noise=noise, rng=rng, glance_deg=glance)
     if kind == "pybullet":
+        if glance is not None:
+            raise UserError("--glance is for --robot kinematic (the PyBullet bumper has its "
+                            "own 80° arc).")
         try:
             from bouncesim.pybullet_world import PyBulletRobot
         except ModuleNotFoundError as exc:
@@ -86,6 +94,9 @@ def run(args) -> int:
     noise = parse_noise(args.noise, cells.delta_deg)
     if args.robot == "kinematic" and (args.gui or args.record):
         raise UserError("--gui and --record need --robot pybullet.")
+    if args.robot != "kinematic" and args.glance is not None:
+        raise UserError("--glance is for --robot kinematic (the PyBullet bumper has its own "
+                        "80° arc).")
     route = nav.plan(start, goal)
     if route is None:
         if args.json:
@@ -96,7 +107,8 @@ def run(args) -> int:
                   f"{', '.join(f'{a:g}°' for a in nav.angles)}")
         return EXIT_NO_PATH
     rng = np.random.default_rng(args.seed)
-    robot = make_robot(args.robot, env, noise, rng, gui=args.gui, record=args.record)
+    robot = make_robot(args.robot, env, noise, rng, gui=args.gui, record=args.record,
+                       glance=args.glance)
     with robot:
         result = execute_plan(route.plan, robot, env, start, goal, cells, speed=args.speed,
                               back_off=args.back_off)
@@ -104,7 +116,7 @@ def run(args) -> int:
         result.trace.to_csv(args.trace)
     if args.json:
         out = {"start": start, "goal": goal, "robot": args.robot, "noise": str(noise),
-               "seed": args.seed, "cost": route.cost}
+               "seed": args.seed, "glance": args.glance, "cost": route.cost}
         out.update(result.to_json())
         print_json(out)
     else:
