@@ -26,6 +26,9 @@ lint: $(STAMP)
 
 bench: $(STAMP)
 	$(PY) -m benchmarks.bench_navigation
+	$(PY) -m benchmarks.bench_coverage
+	$(PY) -m benchmarks.bench_twin
+	$(PY) -m benchmarks.bench_pybullet
 
 clean:
 	rm -rf $(VENV) build *.egg-info

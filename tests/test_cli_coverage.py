@@ -107,3 +107,21 @@ def test_help_documents_target_formats(capsys):
         main(["coverage", "--help"])
     text = capsys.readouterr().out
     assert "top row first" in text and "p and weight" in text and "z and weight" in text
+
+
+def test_table1_experiment_quick(tmp_path, capsys):
+    from experiments import coverage_table1
+    out = tmp_path / "t1"
+    assert coverage_table1.main(["--quick", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "paper" in printed and "residual" in printed
+    table = read_csv(out / "table1.csv")
+    assert [r["angle"] for r in table] == ["30", "75", "315"]
+    assert [float(r["alpha_paper"]) for r in table] == list(coverage_table1.PAPER_ALPHA)
+    for col in ("alpha", "alpha_configurations"):
+        assert sum(float(r[col]) for r in table) == pytest.approx(1.0)
+    config = json.loads((out / "config.json").read_text())
+    assert config["params"]["K"] == 72 and config["params"]["N"] == 72 * 183
+    for f in ("coverage.csv", "groups.csv", "fig10_limiting.png", "fig11_mix_vs_target.png",
+              "fig9_groups_315.png"):
+        assert (out / f).stat().st_size > 0, f
