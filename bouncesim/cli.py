@@ -22,6 +22,7 @@ COMMAND_MODULES = [
     "bouncesim.commands.allpairs",
     "bouncesim.commands.coverage",
     "bouncesim.commands.run_plan",
+    "bouncesim.commands.emulator",
 ]
 
 EPILOG = """\

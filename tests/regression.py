@@ -1,0 +1,214 @@
+"""Golden numbers for the CI regression (tests/test_regression.py) and the command that
+regenerates them.
+
+    python -m tests.regression            # recompute and compare, print the differences
+    python -m tests.regression --write    # overwrite tests/golden/*.json (review the diff!)
+
+Three golden files:
+
+- ``coverage.json``: the predicted coverage q of every angle and the policy mix α (targets
+  over positions and over configurations) of fixed settings. Any drift beyond 1e-9 fails.
+- ``plans.json``: the shortest plans (observation strings and costs) of a fixed set of
+  (start, goal) queries, and whether each plan reaches its goal when executed without noise
+  in the kinematic twin (and, for the Fig. 3 plans, in PyBullet).
+- ``tv.json``: TV between predicted and simulated coverage on a small environment with a
+  fixed seed (twin: 10^5 steps; PyBullet: four runs of 250 steps from random starts), with
+  the noise floor measured when the file was written: the largest TV between independent
+  seeds at the same step count.
+  The test allows the TV to move by at most ``TV_SLACK`` (1.5) noise floors either way. Why
+  the floor is the right unit: by the triangle inequality, re-sampling the simulation (another
+  seed, or a harmless change in how random numbers are drawn) moves TV(q, q̂) by at most
+  TV(q̂, q̂'), which is what the floor measures; the extra half covers floors estimated from
+  only a few seed pairs. A change of the planner, the chain or the simulator that moves
+  coverage by more than sampling noise fails, and so does an improvement (regenerate the file
+  to record it).
+
+The settings are small on purpose: the whole comparison runs in well under a minute.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+import envs
+from planners.cells import CellSpace
+from planners.coverage import coverage_pipeline
+from planners.navigation import Navigator
+
+__all__ = ["COVERAGE_SETTINGS", "PLAN_QUERIES", "TV_SETTING", "TV_SLACK", "GOLDEN_DIR",
+           "compute_coverage", "compute_plans", "compute_tv", "load", "main"]
+
+GOLDEN_DIR = Path(__file__).resolve().parent / "golden"
+ATOL = 1e-9
+TV_SLACK = 1.5          # allowed |TV − golden TV| in units of the stored noise floor
+
+# (name, env, orientations, angles, eps, r, model)
+COVERAGE_SETTINGS = [
+    ("lab-72-table1", "lab", 72, (30.0, 75.0, 315.0), 5.0, 0.8, "step"),
+    ("complex-72-table1", "complex", 72, (30.0, 75.0, 315.0), 5.0, 0.8, "step"),
+    ("fig1-8-45-90-135", "fig1", 8, (45.0, 90.0, 135.0), 45.0, 0.9, "step"),
+]
+
+# (env, angles, [(start z, goal z), ...]): Fig. 3's two queries, then fixed samples.
+PLAN_QUERIES = [
+    ("lab", (90.0, 135.0), [(8, 0), (103, 8)]),
+    ("lab", (45.0, 90.0, 135.0), [(0, 47), (20, 5), (100, 300), (383, 17), (250, 60)]),
+    ("fig1", (45.0, 90.0, 135.0), [(0, 53), (10, 400), (200, 31), (431, 0), (77, 123)]),
+]
+PYBULLET_PLANS = 2      # the first queries (Fig. 3) are also executed in PyBullet
+
+TV_SETTING = {"env": "lab", "orientations": 72, "angles": (30.0, 75.0, 315.0), "eps": 5.0,
+              "r": 0.8, "twin_robots": 100, "twin_steps_per_robot": 1000, "seed": 2024,
+              "floor_seeds": (1, 2, 3, 4), "pybullet_angle": 75.0, "pybullet_runs": 4,
+              "pybullet_steps": 250, "pybullet_seeds": (11, 12, 13, 14)}
+
+
+# ----------------------------------------------------------------------------- compute
+def compute_coverage() -> dict:
+    out = {}
+    for name, env_name, K, angles, eps, r, model in COVERAGE_SETTINGS:
+        cs = CellSpace(envs.load(env_name, orientations=K))
+        kw = {} if model == "step" else {"model": model}
+        pos = coverage_pipeline(cs, angles, eps, r, **kw)
+        entry = {"env": env_name, "orientations": K, "angles": list(angles), "eps": eps,
+                 "r": r, "model": model, "alpha": pos.alpha.tolist(),
+                 "q": {f"{a:g}": ac.q.tolist() for a, ac in zip(angles, pos.per_angle)}}
+        if model == "step":
+            conf = coverage_pipeline(cs, angles, eps, r, space="configurations")
+            entry["alpha_configurations"] = conf.alpha.tolist()
+        out[name] = entry
+    return out
+
+
+def _execute(env, cells, route, backend: str) -> bool:
+    from bouncesim.execute import execute_plan
+    if backend == "twin":
+        from bouncesim.kinematic import KinematicRobot
+        robot = KinematicRobot(env, glance_deg=80)
+    else:
+        from bouncesim.pybullet_world import PyBulletRobot
+        robot = PyBulletRobot(env)
+    with robot:
+        run = execute_plan(route.plan, robot, env, route.start, route.goal, cells)
+    return bool(run.success)
+
+
+def compute_plans(pybullet: bool = True) -> list[dict]:
+    rows, done_pb = [], 0
+    for env_name, angles, queries in PLAN_QUERIES:
+        env = envs.load(env_name)
+        cells = CellSpace(env)
+        nav = Navigator(cells, angles)
+        for s, g in queries:
+            route = nav.plan(s, g)
+            row = {"env": env_name, "angles": list(angles), "start": s, "goal": g,
+                   "plan": None if route is None else str(route.plan),
+                   "cost": None if route is None else route.cost}
+            if route is not None:
+                row["twin_success"] = _execute(env, cells, route, "twin")
+                if done_pb < PYBULLET_PLANS:
+                    row["pybullet_success"] = (_execute(env, cells, route, "pybullet")
+                                               if pybullet else None)
+                    done_pb += 1
+            rows.append(row)
+    return rows
+
+
+def _tv(a, b) -> float:
+    a = np.asarray(a, float)
+    b = np.asarray(b, float)
+    return 0.5 * float(np.abs(a / a.sum() - b / b.sum()).sum())
+
+
+def twin_histogram(cs: CellSpace, angle: float, seed: int) -> np.ndarray:
+    from bouncesim.kinematic import KinematicBatch
+    from bouncesim.noise import SteppedNoise
+    s = TV_SETTING
+    res = KinematicBatch(cs.env, s["twin_robots"], np.random.default_rng(seed), cells=cs).run(
+        angle, s["twin_steps_per_robot"], noise=SteppedNoise(s["eps"], s["r"], cs.delta_deg))
+    return res.counts
+
+
+def pybullet_histogram(cs: CellSpace, angle: float, seed: int) -> np.ndarray:
+    from bouncesim.execute import execute_mix
+    from bouncesim.noise import SteppedNoise
+    from bouncesim.pybullet_world import PyBulletRobot
+    s = TV_SETTING
+    counts = np.zeros(cs.P, dtype=np.int64)
+    for rng in np.random.default_rng(seed).spawn(s["pybullet_runs"]):
+        robot = PyBulletRobot(cs.env, noise=SteppedNoise(s["eps"], s["r"], cs.delta_deg),
+                              rng=rng)
+        with robot:
+            run = execute_mix(angle, robot, cs.env, s["pybullet_steps"], 1, rng, cells=cs,
+                              speed=0.3, record_trace=False)
+        counts += run.counts
+    return counts
+
+
+def compute_tv(pybullet: bool = True, floors: bool = True) -> dict:
+    """TV(predicted, simulated) per angle (and the noise floors when ``floors``)."""
+    s = TV_SETTING
+    cs = CellSpace(envs.load(s["env"], orientations=s["orientations"]))
+    res = coverage_pipeline(cs, s["angles"], s["eps"], s["r"])
+    out = {"setting": {k: (list(v) if isinstance(v, tuple) else v) for k, v in s.items()},
+           "twin": {}, "pybullet": {}}
+    for a, ac in zip(s["angles"], res.per_angle):
+        entry = {"tv": _tv(ac.q, twin_histogram(cs, a, s["seed"]))}
+        if floors:
+            h = [twin_histogram(cs, a, sd) for sd in s["floor_seeds"]]
+            entry["noise_floor"] = max(_tv(h[i], h[j]) for i in range(len(h))
+                                       for j in range(i))
+        out["twin"][f"{a:g}"] = entry
+    if pybullet:
+        a = s["pybullet_angle"]
+        q = res.per_angle[list(s["angles"]).index(a)].q
+        entry = {"tv": _tv(q, pybullet_histogram(cs, a, s["pybullet_seeds"][0]))}
+        if floors:
+            h = [pybullet_histogram(cs, a, sd) for sd in s["pybullet_seeds"]]
+            entry["noise_floor"] = max(_tv(h[i], h[j]) for i in range(len(h))
+                                       for j in range(i))
+        out["pybullet"][f"{a:g}"] = entry
+    return out
+
+
+# ----------------------------------------------------------------------------- files
+FILES = {"coverage": compute_coverage, "plans": compute_plans, "tv": compute_tv}
+
+
+def load(name: str):
+    return json.loads((GOLDEN_DIR / f"{name}.json").read_text())
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(prog="python -m tests.regression",
+                                description="Recompute the CI regression's golden numbers; "
+                                "compare with tests/golden/*.json or overwrite them.")
+    p.add_argument("--write", action="store_true", help="overwrite the golden files")
+    p.add_argument("--only", choices=sorted(FILES), action="append",
+                   help="just this file (repeatable)")
+    args = p.parse_args(argv)
+    GOLDEN_DIR.mkdir(exist_ok=True)
+    status = 0
+    for name in args.only or sorted(FILES):
+        new = FILES[name]()
+        path = GOLDEN_DIR / f"{name}.json"
+        text = json.dumps(new, indent=1, sort_keys=True) + "\n"
+        if args.write:
+            path.write_text(text)
+            print(f"wrote {path.name}")
+        elif not path.exists() or json.loads(path.read_text()) != json.loads(text):
+            print(f"{path.name}: differs from the recomputed numbers (run with --write to "
+                  "accept them after review)")
+            status = 1
+        else:
+            print(f"{path.name}: unchanged")
+    return status
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
