@@ -1,0 +1,625 @@
+"""An iRobot Create 2 emulator that speaks the Open Interface byte protocol.
+
+:class:`OIEmulator` serves the OI on a pseudo-terminal (``os.openpty``; connect to the printed
+``/dev/pts/N``) or on a local TCP port (connect to ``socket://127.0.0.1:PORT``, pyserial's URL
+for a raw socket), and moves a simulated Create 2 in an environment with the kinematic twin
+(:class:`bouncesim.kinematic.KinematicRobot`). It exists so that the hardware path (the
+adapter :mod:`bouncesim.create2`, pyserial, the OI layer :mod:`bouncesim.oi`) can be run end
+to end, and tested, without a robot.
+
+What it does
+------------
+- Parses the opcodes the adapter uses: Start 128, Safe 131, Full 132, Stop 173, Reset 7,
+  Drive 137, Drive Direct 145, Sensors 142, Query List 149, Stream 148, Pause/Resume 150
+  (others are ignored). A command waits for all its data bytes, as on the robot.
+- Tracks the OI mode (Off, Passive, Safe, Full). Drive commands count only in Safe and Full.
+  A wheel drop in Safe mode stops the motors and drops to Passive; in Full mode the motors run
+  on (but a lifted robot goes nowhere).
+- Answers Sensors / Query List at once and sends stream frames with checksums every 15 ms of
+  emulated time. Packets: 7 (bumps, wheel drops), 19/20 (distance, angle since the last
+  read, from the encoders), 35 (OI mode), 39-42 (requested velocities), 43/44 (encoders,
+  16-bit wrapping), 54/55 (wheel motor currents), battery figures; others read 0.
+- Moves the body with the wheel speeds, in emulated time: straight motion and contacts are
+  the kinematic twin's (the body stops at the wall, the bumper reads the contact side),
+  spins rotate in place, other wheel pairs follow the differential-drive arc in 5 ms
+  sub-steps. Encoders count the wheels' own turning (wheels of a blocked body slip; a
+  stalled wheel does not turn).
+
+Faults (for tests and demonstrations)
+-------------------------------------
+- ``noise``: a :class:`bouncesim.noise.NoiseModel` applied once per in-place spin (at its
+  end, to the whole commanded spin): the body slips, the encoders do not see it.
+- ``angle_bug``: packet 20 is scaled by 0.324056 (firmware up to 3.4.0).
+- scheduled or immediate (:meth:`OIEmulator.inject`): ``wheel-drop``, ``charger`` (the
+  robot sees a charger: Safe drops to Passive, no wheel-drop bits), ``stall-left``,
+  ``stall-right`` (that wheel stops turning; its encoder stops and its motor current rises),
+  ``drop-byte`` (one byte of the next outgoing frame is lost), ``garbage`` (random bytes are
+  sent), ``mute`` (the robot stops talking: a lost link; commands are still obeyed, so the
+  robot keeps its last drive command, as a real one whose cable is pulled).
+
+Time can run faster than real time (``time_scale``): emulated seconds per wall-clock second.
+The adapter must then be given the same scale (:class:`bouncesim.create2.Create2Robot`
+``time_scale``), so that its clock and the emulator's agree. Real hardware always runs at 1.
+
+Examples
+--------
+>>> import envs
+>>> import serial
+>>> from bouncesim import oi
+>>> with OIEmulator(envs.load("lab"), transport="tcp") as emu:
+...     link = serial.serial_for_url(emu.url, timeout=1.0)
+...     _ = link.write(bytes([oi.START, oi.SAFE]) + oi.encode_query_list([35, 7]))
+...     reply = link.read(2)
+...     link.close()
+>>> oi.decode_packets([35, 7], reply)
+{35: 2, 7: 0}
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import select
+import socket
+import threading
+import time
+import tty
+from collections import Counter
+from dataclasses import dataclass
+
+import numpy as np
+
+from envs import Environment, UserError
+
+from . import oi
+from .kinematic import KinematicRobot
+from .noise import NoiseModel, NoNoise
+from .robot import CREATE2
+
+__all__ = ["OIEmulator", "Fault", "FAULT_KINDS", "parse_fault", "BANNER"]
+
+FAULT_KINDS = ("wheel-drop", "charger", "stall-left", "stall-right", "drop-byte", "garbage",
+               "mute")
+BANNER = b"\r\nbouncesim OI emulator\r\nfirmware: emulated 3.4.1\r\n"
+"""Sent after a Reset (7), like the robot's boot banner."""
+
+_PERIOD = CREATE2.sensor_period        # [s] of emulated time between stream frames
+_SUBSTEP = 0.005                       # [s] sub-step of a curved motion
+_EPS_W = 1e-9
+
+
+@dataclass(frozen=True)
+class Fault:
+    """A fault that strikes ``at`` [s] of emulated time after the first non-zero drive
+    command.
+
+    Attributes
+    ----------
+    kind : str      one of :data:`FAULT_KINDS`
+    at : float      [s]
+    """
+
+    kind: str
+    at: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.kind not in FAULT_KINDS:
+            raise UserError(f"unknown fault {self.kind!r}; use one of {', '.join(FAULT_KINDS)}.")
+        if not (math.isfinite(self.at) and self.at >= 0):
+            raise UserError(f"a fault time must be a non-negative number of seconds, "
+                            f"got {self.at}.")
+
+
+def parse_fault(text: str) -> Fault:
+    """``KIND`` or ``KIND@SECONDS`` -> :class:`Fault`.
+
+    >>> parse_fault("wheel-drop@2.5")
+    Fault(kind='wheel-drop', at=2.5)
+    """
+    kind, _, at = str(text).strip().partition("@")
+    try:
+        return Fault(kind, float(at) if at else 0.0)
+    except ValueError:
+        raise UserError(f"a fault is KIND or KIND@SECONDS, got {text!r}.") from None
+
+
+class _Transport:
+    """The emulator's end of the link: a pty master or a TCP listener with one client."""
+
+    def __init__(self, kind: str, host: str, port: int) -> None:
+        self.kind = kind
+        self.client: socket.socket | None = None
+        self.connections = 0
+        if kind == "pty":
+            self.master, self.slave = os.openpty()
+            tty.setraw(self.slave)          # no echo, no line editing: a plain byte pipe
+            os.set_blocking(self.master, False)
+            self.url = os.ttyname(self.slave)
+            self.listener = None
+        elif kind == "tcp":
+            self.listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+            self.listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            try:
+                self.listener.bind((host, int(port)))
+            except OSError as exc:
+                self.listener.close()
+                raise UserError(f"cannot listen on {host}:{port}: {exc.strerror}.") from None
+            self.listener.listen(1)
+            self.listener.setblocking(False)
+            h, p = self.listener.getsockname()[:2]
+            self.url = f"socket://{h}:{p}"
+            self.master = self.slave = None
+        else:
+            raise UserError(f"transport must be 'pty' or 'tcp', got {kind!r}.")
+
+    def fds(self) -> list:
+        if self.kind == "pty":
+            return [self.master]
+        return [self.listener] + ([self.client] if self.client is not None else [])
+
+    def read(self, ready) -> bytes:
+        """Bytes that arrived (accepting a new client on the way)."""
+        data = b""
+        if self.kind == "pty":
+            if self.master in ready:
+                try:
+                    data = os.read(self.master, 4096)
+                except (BlockingIOError, OSError):
+                    data = b""
+            return data
+        if self.listener in ready:
+            try:
+                conn, _ = self.listener.accept()
+            except OSError:
+                conn = None
+            if conn is not None:
+                if self.client is not None:
+                    self.client.close()
+                conn.setblocking(False)
+                conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+                self.client = conn
+                self.connections += 1
+        if self.client is not None and self.client in ready:
+            try:
+                data = self.client.recv(4096)
+                if not data:                     # the controller hung up
+                    self.client.close()
+                    self.client = None
+            except BlockingIOError:
+                data = b""
+            except OSError:
+                self.client.close()
+                self.client = None
+                data = b""
+        return data
+
+    def write(self, data: bytes) -> None:
+        """Send without blocking: bytes nobody reads are lost, as on a serial line."""
+        if not data:
+            return
+        try:
+            if self.kind == "pty":
+                os.write(self.master, data)
+            elif self.client is not None:
+                self.client.send(data)
+        except (BlockingIOError, OSError):
+            pass
+
+    def close(self) -> None:
+        for fd in (self.master, self.slave):
+            if fd is not None:
+                try:
+                    os.close(fd)
+                except OSError:
+                    pass
+        for s in (self.client, self.listener):
+            if s is not None:
+                s.close()
+        self.master = self.slave = self.client = self.listener = None
+
+
+class OIEmulator:
+    """A Create 2 on a pseudo-terminal or a local TCP port, moving in ``env``.
+
+    Parameters
+    ----------
+    env : Environment
+    transport : {"pty", "tcp"}
+    host, port : str, int
+        TCP only: where to listen (port 0 picks a free port; loopback by default).
+    time_scale : float
+        Emulated seconds per wall-clock second (1: real time).
+    noise : NoiseModel, optional
+        Body slip per in-place spin (default exact).
+    rng : numpy.random.Generator or int, optional
+        Draws the noise, the dropped byte's position and the garbage.
+    angle_bug : bool
+        Report packet 20 scaled by 0.324056.
+    faults : sequence of Fault
+        Scheduled faults (times after the first non-zero drive command).
+    encoder_offset : (int, int)
+        Initial (left, right) encoder counts, e.g. near 32767 to exercise wrap-around.
+    start : (x [m], y [m], heading [deg]), optional
+        Initial pose (default: the kinematic twin's, cell 0 facing east).
+    glance_deg : float or None
+        The twin's glancing-contact arc (default 80°, the PyBullet bumper's): a wall met more
+        than this far from the heading does not close the bumper, the body slides along it.
+        Turns by encoders or clock end a fraction of a degree off; with None (every front
+        contact closes the bumper) a robot that turned 89.7° away from a wall it touches
+        would read a bump at once, which a real bumper does not do.
+    mode_offset : int
+        Added to packet 35 (some units report the OI mode off by one).
+    log : callable, optional
+        Called with one line of text per event (connection, mode change, fault).
+
+    Notes
+    -----
+    Start it with :meth:`start` (or a ``with`` block), connect to :attr:`url`, stop it with
+    :meth:`close`. :meth:`place`, :meth:`true_pose`, :attr:`wheel_command`, :attr:`mode` and
+    :attr:`opcodes` are thread-safe views for simulations and tests.
+    """
+
+    def __init__(self, env: Environment, *, transport: str = "pty", host: str = "127.0.0.1",
+                 port: int = 0, time_scale: float = 1.0, noise: NoiseModel | None = None,
+                 rng=None, angle_bug: bool = False, faults=(),
+                 encoder_offset: tuple[int, int] = (0, 0), start=None,
+                 glance_deg: float | None = 80.0, mode_offset: int = 0, log=None) -> None:
+        if not (math.isfinite(time_scale) and 0 < time_scale <= 20):
+            raise UserError(f"time scale must lie in (0, 20], got {time_scale:g}.")
+        self.env = env
+        self.time_scale = float(time_scale)
+        self.noise = noise if noise is not None else NoNoise()
+        self.rng = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
+        self.angle_bug = bool(angle_bug)
+        self.faults = tuple(faults)
+        self._log = log
+        self._bot = KinematicRobot(env, glance_deg=glance_deg)
+        self.spec = self._bot.spec
+        if start is not None:
+            self._bot.place(*start)
+        self._enc_offset = (int(encoder_offset[0]), int(encoder_offset[1]))
+        self._transport = _Transport(transport, host, port)
+        self.url = self._transport.url
+        self._lock = threading.RLock()
+        self._stop_evt = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._parser = oi.CommandParser()
+        # state
+        self.mode = oi.MODE_OFF
+        self._right = self._left = 0               # accepted wheel command [mm/s]
+        self._requested = (0, 0)                   # (velocity, radius) of the last Drive
+        self._stream_ids: list[int] | None = None
+        self._stream_on = False
+        self._wheel_drop = False
+        self._stalled = {"left": False, "right": False}
+        self._muted = False
+        self._drop_next = False
+        self._spin = 0.0                           # commanded rotation of the current spin
+        self._dist_acc = 0.0                       # [mm] since the last read of packet 19
+        self._angle_acc = 0.0                      # [deg] since the last read of packet 20
+        self._wheel_m = [0.0, 0.0]                 # (left, right) wheel travel [m]
+        self._first_drive: float | None = None
+        self._pending_faults = sorted(self.faults, key=lambda f: f.at)
+        self._t0_wall = time.monotonic()
+        self._t_phys = 0.0
+        self._next_tick = _PERIOD
+        self.opcodes: Counter = Counter()
+        self.packets_requested: Counter = Counter()
+        self.mode_offset = int(mode_offset)
+        self.frames_sent = 0
+
+    # ------------------------------------------------------------------ life cycle
+    def start(self) -> OIEmulator:
+        """Start serving in a background thread; returns self."""
+        if self._thread is None:
+            self._thread = threading.Thread(target=self._serve, name="oi-emulator",
+                                            daemon=True)
+            self._thread.start()
+        return self
+
+    def close(self) -> None:
+        """Stop serving and release the pty / socket (idempotent)."""
+        self._stop_evt.set()
+        if self._thread is not None:
+            self._thread.join(timeout=2.0)
+            self._thread = None
+        with self._lock:
+            self._transport.close()
+
+    def __enter__(self) -> OIEmulator:
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    # ------------------------------------------------------------------ views
+    def clock(self) -> float:
+        """Emulated time [s] since the emulator was built."""
+        return (time.monotonic() - self._t0_wall) * self.time_scale
+
+    def place(self, x: float, y: float, heading_deg: float) -> None:
+        """Put the robot down at a pose (a person placing it; clears a wheel drop)."""
+        with self._lock:
+            self._advance_to(self.clock())
+            self._bot.place(x, y, heading_deg)
+            self._spin = 0.0
+            self._wheel_drop = False
+
+    def true_pose(self) -> tuple[float, float, float]:
+        """(x [m], y [m], heading [deg]) now."""
+        with self._lock:
+            self._advance_to(self.clock())
+            return self._bot.true_pose()
+
+    @property
+    def wheel_command(self) -> tuple[int, int]:
+        """(right, left) wheel velocities [mm/s] the robot is executing."""
+        with self._lock:
+            return self._right, self._left
+
+    @property
+    def connections(self) -> int:
+        """TCP clients accepted so far."""
+        return self._transport.connections
+
+    def inject(self, kind: str) -> None:
+        """Make a fault (one of :data:`FAULT_KINDS`) strike now."""
+        Fault(kind)
+        with self._lock:
+            self._advance_to(self.clock())
+            self._strike(kind)
+
+    def lower(self) -> None:
+        """Put a dropped wheel back on the floor."""
+        with self._lock:
+            self._wheel_drop = False
+
+    def _note(self, text: str) -> None:
+        if self._log is not None:
+            self._log(f"[{self.clock():8.3f} s] {text}")
+
+    # ------------------------------------------------------------------ the loop
+    def _serve(self) -> None:
+        tr = self._transport
+        while not self._stop_evt.is_set():
+            self._serve_once(tr)
+        self._serve_once(tr, final=True)       # what the controller sent last (e.g. Stop)
+
+    def _serve_once(self, tr: _Transport, final: bool = False) -> None:
+        """Wait for bytes or the next tick; advance the body, obey commands, stream."""
+        wait = max(0.0, (self._next_tick - self.clock()) / self.time_scale)
+        try:
+            ready, _, _ = select.select(tr.fds(), [], [], 0.02 if final else
+                                        min(wait, 0.05))
+        except (OSError, ValueError):
+            return
+        with self._lock:
+            if self._stop_evt.is_set() and not final:
+                return
+            before = tr.connections
+            data = tr.read(ready) if ready else b""
+            if tr.connections != before:
+                self._note(f"controller connected ({tr.connections})")
+            now = self.clock()
+            self._advance_to(now)
+            for op, payload in self._parser.feed(data):
+                self._execute(op, payload)
+            if now >= self._next_tick:
+                self._next_tick += _PERIOD
+                if self._next_tick < now:              # fell behind: skip, don't burst
+                    self._next_tick = now + _PERIOD
+                if self._stream_on and self._stream_ids and self.mode != oi.MODE_OFF:
+                    self._send(oi.encode_stream_frame(self._frame_items()))
+                    self.frames_sent += 1
+
+    def _send(self, data: bytes) -> None:
+        if self._muted:
+            return
+        if self._drop_next and len(data) > 1:
+            i = int(self.rng.integers(0, len(data)))
+            data = data[:i] + data[i + 1:]
+            self._drop_next = False
+            self._note(f"dropped byte {i} of an outgoing frame")
+        self._transport.write(data)
+
+    # ------------------------------------------------------------------ commands
+    def _execute(self, op: int, data: bytes) -> None:
+        self.opcodes[op] += 1
+        if op == oi.RESET:
+            self._set_mode(oi.MODE_OFF)
+            self._stream_on = False
+            self._transport.write(BANNER)
+            return
+        if op == oi.START:
+            self._set_mode(oi.MODE_PASSIVE)
+            return
+        if self.mode == oi.MODE_OFF:               # the OI ignores everything but Start
+            return
+        if op == oi.SAFE:
+            self._set_mode(oi.MODE_PASSIVE if self._wheel_drop else oi.MODE_SAFE)
+        elif op == oi.FULL:
+            self._set_mode(oi.MODE_FULL)
+        elif op == oi.STOP:
+            self._set_mode(oi.MODE_OFF)
+            self._stream_on = False
+        elif op == oi.DRIVE:
+            v = int.from_bytes(data[0:2], "big", signed=True)
+            r = int.from_bytes(data[2:4], "big", signed=True)
+            if self.mode in (oi.MODE_SAFE, oi.MODE_FULL):
+                self._requested = (v, r)
+                self._set_wheels(*_drive_to_wheels(v, r, self.spec.wheel_base * 1000))
+        elif op == oi.DRIVE_DIRECT:
+            right = int.from_bytes(data[0:2], "big", signed=True)
+            left = int.from_bytes(data[2:4], "big", signed=True)
+            if self.mode in (oi.MODE_SAFE, oi.MODE_FULL):
+                self._requested = ((right + left) // 2, 0)
+                self._set_wheels(right, left)
+        elif op in (oi.SENSORS, oi.QUERY_LIST):
+            ids = list(data) if op == oi.SENSORS else list(data[1:])
+            self.packets_requested.update(ids)
+            try:
+                reply = oi.encode_packets(ids, self._values(oi.expand_ids(ids)))
+            except oi.OIError:
+                return                             # unknown packet: no reply
+            self._send(reply)
+        elif op == oi.STREAM:
+            ids = list(data[1:])
+            try:
+                if ids:
+                    oi.encode_stream(ids)
+            except oi.OIError:
+                return
+            self.packets_requested.update(ids)
+            self._stream_ids = ids
+            self._stream_on = bool(ids)
+        elif op == oi.PAUSE_RESUME:
+            self._stream_on = bool(data[0]) and bool(self._stream_ids)
+
+    def _set_mode(self, mode: int) -> None:
+        if mode != self.mode:
+            x, y, h = self._bot.true_pose()
+            self._note(f"OI mode {oi.MODE_NAMES[self.mode]} -> {oi.MODE_NAMES[mode]}; robot "
+                       f"at ({x:.3f}, {y:.3f}) facing {h:.1f}°")
+        self.mode = mode
+        if mode in (oi.MODE_OFF, oi.MODE_PASSIVE):
+            self._set_wheels(0, 0)
+
+    def _set_wheels(self, right: int, left: int) -> None:
+        right = max(-oi.MAX_WHEEL_MM_S, min(oi.MAX_WHEEL_MM_S, int(right)))
+        left = max(-oi.MAX_WHEEL_MM_S, min(oi.MAX_WHEEL_MM_S, int(left)))
+        if (right, left) != (self._right, self._left):
+            self._end_spin()
+        self._right, self._left = right, left
+        if (right or left) and self._first_drive is None:
+            self._first_drive = self.clock()
+
+    def _end_spin(self) -> None:
+        """At the end of an in-place spin the body slips by the noise model's draw."""
+        if self._spin and not self.noise.exact:
+            actual = self.noise.sample(self.rng, self._spin)
+            x, y, h = self._bot.true_pose()
+            self._bot.place(x, y, h + (actual - self._spin))
+        self._spin = 0.0
+
+    # ------------------------------------------------------------------ faults
+    def _strike(self, kind: str) -> None:
+        self._note(f"fault: {kind}")
+        if kind == "wheel-drop":
+            self._wheel_drop = True
+            if self.mode == oi.MODE_SAFE:
+                self._set_mode(oi.MODE_PASSIVE)
+        elif kind == "charger":
+            if self.mode in (oi.MODE_SAFE, oi.MODE_FULL):
+                self._set_mode(oi.MODE_PASSIVE)
+        elif kind in ("stall-left", "stall-right"):
+            self._stalled[kind.split("-")[1]] = True
+        elif kind == "drop-byte":
+            self._drop_next = True
+        elif kind == "garbage":
+            junk = self.rng.integers(0, 256, size=int(self.rng.integers(5, 40)))
+            junk[:: 4] = oi.STREAM_HEADER            # plenty of false frame headers
+            self._transport.write(bytes(int(b) for b in junk))
+        elif kind == "mute":
+            self._muted = True
+
+    def _due_faults(self, now: float) -> None:
+        while self._pending_faults and self._first_drive is not None and \
+                now >= self._first_drive + self._pending_faults[0].at:
+            self._strike(self._pending_faults.pop(0).kind)
+
+    # ------------------------------------------------------------------ physics
+    def _actual_wheels(self) -> tuple[float, float]:
+        """(right, left) wheel speeds [m/s] actually turning."""
+        right = 0.0 if self._stalled["right"] else self._right / 1000.0
+        left = 0.0 if self._stalled["left"] else self._left / 1000.0
+        return right, left
+
+    def _advance_to(self, now: float) -> None:
+        if now <= self._t_phys:
+            return
+        self._due_faults(now)
+        dt = now - self._t_phys
+        self._t_phys = now
+        vr, vl = self._actual_wheels()
+        if vr == 0 and vl == 0:
+            return
+        b = self.spec.wheel_base
+        # the encoders count the wheels' own turning (a blocked body's wheels slip, a lifted
+        # robot's spin freely; a stalled wheel does not turn)
+        self._wheel_m[0] += vl * dt
+        self._wheel_m[1] += vr * dt
+        self._dist_acc += (vl + vr) / 2 * dt * 1000.0
+        self._angle_acc += math.degrees((vr - vl) * dt / b)
+        if self._wheel_drop:
+            return
+        v, w = (vr + vl) / 2, (vr - vl) / b
+        bot = self._bot
+        if abs(w) < _EPS_W:
+            bot.drive(v)
+            bot.wait(dt)
+            bot.stop()
+        elif abs(v) < 1e-12:
+            step = math.degrees(w * dt)
+            bot.turn(step)
+            self._spin += step
+        else:
+            n = max(1, int(math.ceil(dt / _SUBSTEP)))
+            h = dt / n
+            half = math.degrees(w * h) / 2
+            for _ in range(n):
+                bot.turn(half)
+                bot.drive(v)
+                bot.wait(h)
+                bot.turn(half)
+            bot.stop()
+
+    # ------------------------------------------------------------------ sensors
+    def _values(self, ids) -> dict[int, int]:
+        left, right = self._bot.bumper()
+        bits = (oi.BUMP_LEFT if left else 0) | (oi.BUMP_RIGHT if right else 0)
+        if self._wheel_drop:
+            bits |= oi.WHEEL_DROP_LEFT | oi.WHEEL_DROP_RIGHT
+        mpc = self.spec.metres_per_count
+        el, er = (int(round(w / mpc)) for w in self._wheel_m)
+        vals = {7: bits, 35: (self.mode + self.mode_offset) % 256, 21: 0, 22: 14_800,
+                23: -300, 24: 25, 25: 2000, 26: 2696, 38: len(self._stream_ids or ()),
+                39: self._requested[0], 40: self._requested[1], 41: self._right, 42: self._left,
+                43: _wrap16(el + self._enc_offset[0]), 44: _wrap16(er + self._enc_offset[1])}
+        for pid, side, cmd in ((54, "left", self._left), (55, "right", self._right)):
+            vals[pid] = 0 if cmd == 0 else (1500 if self._stalled[side] else 150)
+        if 19 in ids:
+            d = int(self._dist_acc)                  # the fraction is lost on every read
+            self._dist_acc -= d
+            vals[19] = max(-32768, min(32767, d))
+        if 20 in ids:
+            a = self._angle_acc * (oi.ANGLE_BUG_FACTOR if self.angle_bug else 1.0)
+            self._angle_acc = 0.0                    # and so is the angle's
+            vals[20] = max(-32768, min(32767, int(a)))
+        return vals
+
+    def _frame_items(self) -> list:
+        vals = self._values(oi.expand_ids(self._stream_ids))
+        items = []
+        for pid in self._stream_ids:
+            if pid in oi.GROUPS:
+                items.append((pid, {m: vals.get(m, 0) for m in oi.GROUPS[pid]}))
+            else:
+                items.append((pid, vals.get(pid, 0)))
+        return items
+
+
+def _wrap16(v: int) -> int:
+    return ((int(v) + 32768) & 0xFFFF) - 32768
+
+
+def _drive_to_wheels(v: int, r: int, base_mm: float) -> tuple[int, int]:
+    """(right, left) wheel speeds [mm/s] of a Drive (137) command."""
+    if r in (oi.RADIUS_STRAIGHT, oi.RADIUS_STRAIGHT_ALT) or r == 0:
+        return v, v
+    if r == oi.RADIUS_CCW:
+        return v, -v
+    if r == oi.RADIUS_CW:
+        return -v, v
+    right = v * (r + base_mm / 2) / r
+    left = v * (r - base_mm / 2) / r
+    return int(round(right)), int(round(left))
