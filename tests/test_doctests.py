@@ -8,7 +8,8 @@ import importlib
 import pytest
 
 MODULES = ["envs", "envs.environment", "planners.cells", "planners.plan", "planners.roadmap",
-           "planners.navigation", "bouncesim.commands.plan", "bouncesim.pybullet_world"]
+           "planners.navigation", "bouncesim.commands.plan", "bouncesim.pybullet_world",
+           "bouncesim.sweep"]
 
 
 @pytest.mark.parametrize("name", MODULES)

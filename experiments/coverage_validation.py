@@ -1,0 +1,324 @@
+"""Predicted against simulated coverage (MODEL §7 against MODEL §9).
+
+For every environment and every bouncing angle of the coverage setting (Table I:
+Φ = {30°, 75°, 315°}, ε = 5°, r = 0.8, 360 orientations, 0.34 m cells), plus the policy mix α
+that each model designs for the uniform target, the predicted coverage q is compared with the
+step-sampled visit histogram q̂ of simulated runs:
+
+- the kinematic twin (:class:`bouncesim.kinematic.KinematicBatch`): long runs, at least 10^6
+  steps for each estimate, from starts drawn uniformly over the N configurations;
+- PyBullet (:class:`bouncesim.pybullet_world.PyBulletRobot` through
+  :func:`bouncesim.execute.execute_mix`): shorter runs, each from a uniform random start.
+
+The same simulation is run twice with independent seeds (replicates 0 and 1); the TV between
+the two is the noise floor of the estimate at that step count. A mix is run by time-sharing
+in epochs of ``--epoch`` steps (MODEL §8); its prediction is Σ α_i q_i.
+
+Outputs (under ``--out``, default results/coverage_validation/):
+
+- ``runs.csv``: one row per simulation (trial index, env, policy, backend, replicate, steps,
+  counted, dropped, bumps, wall time, and the raw counts), written by the resumable sweep
+  runner (:mod:`bouncesim.sweep`; trial i's seed is spawned from ``--seed`` and i);
+- ``histograms.csv``: env, policy, backend, replicate, p, count (the raw visit counts);
+- ``predictions.csv``: env, model, policy, p, q (and the α of each model's mix in
+  ``alpha.csv``);
+- ``tv.csv``: env, model, policy, backend, steps, dropped fraction, TV(q, q̂) of replicate 0,
+  of the pooled replicates, and the noise floor TV(q̂₀, q̂₁);
+- ``heatmaps_<env>_<model>.png``: predicted, simulated (twin, pooled) and their difference
+  for every policy; ``tv_<backend>.png``: the TV table as bars;
+- ``config.json``: every parameter, the seed, package versions and the git revision.
+
+Figures are drawn from the CSV files alone (:func:`draw_figures`).
+
+``--quick`` (what CI runs): lab and fig1 at 72 orientations (5° steps, so the same angles
+and ε stay valid), 10^5 twin steps per estimate and a 60-step PyBullet run of one angle.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+import envs
+from bouncesim.sweep import add_executor_args, make_executor, run_sweep
+from experiments.common import experiment_parser, output_dir
+from planners.cells import CellSpace
+from planners.coverage import coverage_pipeline
+from planners.plan import PolicyMix
+
+__all__ = ["main", "simulate", "predict", "tv_table", "draw_figures", "ANGLES", "EPS", "R"]
+
+NAME = "coverage_validation"
+ANGLES = (30.0, 75.0, 315.0)
+EPS, R = 5.0, 0.8
+ENVS = ("lab", "fig1", "complex")
+
+
+def _num(x):
+    x = float(x)
+    return int(round(x)) if abs(x - round(x)) < 1e-9 else x
+
+
+def policy_label(angles, alpha) -> str:
+    """'75' for one angle, 'mix:30=0.1,75=0.4,315=0.5' for a mix (the α in the label)."""
+    nz = [(a, al) for a, al in zip(angles, alpha) if al > 0]
+    if len(nz) == 1:
+        return f"{_num(nz[0][0])}"
+    return "mix:" + ",".join(f"{_num(a)}={al:.6f}" for a, al in nz)
+
+
+def parse_policy(label: str) -> PolicyMix:
+    if label.startswith("mix:"):
+        pairs = [t.split("=") for t in label[4:].split(",")]
+        alpha = np.array([float(v) for _, v in pairs])
+        return PolicyMix(tuple(float(a) for a, _ in pairs), tuple(alpha / alpha.sum()), EPS, R)
+    return PolicyMix((float(label),), (1.0,), EPS, R)
+
+
+# ----------------------------------------------------------------------------- one trial
+def simulate(params: dict, rng: np.random.Generator) -> dict:
+    """One simulated estimate of the visit histogram (a sweep trial; pure in params + rng).
+
+    params: env, orientations, policy (label), backend ("twin" | "pybullet"), steps,
+    robots (twin batch size), epoch, speed (PyBullet drive speed [m/s]) and optionally
+    cell_size [m] (default: the catalogue's). Other keys are carried along untouched.
+    Returns the run's row; ``counts`` is the histogram over position cells as a
+    space-separated string.
+    """
+    from bouncesim.noise import noise_for_mix
+
+    env = envs.load(params["env"], cell_size=params.get("cell_size"),
+                    orientations=int(params["orientations"]))
+    cs = CellSpace(env)
+    mix = parse_policy(params["policy"])
+    noise = noise_for_mix(mix, cs.delta_deg)
+    epoch = int(params["epoch"])
+    steps = int(params["steps"])
+    t0 = time.perf_counter()
+    if params["backend"] == "twin":
+        from bouncesim.kinematic import KinematicBatch
+        n = int(params["robots"])
+        per = math.ceil(steps / n)
+        res = KinematicBatch(env, n, rng, cells=cs).run(mix, per, epoch=epoch, noise=noise)
+        counts, dropped, bumps = res.counts, res.dropped, res.bumps
+    elif params["backend"] == "pybullet":
+        from bouncesim.execute import execute_mix
+        from bouncesim.pybullet_world import PyBulletRobot
+        robot = PyBulletRobot(env, noise=noise, rng=rng)
+        with robot:
+            run = execute_mix(mix, robot, env, steps, epoch, rng, cells=cs,
+                              speed=float(params["speed"]), record_trace=False)
+        counts, dropped, bumps = run.counts, run.dropped, run.bumps
+    else:
+        raise ValueError(f"unknown backend {params['backend']!r}")
+    return {"counted": int(counts.sum()), "dropped": int(dropped), "bumps": int(bumps),
+            "wall_s": round(time.perf_counter() - t0, 3),
+            "counts": " ".join(str(int(c)) for c in counts)}
+
+
+# ----------------------------------------------------------------------------- predictions
+def predict(cs: CellSpace, model: str = "step") -> dict:
+    """Predicted coverage of each angle and of the model's own α mix (uniform target).
+
+    Returns {"q": {label: (P,) array}, "alpha": (m,) array, "mix": label, "seconds": float}.
+    """
+    t0 = time.perf_counter()
+    kw = {} if model == "step" else {"model": model}
+    res = coverage_pipeline(cs, ANGLES, EPS, R, **kw)
+    q = {f"{_num(a)}": ac.q for a, ac in zip(ANGLES, res.per_angle)}
+    mix = policy_label(ANGLES, res.alpha)
+    q[mix] = res.mixed_q()
+    return {"q": q, "alpha": np.asarray(res.alpha), "mix": mix,
+            "seconds": time.perf_counter() - t0}
+
+
+def _tv(a, b) -> float:
+    a = np.asarray(a, float)
+    b = np.asarray(b, float)
+    return 0.5 * float(np.abs(a / a.sum() - b / b.sum()).sum())
+
+
+def tv_table(runs: pd.DataFrame, preds: pd.DataFrame) -> pd.DataFrame:
+    """TV of each prediction against each backend's histograms (replicate 0, pooled, floor)."""
+    rows = []
+    for (env, model, policy), pq in preds.groupby(["env", "model", "policy"], sort=False):
+        q = pq.sort_values("p")["q"].to_numpy()
+        sims = runs[(runs.env == env) & (runs.policy == policy)]
+        for backend, sb in sims.groupby("backend", sort=False):
+            hist = {int(r.replicate): np.array(r.counts.split(), dtype=float)
+                    for r in sb.itertuples()}
+            h0 = hist.get(0)
+            pooled = sum(hist.values())
+            floor = _tv(hist[0], hist[1]) if 0 in hist and 1 in hist else math.nan
+            total = float(sb.counted.sum() + sb.dropped.sum())
+            rows.append({"env": env, "model": model, "policy": policy, "backend": backend,
+                         "steps": int(sb.counted.sum() + sb.dropped.sum()),
+                         "dropped_fraction": float(sb.dropped.sum()) / total if total else 0.0,
+                         "tv": _tv(q, h0) if h0 is not None else math.nan,
+                         "tv_pooled": _tv(q, pooled), "noise_floor": floor})
+    return pd.DataFrame(rows)
+
+
+# ----------------------------------------------------------------------------- figures
+def draw_figures(out: Path) -> list[Path]:
+    """heatmaps_<env>_<model>.png and tv_<backend>.png from the CSV files alone."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from bouncesim.coverage_plots import heatmap, position_grid
+
+    out = Path(out)
+    preds = pd.read_csv(out / "predictions.csv", dtype={"policy": str})
+    hists = pd.read_csv(out / "histograms.csv", dtype={"policy": str})
+    tv = pd.read_csv(out / "tv.csv", dtype={"policy": str})
+    cfg = pd.read_json(out / "config.json", typ="series")
+    paths = []
+    for (env_name, model), pe in preds.groupby(["env", "model"], sort=False):
+        cs = CellSpace(envs.load(env_name, orientations=int(cfg["orientations"])))
+        policies = list(dict.fromkeys(pe.policy))
+        fig, axes = plt.subplots(len(policies), 3, figsize=(13, 3.6 * len(policies)),
+                                 squeeze=False)
+        for row, pol in zip(axes, policies):
+            q = pe[pe.policy == pol].sort_values("p")["q"].to_numpy()
+            hb = hists[(hists.env == env_name) & (hists.policy == pol)
+                       & (hists.backend == "twin")]
+            sim = hb.groupby("p")["count"].sum().reindex(range(cs.P), fill_value=0)
+            sim = sim.to_numpy(float)
+            sim = sim / sim.sum() if sim.sum() > 0 else sim
+            vmax = float(max(q.max(), sim.max()))
+            name = pol if not pol.startswith("mix") else "mix α"
+            heatmap(row[0], cs, q, title=f"{name}: predicted ({model})", vmax=vmax)
+            heatmap(row[1], cs, sim, title=f"{name}: twin ({int(hb['count'].sum())} steps)",
+                    vmax=vmax)
+            diff = sim - q
+            lim = float(np.abs(diff).max()) or 1.0
+            x0, y0 = cs.env.origin
+            rws, cls = cs.index_grid.shape
+            im = row[2].imshow(np.ma.masked_invalid(position_grid(cs, diff)), origin="lower",
+                               extent=(x0, x0 + cls * cs.h, y0, y0 + rws * cs.h),
+                               cmap="RdBu_r", vmin=-lim, vmax=lim, interpolation="nearest")
+            from bouncesim.coverage_plots import draw_map
+            draw_map(row[2], cs.env)
+            t = tv[(tv.env == env_name) & (tv.model == model) & (tv.policy == pol)
+                   & (tv.backend == "twin")]
+            tvs = f"TV {float(t.tv_pooled.iloc[0]):.3f}" if len(t) else ""
+            row[2].set_title(f"twin − predicted  {tvs}", fontsize=10)
+            fig.colorbar(im, ax=row[2], shrink=0.8)
+        fig.suptitle(f"{env_name}: predicted ({model} model) vs simulated coverage")
+        fig.tight_layout()
+        p = out / f"heatmaps_{env_name}_{model}.png"
+        fig.savefig(p, dpi=90)
+        plt.close(fig)
+        paths.append(p)
+    for backend, tb in tv.groupby("backend", sort=False):
+        tb = tb.assign(label=tb.env + " " + tb.policy.str.replace(r"mix:.*", "mix", regex=True))
+        models = list(dict.fromkeys(tb.model))
+        labels = list(dict.fromkeys(tb.label))
+        fig, ax = plt.subplots(figsize=(max(6, 0.8 * len(labels)), 4))
+        width = 0.8 / (len(models) + 1)
+        xs = np.arange(len(labels))
+        for i, m in enumerate(models):
+            tm = tb[tb.model == m].set_index("label").reindex(labels)
+            ax.bar(xs + i * width, tm.tv_pooled, width, label=f"{m} model")
+        fl = tb.drop_duplicates("label").set_index("label").reindex(labels)
+        ax.bar(xs + len(models) * width, fl.noise_floor, width, color="0.6",
+               label="noise floor (seed vs seed)")
+        ax.axhline(0.05, color="k", lw=0.8, ls="--")
+        ax.set_xticks(xs + 0.4 - width / 2, labels, rotation=45, ha="right")
+        ax.set_ylabel("TV(predicted, simulated)")
+        ax.set_title(f"predicted vs {backend} coverage")
+        ax.legend(fontsize=8)
+        fig.tight_layout()
+        p = out / f"tv_{backend}.png"
+        fig.savefig(p, dpi=110)
+        plt.close(fig)
+        paths.append(p)
+    return paths
+
+
+# ----------------------------------------------------------------------------- main
+def main(argv=None) -> int:
+    p = experiment_parser(NAME, __doc__.split("\n\n")[0])
+    p.add_argument("--envs", default=None,
+                   help=f"comma-separated environments (default {','.join(ENVS)}; quick: lab,fig1)")
+    p.add_argument("--models", default="step",
+                   help="comma-separated coverage models to predict with (default step)")
+    p.add_argument("--orientations", type=int, default=None,
+                   help="K (default 360; quick 72)")
+    p.add_argument("--twin-steps", type=int, default=None,
+                   help="twin steps per estimate (default 2e6; quick 1e5)")
+    p.add_argument("--twin-robots", type=int, default=200,
+                   help="robots in one twin batch (default 200)")
+    p.add_argument("--pybullet-steps", type=int, default=None,
+                   help="PyBullet steps per estimate, 0 to skip (default 3000; quick 60)")
+    p.add_argument("--pybullet-envs", default=None,
+                   help="environments run in PyBullet (default: all; quick: lab)")
+    p.add_argument("--epoch", type=int, default=200,
+                   help="steps per epoch when a mix is time-shared (default 200)")
+    p.add_argument("--speed", type=float, default=0.3,
+                   help="PyBullet drive speed [m/s] (default 0.3)")
+    add_executor_args(p)
+    args = p.parse_args(argv)
+    q = args.quick
+    env_names = (args.envs or ("lab,fig1" if q else ",".join(ENVS))).split(",")
+    models = args.models.split(",")
+    K = args.orientations or (72 if q else 360)
+    twin_steps = args.twin_steps or (100_000 if q else 2_000_000)
+    pb_steps = args.pybullet_steps if args.pybullet_steps is not None else (60 if q else 3000)
+    pb_envs = (args.pybullet_envs or ("lab" if q else ",".join(env_names))).split(",")
+    out = output_dir(args.out)
+
+    pred_rows, alpha_rows, trials = [], [], []
+    for name in env_names:
+        cs = CellSpace(envs.load(name, orientations=K))
+        policies = []
+        for model in models:
+            pr = predict(cs, model)
+            alpha_rows += [{"env": name, "model": model, "angle": _num(a), "alpha": float(al),
+                            "seconds": pr["seconds"]} for a, al in zip(ANGLES, pr["alpha"])]
+            for label, qv in pr["q"].items():
+                pred_rows.append(pd.DataFrame({"env": name, "model": model, "policy": label,
+                                               "p": np.arange(cs.P), "q": qv}))
+                policies.append(label)
+        for label in dict.fromkeys(policies):
+            for rep in (0, 1):
+                trials.append({"env": name, "orientations": K, "policy": label,
+                               "backend": "twin", "steps": twin_steps,
+                               "robots": args.twin_robots, "epoch": args.epoch,
+                               "speed": args.speed, "replicate": rep})
+                if pb_steps > 0 and name in pb_envs and (not q or label == "75"):
+                    trials.append({**trials[-1], "backend": "pybullet", "steps": pb_steps})
+    preds = pd.concat(pred_rows, ignore_index=True)
+    preds.to_csv(out / "predictions.csv", index=False, float_format="%.12g")
+    pd.DataFrame(alpha_rows).to_csv(out / "alpha.csv", index=False)
+    config = {"experiment": NAME, "seed": args.seed, "quick": q, "envs": env_names,
+              "models": models, "orientations": K, "angles": list(ANGLES), "eps": EPS, "r": R,
+              "cell_size": "catalogue default", "twin_steps": twin_steps,
+              "twin_robots": args.twin_robots, "pybullet_steps": pb_steps,
+              "pybullet_envs": pb_envs, "epoch": args.epoch, "speed": args.speed}
+    runs = run_sweep(simulate, trials, args.seed, out, config, make_executor(args),
+                     progress=not args.no_progress, name="runs")
+    hist = []
+    for r in runs.itertuples():
+        c = np.array(r.counts.split(), dtype=np.int64)
+        hist.append(pd.DataFrame({"env": r.env, "policy": r.policy, "backend": r.backend,
+                                  "replicate": r.replicate, "p": np.arange(c.size),
+                                  "count": c}))
+    pd.concat(hist, ignore_index=True).to_csv(out / "histograms.csv", index=False)
+    tv = tv_table(runs, preds)
+    tv.to_csv(out / "tv.csv", index=False, float_format="%.4f")
+    draw_figures(out)
+    with pd.option_context("display.width", 160, "display.max_columns", 20):
+        print(tv.assign(policy=tv.policy.str.replace(r"mix:.*", "mix", regex=True))
+              .to_string(index=False, float_format=lambda x: f"{x:.3f}"))
+    print(f"wrote {out}")
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())
