@@ -8,7 +8,9 @@ step-sampled visit histogram q̂ of simulated runs:
 - the kinematic twin (:class:`bouncesim.kinematic.KinematicBatch`): long runs, at least 10^6
   steps for each estimate, from starts drawn uniformly over the N configurations;
 - PyBullet (:class:`bouncesim.pybullet_world.PyBulletRobot` through
-  :func:`bouncesim.execute.execute_mix`): shorter runs, each from a uniform random start.
+  :func:`bouncesim.execute.execute_mix`): shorter runs (``--pybullet-runs`` runs of
+  ``--pybullet-steps`` steps per estimate), each from its own uniform random start, so one
+  run trapped in a small persistent group does not stand for the whole estimate.
 
 The same simulation is run twice with independent seeds (replicates 0 and 1); the TV between
 the two is the noise floor of the estimate at that step count. A mix is run by time-sharing
@@ -16,10 +18,10 @@ in epochs of ``--epoch`` steps (MODEL §8); its prediction is Σ α_i q_i.
 
 Outputs (under ``--out``, default results/coverage_validation/):
 
-- ``runs.csv``: one row per simulation (trial index, env, policy, backend, replicate, steps,
-  counted, dropped, bumps, wall time, and the raw counts), written by the resumable sweep
+- ``runs.csv``: one row per simulation (trial index, env, policy, backend, replicate, run,
+  steps, counted, dropped, bumps, wall time, and the raw counts), written by the resumable sweep
   runner (:mod:`bouncesim.sweep`; trial i's seed is spawned from ``--seed`` and i);
-- ``histograms.csv``: env, policy, backend, replicate, p, count (the raw visit counts);
+- ``histograms.csv``: env, policy, backend, replicate, run, p, count (the raw visit counts);
 - ``predictions.csv``: env, model, policy, p, q (and the α of each model's mix in
   ``alpha.csv``);
 - ``tv.csv``: env, model, policy, backend, steps, dropped fraction, TV(q, q̂) of replicate 0,
@@ -149,8 +151,10 @@ def tv_table(runs: pd.DataFrame, preds: pd.DataFrame) -> pd.DataFrame:
         q = pq.sort_values("p")["q"].to_numpy()
         sims = runs[(runs.env == env) & (runs.policy == policy)]
         for backend, sb in sims.groupby("backend", sort=False):
-            hist = {int(r.replicate): np.array(r.counts.split(), dtype=float)
-                    for r in sb.itertuples()}
+            hist = {}
+            for r in sb.itertuples():
+                c = np.array(r.counts.split(), dtype=float)
+                hist[int(r.replicate)] = hist.get(int(r.replicate), 0) + c
             h0 = hist.get(0)
             pooled = sum(hist.values())
             floor = _tv(hist[0], hist[1]) if 0 in hist and 1 in hist else math.nan
@@ -255,7 +259,10 @@ def main(argv=None) -> int:
     p.add_argument("--twin-robots", type=int, default=200,
                    help="robots in one twin batch (default 200)")
     p.add_argument("--pybullet-steps", type=int, default=None,
-                   help="PyBullet steps per estimate, 0 to skip (default 3000; quick 60)")
+                   help="steps of one PyBullet run, 0 to skip (default 1000; quick 60)")
+    p.add_argument("--pybullet-runs", type=int, default=None,
+                   help="PyBullet runs per estimate, each from its own random start "
+                   "(default 4; quick 1)")
     p.add_argument("--pybullet-envs", default=None,
                    help="environments run in PyBullet (default: all; quick: lab)")
     p.add_argument("--epoch", type=int, default=200,
@@ -269,7 +276,8 @@ def main(argv=None) -> int:
     models = args.models.split(",")
     K = args.orientations or (72 if q else 360)
     twin_steps = args.twin_steps or (100_000 if q else 2_000_000)
-    pb_steps = args.pybullet_steps if args.pybullet_steps is not None else (60 if q else 3000)
+    pb_steps = args.pybullet_steps if args.pybullet_steps is not None else (60 if q else 1000)
+    pb_runs = args.pybullet_runs or (1 if q else 4)
     pb_envs = (args.pybullet_envs or ("lab" if q else ",".join(env_names))).split(",")
     out = output_dir(args.out)
 
@@ -290,9 +298,10 @@ def main(argv=None) -> int:
                 trials.append({"env": name, "orientations": K, "policy": label,
                                "backend": "twin", "steps": twin_steps,
                                "robots": args.twin_robots, "epoch": args.epoch,
-                               "speed": args.speed, "replicate": rep})
+                               "speed": args.speed, "replicate": rep, "run": 0})
                 if pb_steps > 0 and name in pb_envs and (not q or label == "75"):
-                    trials.append({**trials[-1], "backend": "pybullet", "steps": pb_steps})
+                    trials += [{**trials[-1], "backend": "pybullet", "steps": pb_steps,
+                                "run": i} for i in range(pb_runs)]
     preds = pd.concat(pred_rows, ignore_index=True)
     preds.to_csv(out / "predictions.csv", index=False, float_format="%.12g")
     pd.DataFrame(alpha_rows).to_csv(out / "alpha.csv", index=False)
@@ -300,6 +309,7 @@ def main(argv=None) -> int:
               "models": models, "orientations": K, "angles": list(ANGLES), "eps": EPS, "r": R,
               "cell_size": "catalogue default", "twin_steps": twin_steps,
               "twin_robots": args.twin_robots, "pybullet_steps": pb_steps,
+              "pybullet_runs": pb_runs,
               "pybullet_envs": pb_envs, "epoch": args.epoch, "speed": args.speed}
     runs = run_sweep(simulate, trials, args.seed, out, config, make_executor(args),
                      progress=not args.no_progress, name="runs")
@@ -307,8 +317,8 @@ def main(argv=None) -> int:
     for r in runs.itertuples():
         c = np.array(r.counts.split(), dtype=np.int64)
         hist.append(pd.DataFrame({"env": r.env, "policy": r.policy, "backend": r.backend,
-                                  "replicate": r.replicate, "p": np.arange(c.size),
-                                  "count": c}))
+                                  "replicate": r.replicate, "run": r.run,
+                                  "p": np.arange(c.size), "count": c}))
     pd.concat(hist, ignore_index=True).to_csv(out / "histograms.csv", index=False)
     tv = tv_table(runs, preds)
     tv.to_csv(out / "tv.csv", index=False, float_format="%.4f")
