@@ -29,6 +29,7 @@ bench: $(STAMP)
 	$(PY) -m benchmarks.bench_coverage
 	$(PY) -m benchmarks.bench_twin
 	$(PY) -m benchmarks.bench_pybullet
+	$(PY) -m benchmarks.bench_models
 
 clean:
 	rm -rf $(VENV) build *.egg-info

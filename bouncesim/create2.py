@@ -31,8 +31,8 @@ the same ``finally`` blocks). A background thread watches the link while the por
   requested mode, stops the robot and raises :class:`bouncesim.robot.RobotError` at the next
   call (packet 35 is unreliable on some units: when it never reads the requested mode the
   adapter warns once and relies on the wheel-drop bits);
-- no valid sensor data for ``link_timeout`` seconds, or a serial error: the link is lost
-  (a stop is still tried);
+- no valid sensor data for ``link_timeout`` wall-clock seconds, or a serial error: the link
+  is lost (a stop is still tried);
 - a wheel commanded to move whose encoder has not counted for ``stall_time`` seconds
   (except while both wheels drive forward against a pressed bumper): stalled or blocked;
 - the watchdog: a drive command left running while nobody reads the sensors (no call into
@@ -132,8 +132,10 @@ class Create2Robot(Robot):
         (simulation only; on hardware ``place`` raises NotImplementedError).
     max_distance : float
         ``drive_until_bump`` gives up (no bump) after this distance [m].
-    watchdog, link_timeout, stall_time : float
+    watchdog, stall_time : float
         [s] of robot time, see the module notes.
+    link_timeout : float
+        [s] of wall-clock time without a valid sensor frame before the link counts as lost.
     connect_timeout : float
         [s] of wall time to wait for the first sensor reading.
     handle_sigterm : bool
@@ -352,7 +354,7 @@ class Create2Robot(Robot):
     # ------------------------------------------------------------------ sensing
     def _reader(self) -> None:
         """Stream mode: read frames, keep the latest state, watch the link and the wheels."""
-        last_frame = self.clock()
+        last_wall = time.monotonic()
         while not self._closing:
             try:
                 n = self._ser.in_waiting
@@ -365,13 +367,15 @@ class Create2Robot(Robot):
             if chunk:
                 for values in self._parser.feed(chunk):
                     self._update(values)
-                    last_frame = self.clock()
-            now = self.clock()
-            if now - last_frame > self.link_timeout and self._fault is None:
+                    last_wall = time.monotonic()
+            # the link is judged in wall-clock time (a scaled emulator on a busy machine
+            # must not look like a lost link)
+            silent = time.monotonic() - last_wall
+            if silent > self.link_timeout and self._fault is None:
                 self._set_fault(RobotError(
-                    f"no valid sensor data from {self.port} for {now - last_frame:.2f} s: "
+                    f"no valid sensor data from {self.port} for {silent:.2f} s: "
                     "lost the link; tried to stop the robot"), stop=True)
-            self._check_watchdog(now)
+            self._check_watchdog(self.clock())
 
     def _watchdog_loop(self) -> None:
         """Query mode: only the watchdog runs in the background."""

@@ -7,7 +7,8 @@ reports α = (0.22138172, 0.28005791, 0.49856037).
 
 Outputs (under ``--out``, default results/coverage_table1/):
 
-- ``table1.csv``: angle, alpha (uniform target over position cells, MODEL §7's default),
+- ``table1.csv``: angle, alpha (uniform target over position cells, MODEL §7's default;
+  ``--models step,event`` adds ``alpha_event``, the mix designed on the event model),
   alpha_configurations (uniform target over the N configurations, the paper's n = N),
   alpha_paper, persistent groups, largest group, group sizes, transient fraction (one row
   per angle);
@@ -34,6 +35,7 @@ import envs
 from experiments.common import experiment_parser, output_dir, write_config
 from planners.cells import CellSpace
 from planners.coverage import coverage_pipeline, solve_mix, uniform_target
+from planners.coverage_models import check_model
 
 __all__ = ["main", "PAPER_ALPHA", "draw_figures"]
 
@@ -150,7 +152,13 @@ def compare(table: pd.DataFrame, column: str = "alpha") -> list[str]:
 def main(argv=None) -> int:
     ap = experiment_parser(NAME, "Policy mix over 30°, 75°, 315° on the complex environment "
                            "(the paper's Table I) with Figs. 9-11 analogues.")
+    ap.add_argument("--models", default="step",
+                    help="comma-separated coverage models; each model after the paper's step "
+                    "model adds a column alpha_<model> to table1.csv (e.g. step,event)")
     args = ap.parse_args(argv)
+    models = [m.strip() for m in args.models.split(",") if m.strip()]
+    for m in models:
+        check_model(m)
     K = 72 if args.quick else 360
     out = output_dir(args.out)
     env = envs.load(ENV, orientations=K)
@@ -166,6 +174,16 @@ def main(argv=None) -> int:
                          uniform_target(cs, "configurations"))
     write_csvs(out, cs, res, conf_mix)
     table = pd.read_csv(out / "table1.csv")
+    extra = {}
+    for m in models:
+        if m == "step":
+            continue
+        t0 = time.perf_counter()
+        mres = coverage_pipeline(cs, ANGLES, EPS, R, model=m)
+        extra[m] = {"alpha": mres.alpha.tolist(), "tv": mres.mix.tv,
+                    "residual_2norm": mres.mix.residual, "seconds": time.perf_counter() - t0}
+        table[f"alpha_{m}"] = mres.alpha
+    table.to_csv(out / "table1.csv", index=False)
     sentences = compare(table)
     sentences_conf = compare(table, "alpha_configurations")
     write_config(out, {
@@ -178,18 +196,20 @@ def main(argv=None) -> int:
                     "comparison": sentences,
                     "configurations_target": {
                         "alpha": conf_mix.alpha.tolist(), "residual_2norm": conf_mix.residual,
-                        "tv": conf_mix.tv, "comparison": sentences_conf}},
+                        "tv": conf_mix.tv, "comparison": sentences_conf},
+                    "other_models": extra},
         "timing_s": {"step_table": t_fwd, "pipeline": t_pipe}})
     draw_figures(out, cs)
     print(f"Table I analogue: {ENV}, K={K} (N={cs.N}), eps={_num(EPS)}°, r={R}, "
           f"uniform target; pipeline {t_pipe:.2f} s (+ step table {t_fwd:.2f} s)")
     print(f"{'angle':>6} {'alpha':>11} {'alpha conf.':>11} {'paper':>11} {'groups':>7} "
-          f"{'largest':>8} {'transient':>10}")
+          f"{'largest':>8} {'transient':>10}" + "".join(f" {'alpha ' + m:>13}" for m in extra))
     for r in table.to_dict("records"):
         print(f"{str(r['angle']) + '°':>6} {r['alpha']:11.8f} "
               f"{r['alpha_configurations']:11.8f} {r['alpha_paper']:11.8f} "
               f"{int(r['persistent_groups']):7d} {int(r['largest_group']):8d} "
-              f"{100 * r['transient_fraction']:9.1f}%")
+              f"{100 * r['transient_fraction']:9.1f}%"
+              + "".join(f" {r['alpha_' + m]:13.8f}" for m in extra))
     print("alpha: target uniform over the P position cells (MODEL §7 default); alpha conf.: "
           "target uniform over the N configurations (the paper's n = N)")
     print(f"positions: residual ||A alpha - b||_2 = {res.mix.residual:.6g}, "

@@ -6,7 +6,9 @@ that each model designs for the uniform target, the predicted coverage q is comp
 step-sampled visit histogram q̂ of simulated runs:
 
 - the kinematic twin (:class:`bouncesim.kinematic.KinematicBatch`): long runs, at least 10^6
-  steps for each estimate, from starts drawn uniformly over the N configurations;
+  counted steps for each estimate, from starts drawn uniformly over the N configurations,
+  after a burn-in (``--twin-burn-in``) so that the histogram estimates the *limiting*
+  distribution the models predict;
 - PyBullet (:class:`bouncesim.pybullet_world.PyBulletRobot` through
   :func:`bouncesim.execute.execute_mix`): shorter runs (``--pybullet-runs`` runs of
   ``--pybullet-steps`` steps per estimate), each from its own uniform random start, so one
@@ -33,7 +35,8 @@ Outputs (under ``--out``, default results/coverage_validation/):
 Figures are drawn from the CSV files alone (:func:`draw_figures`).
 
 ``--quick`` (what CI runs): lab and fig1 at 72 orientations (5° steps, so the same angles
-and ε stay valid), 10^5 twin steps per estimate and a 60-step PyBullet run of one angle.
+and ε stay valid), 10^5 twin steps per estimate after a 2000-step burn-in, and a 60-step
+PyBullet run of one angle.
 """
 
 from __future__ import annotations
@@ -87,7 +90,8 @@ def simulate(params: dict, rng: np.random.Generator) -> dict:
 
     params: env, orientations, policy (label), backend ("twin" | "pybullet"), steps,
     robots (twin batch size), epoch, speed (PyBullet drive speed [m/s]) and optionally
-    cell_size [m] (default: the catalogue's). Other keys are carried along untouched.
+    cell_size [m] (default: the catalogue's) and burn_in (twin steps per robot run first and
+    not counted, default 0). Other keys are carried along untouched.
     Returns the run's row; ``counts`` is the histogram over position cells as a
     space-separated string.
     """
@@ -105,7 +109,8 @@ def simulate(params: dict, rng: np.random.Generator) -> dict:
         from bouncesim.kinematic import KinematicBatch
         n = int(params["robots"])
         per = math.ceil(steps / n)
-        res = KinematicBatch(env, n, rng, cells=cs).run(mix, per, epoch=epoch, noise=noise)
+        res = KinematicBatch(env, n, rng, cells=cs).run(
+            mix, per, epoch=epoch, noise=noise, burn_in=int(params.get("burn_in", 0)))
         counts, dropped, bumps = res.counts, res.dropped, res.bumps
     elif params["backend"] == "pybullet":
         from bouncesim.execute import execute_mix
@@ -265,8 +270,13 @@ def main(argv=None) -> int:
                    "(default 4; quick 1)")
     p.add_argument("--pybullet-envs", default=None,
                    help="environments run in PyBullet (default: all; quick: lab)")
-    p.add_argument("--epoch", type=int, default=200,
-                   help="steps per epoch when a mix is time-shared (default 200)")
+    p.add_argument("--twin-burn-in", type=int, default=None,
+                   help="twin steps per robot run before counting starts (default 40000; "
+                   "quick 2000): the prediction is the *limiting* distribution, and in fig1 "
+                   "at 315° the robots leak into an absorbing pocket at about 1e-4 per step")
+    p.add_argument("--epoch", type=int, default=1000,
+                   help="steps per epoch when a mix is time-shared (default 1000: long "
+                   "against the chains' mixing, so the mix's coverage is close to Σ α_i q_i)")
     p.add_argument("--speed", type=float, default=0.3,
                    help="PyBullet drive speed [m/s] (default 0.3)")
     add_executor_args(p)
@@ -278,6 +288,7 @@ def main(argv=None) -> int:
     twin_steps = args.twin_steps or (100_000 if q else 2_000_000)
     pb_steps = args.pybullet_steps if args.pybullet_steps is not None else (60 if q else 1000)
     pb_runs = args.pybullet_runs or (1 if q else 4)
+    burn_in = args.twin_burn_in if args.twin_burn_in is not None else (2000 if q else 40_000)
     pb_envs = (args.pybullet_envs or ("lab" if q else ",".join(env_names))).split(",")
     out = output_dir(args.out)
 
@@ -298,10 +309,11 @@ def main(argv=None) -> int:
                 trials.append({"env": name, "orientations": K, "policy": label,
                                "backend": "twin", "steps": twin_steps,
                                "robots": args.twin_robots, "epoch": args.epoch,
-                               "speed": args.speed, "replicate": rep, "run": 0})
+                               "speed": args.speed, "replicate": rep, "run": 0,
+                               "burn_in": burn_in})
                 if pb_steps > 0 and name in pb_envs and (not q or label == "75"):
                     trials += [{**trials[-1], "backend": "pybullet", "steps": pb_steps,
-                                "run": i} for i in range(pb_runs)]
+                                "run": i, "burn_in": 0} for i in range(pb_runs)]
     preds = pd.concat(pred_rows, ignore_index=True)
     preds.to_csv(out / "predictions.csv", index=False, float_format="%.12g")
     pd.DataFrame(alpha_rows).to_csv(out / "alpha.csv", index=False)
@@ -309,7 +321,7 @@ def main(argv=None) -> int:
               "models": models, "orientations": K, "angles": list(ANGLES), "eps": EPS, "r": R,
               "cell_size": "catalogue default", "twin_steps": twin_steps,
               "twin_robots": args.twin_robots, "pybullet_steps": pb_steps,
-              "pybullet_runs": pb_runs,
+              "pybullet_runs": pb_runs, "twin_burn_in": burn_in,
               "pybullet_envs": pb_envs, "epoch": args.epoch, "speed": args.speed}
     runs = run_sweep(simulate, trials, args.seed, out, config, make_executor(args),
                      progress=not args.no_progress, name="runs")

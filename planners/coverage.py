@@ -521,7 +521,8 @@ class CoverageResult:
 
 def coverage_pipeline(cs: CellSpace, angles, eps_deg: float = 0.0, r: float = 1.0,
                       target=None, space: str = "positions", method: str = "runs",
-                      progress=None) -> CoverageResult:
+                      progress=None, model: str = "step", model_settings=None
+                      ) -> CoverageResult:
     """Algorithm 3: chains for all angles, their limiting distributions, and the best mix.
 
     Parameters
@@ -540,7 +541,18 @@ def coverage_pipeline(cs: CellSpace, angles, eps_deg: float = 0.0, r: float = 1.
         See :func:`analyse_angle`.
     progress : callable, optional
         Wraps the iterable of angles (e.g. ``tqdm``).
+    model : {"step", "sampled", "event"}
+        Coverage model (:mod:`planners.coverage_models`); default the paper's step model.
+        The continuous models work over position cells only (their per-angle records are
+        :class:`planners.coverage_models.ModelCoverage`).
+    model_settings : settings record of the model, optional
     """
+    if model != "step":
+        from .coverage_models import check_model
+        check_model(model)
+        if space != "positions":
+            raise UserError(f"the {model} coverage model predicts coverage over position "
+                            "cells only; use --target-space positions.")
     angles = tuple(float(a) for a in angles)
     if not angles:
         raise UserError("coverage needs at least one bouncing angle.")
@@ -557,7 +569,12 @@ def coverage_pipeline(cs: CellSpace, angles, eps_deg: float = 0.0, r: float = 1.
             raise TargetError("the target must be non-negative with a positive sum.")
         b = b / b.sum()
     it = progress(angles) if progress else angles
-    per = tuple(analyse_angle(cs, a, eps_deg, r, method=method) for a in it)
+    if model == "step":
+        per = tuple(analyse_angle(cs, a, eps_deg, r, method=method) for a in it)
+    else:
+        from .coverage_models import predict_coverage
+        per = tuple(predict_coverage(cs, a, eps_deg, r, model=model, settings=model_settings)
+                    for a in it)
     A = np.column_stack([a.q if space == "positions" else a.pi for a in per])
     mix = solve_mix(A, b)
     return CoverageResult(angles=angles, eps=float(eps_deg), r=float(r), space=space,

@@ -9,7 +9,8 @@ import pytest
 
 MODULES = ["envs", "envs.environment", "planners.cells", "planners.plan", "planners.roadmap",
            "planners.navigation", "bouncesim.commands.plan", "bouncesim.pybullet_world",
-           "bouncesim.sweep"]
+           "bouncesim.sweep", "envs.raycast", "planners.event_model",
+           "planners.coverage_models"]
 
 
 @pytest.mark.parametrize("name", MODULES)

@@ -43,6 +43,9 @@ EXAMPLES = """\
 examples:
   bouncesim coverage complex --orientations 360 --angles 30,75,315 --eps 5 --r 0.8 --out out/
   bouncesim coverage lab --angles 90,135 --target my_target.csv --out out/
+  bouncesim coverage complex --orientations 360 --angles 30,75,315 --eps 5 --r 0.8 --model event
+  bouncesim coverage lab --orientations 72 --angles 30,75,315 --eps 5 --r 0.8 --model event \
+      --model-option bin_length=0.01
 
 """ + TARGET_FORMATS
 
@@ -66,6 +69,16 @@ def register(sub) -> None:
                    default="positions",
                    help="match the target over position cells (coverage q, default) or over "
                    "configuration cells (limiting distribution pi)")
+    p.add_argument("--model", choices=("step", "sampled", "event"), default="step",
+                   help="coverage model: the paper's cell-centre step chain (step, default), "
+                   "generalized cell mapping from exact continuous steps (sampled), or the "
+                   "bump-to-bump model with exact flights between binned contact points "
+                   "(event: the one that matches continuous motion; see "
+                   "docs/model_continuous.md)")
+    p.add_argument("--model-option", action="append", default=[], metavar="KEY=VALUE",
+                   help="a setting of the chosen model, repeatable: event: bin_length [m] "
+                   "(default 0.03), samples (flight starts per bin, default 2); sampled: grid "
+                   "(m x m points per cell, default 3), theta_samples (default 2)")
     p.add_argument("--out", type=Path, default=None, metavar="DIR",
                    help="output folder (CSV, JSON, PNG); without it only the table is printed")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG heatmaps")
@@ -98,9 +111,18 @@ def run(args) -> int:
     if args.target is not None:
         target = load_target(args.target, cs, args.target_space)
         target_desc = str(args.target)
+    settings = parse_model_options(args.model, args.model_option)
+    if args.model != "step" and args.target_space != "positions":
+        raise UserError(f"the {args.model} model predicts coverage over position cells only; "
+                        "use --target-space positions.")
     result = coverage_pipeline(cs, angles, args.eps, r, target=target,
-                               space=args.target_space, progress=_progress(len(angles)))
+                               space=args.target_space, progress=_progress(len(angles)),
+                               model=args.model, model_settings=settings)
     summary = summarise(result, cs, env.name, target_desc)
+    summary["model"] = args.model
+    if settings is not None:
+        summary["model_settings"] = {k: getattr(settings, k)
+                                     for k in settings.__dataclass_fields__}
     if args.out is not None:
         write_outputs(result, cs, args.out, summary, plots=not args.no_plots)
     if args.json:
@@ -111,6 +133,31 @@ def run(args) -> int:
             print(f"wrote {args.out}/coverage.csv, alpha.json"
                   + ("" if args.no_plots else " and heatmaps"))
     return 0
+
+
+def parse_model_options(model: str, options) -> object | None:
+    """The model's settings record from ``KEY=VALUE`` strings (None: the defaults)."""
+    if not options:
+        return None
+    from dataclasses import fields
+
+    from planners.coverage_models import default_settings
+    base = default_settings(model)
+    known = {f.name: f.type for f in fields(base)}
+    values = {}
+    for opt in options:
+        key, sep, text = opt.partition("=")
+        key = key.strip().replace("-", "_")
+        if not sep or key not in known:
+            raise UserError(f"--model-option {opt!r} is not KEY=VALUE with KEY one of "
+                            f"{', '.join(known)} (the {model} model's settings).")
+        cast = type(getattr(base, key))
+        try:
+            values[key] = cast(text)
+        except ValueError:
+            raise UserError(f"--model-option {key} needs a {cast.__name__}, got "
+                            f"{text!r}.") from None
+    return type(base)(**values)
 
 
 def summarise(result: CoverageResult, cs: CellSpace, env_name: str, target_desc: str) -> dict:

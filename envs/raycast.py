@@ -1,0 +1,350 @@
+"""Exact ray casts of a moving disk against wall segments (pure geometry, numpy only).
+
+The robot is a disk of radius r whose centre moves inside the C-space (E eroded by r). A
+straight drive is a ray cast against the walls *grown into capsules*: the disk centred at c
+touches a wall segment AB exactly when dist(c, AB) = r, so the first contact along the ray
+c + t u is the first entry of the ray into one of the capsules {p : dist(p, AB) <= r}. Each
+capsule is the union of a rectangle (the segment's two offset sides) and two disks (its end
+points), so the entry distance has a closed form (no polygonal approximation of the rounded
+corners, unlike ``env.cspace``).
+
+- :class:`WallCaster`: all walls, vectorised over rays x walls (and a scalar path).
+- :class:`LocalCaster`: only the walls near each ray origin, exact for short rays.
+- :func:`casters`: both, cached per environment.
+- :func:`unit`: the unit heading vectors every user of the casters shares.
+
+The constants are the contact conventions of the kinematic twin
+(:mod:`bouncesim.kinematic`, which re-exports everything here) and of the continuous
+coverage models (:mod:`planners.event_model`, :mod:`planners.sampled_model`): one
+implementation, so model and simulation see bitwise the same flights.
+
+- A drive stops ``CONTACT_GAP`` = 1e-9 m (along the ray) before the computed contact.
+- A side is hit only when the motion approaches its line (rate > 1e-12 per metre), a wall
+  corner only when the ray passes closer than r − 1e-7 m.
+
+>>> import envs
+>>> full, local = casters(envs.load("lab"))
+>>> round(float(full.cast([[0.51, 0.51]], unit([90.0]))[0]), 6)    # 2.04 - 0.17 - 0.51
+1.36
+"""
+
+from __future__ import annotations
+
+import math
+from functools import cached_property, lru_cache
+
+import numpy as np
+
+from .environment import Environment
+
+__all__ = ["WallCaster", "LocalCaster", "casters", "unit", "CONTACT_GAP", "BUMP_RANGE",
+           "STEP_TOL", "APPROACH_MIN", "GRAZE_TOL"]
+
+CONTACT_GAP = 1e-9
+"""[m] a drive stops this far (along the ray) short of the exact contact."""
+BUMP_RANGE = 1e-6
+"""[m] the bumper reads closed when forward motion is blocked within this distance."""
+STEP_TOL = 1e-6
+"""[m] a step whose drive reaches the wall within this of the full length h is a forward step
+(the robot ends touching the wall and bumps at the start of the next step)."""
+APPROACH_MIN = 1e-12
+"""a side is approached only when u . n exceeds this [1/m of travel]."""
+GRAZE_TOL = 1e-7
+"""[m] a corner is hit only when the ray passes closer than r - this."""
+_APPROACH_MIN = APPROACH_MIN
+_GRAZE_TOL = GRAZE_TOL
+
+
+def unit(heading_deg) -> np.ndarray:
+    """Unit heading vector(s) (..., 2) of heading(s) [deg]; |components| < 1e-12 snap to 0
+    so that axis-aligned headings are exact (cos 90° would otherwise be 6e-17)."""
+    th = np.radians(np.asarray(heading_deg, dtype=float))
+    u = np.stack([np.cos(th), np.sin(th)], axis=-1)
+    u[np.abs(u) < 1e-12] = 0.0
+    return u
+
+
+def _cast_scalar(sides, verts, r, r2, graze, x, y, ux, uy, within=None):
+    """The capsule ray cast for one disk over lists of sides (Ax, Ay, ex, ey, L) and corners
+    (Vx, Vy): the contact distance, or with ``within`` the wall points touched within it."""
+    best = math.inf
+    hits = [] if within is not None else None
+    for Ax, Ay, ex, ey, L in sides:
+        rx = x - Ax
+        ry = y - Ay
+        s0 = ry * ex - rx * ey
+        un = uy * ex - ux * ey
+        a = -un if s0 >= 0 else un
+        if not a > _APPROACH_MIN:
+            continue
+        t = (abs(s0) - r) / a
+        if t < 0.0:
+            t = 0.0
+        lam = rx * ex + ry * ey + t * (ux * ex + uy * ey)
+        if 0.0 <= lam <= L:
+            if hits is None:
+                if t < best:
+                    best = t
+            elif t <= within:
+                cx, cy = x + t * ux - Ax, y + t * uy - Ay
+                k = min(max(cx * ex + cy * ey, 0.0), L)
+                hits.append((Ax + k * ex, Ay + k * ey, (Ax, Ay, ex, ey, L)))
+    for Vx, Vy in verts:
+        vx = x - Vx
+        vy = y - Vy
+        b = vx * ux + vy * uy
+        if not b < 0.0:
+            continue
+        disc = r2 - (vx * vx + vy * vy - b * b)
+        if not disc > graze:
+            continue
+        t = -b - math.sqrt(disc)
+        if t < 0.0:
+            t = 0.0
+        if hits is None:
+            if t < best:
+                best = t
+        elif t <= within:
+            hits.append((Vx, Vy, None))
+    return best if hits is None else hits
+
+
+class WallCaster:
+    """First contact of a moving disk with a set of wall segments, vectorised.
+
+    Parameters
+    ----------
+    segments : (m, 2, 2) array   wall segments [m] (e.g. ``env.wall_segments``)
+    radius : float               disk radius r [m]
+
+    Notes
+    -----
+    For a ray c + t u (|u| = 1, t >= 0) and a segment AB with unit direction e, unit normal n
+    and length L, the contact distance is the minimum of
+
+    - side: t = (|s0| − r) / a with s0 = (c − A)·n and approach rate a = −sign(s0) (u·n) > 0,
+      valid when the foot point's coordinate λ = (c + t u − A)·e lies in [0, L];
+    - corner V (every segment end point): t = −b − sqrt(r² − ρ²) with b = (c − V)·u < 0 and
+      ρ² = |c − V|² − b² < r² (the ray's squared distance from V);
+
+    clamped at 0 (a disk already touching and moving in hits at once).
+    """
+
+    def __init__(self, segments, radius: float) -> None:
+        seg = np.asarray(segments, dtype=float).reshape(-1, 2, 2)
+        d = seg[:, 1] - seg[:, 0]
+        length = np.hypot(d[:, 0], d[:, 1])
+        keep = length > 1e-12
+        seg, d, length = seg[keep], d[keep], length[keep]
+        self.segments = seg
+        self.r = float(radius)
+        self.A = seg[:, 0].copy()
+        self.L = length
+        self.e = d / length[:, None]
+        self.n = np.column_stack([-self.e[:, 1], self.e[:, 0]])
+        self.vertices = np.unique(seg.reshape(-1, 2), axis=0)
+        # Row vectors for broadcasting against (n_rays, 1) columns.
+        self._Ax, self._Ay = self.A[:, 0][None], self.A[:, 1][None]
+        self._ex, self._ey = self.e[:, 0][None], self.e[:, 1][None]
+        self._nx, self._ny = self.n[:, 0][None], self.n[:, 1][None]
+        self._Lr = self.L[None]
+        self._Vx, self._Vy = self.vertices[:, 0][None], self.vertices[:, 1][None]
+        self._r2 = self.r * self.r
+        self._graze = self.r * self.r - (self.r - _GRAZE_TOL) ** 2
+        # Python floats for the scalar path (one robot): same formulas, same rounding
+        self._side_list = [tuple(float(v) for v in row) for row in
+                           np.column_stack([self.A, self.e, self.L])]
+        self._vert_list = [(float(x), float(y)) for x, y in self.vertices]
+
+    @property
+    def n_features(self) -> int:
+        """Segments (sides) followed by vertices (corners)."""
+        return len(self.L) + len(self.vertices)
+
+    def feature_distances(self, pos, u) -> np.ndarray:
+        """(n_rays, n_features) contact distance [m] along each ray per feature (inf: never).
+
+        Parameters
+        ----------
+        pos : (n, 2) ray origins (disk centres) [m]
+        u : (n, 2) unit directions
+        """
+        pos = np.asarray(pos, dtype=float).reshape(-1, 2)
+        u = np.asarray(u, dtype=float).reshape(-1, 2)
+        return np.concatenate(self._sides(pos, u) + self._corners(pos, u), axis=1)
+
+    def _sides(self, pos, u):
+        px, py = pos[:, 0:1], pos[:, 1:2]
+        ux, uy = u[:, 0:1], u[:, 1:2]
+        rx = px - self._Ax
+        ry = py - self._Ay
+        s0 = rx * self._nx + ry * self._ny
+        un = ux * self._nx + uy * self._ny
+        a = np.where(s0 >= 0, -un, un)               # approach rate towards the line
+        ok = a > _APPROACH_MIN
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = np.maximum((np.abs(s0) - self.r) / a, 0.0)
+            lam = rx * self._ex + ry * self._ey + t * (ux * self._ex + uy * self._ey)
+        ok &= (lam >= 0.0) & (lam <= self._Lr)
+        return (np.where(ok, t, np.inf),)
+
+    def _corners(self, pos, u):
+        px, py = pos[:, 0:1], pos[:, 1:2]
+        ux, uy = u[:, 0:1], u[:, 1:2]
+        vx = px - self._Vx
+        vy = py - self._Vy
+        b = vx * ux + vy * uy
+        rho2 = vx * vx + vy * vy - b * b
+        disc = self._r2 - rho2
+        ok = (b < 0.0) & (disc > self._graze)
+        with np.errstate(invalid="ignore"):
+            t = np.maximum(-b - np.sqrt(disc), 0.0)
+        return (np.where(ok, t, np.inf),)
+
+    def cast(self, pos, u) -> np.ndarray:
+        """(n,) distance [m] each disk can travel along its ray before touching a wall."""
+        pos = np.asarray(pos, dtype=float).reshape(-1, 2)
+        u = np.asarray(u, dtype=float).reshape(-1, 2)
+        (ts,) = self._sides(pos, u)
+        (tc,) = self._corners(pos, u)
+        return np.minimum(ts.min(axis=1), tc.min(axis=1))
+
+    def cast_one(self, x: float, y: float, ux: float, uy: float,
+                 within: float | None = None):
+        """Scalar :meth:`cast` for one disk (plain Python floats, bitwise the same numbers).
+
+        Returns the contact distance [m]; with ``within`` [m], instead the list of wall points
+        (x, y, side) the disk touches when moving up to ``within`` along (ux, uy); side is the
+        segment (Ax, Ay, ex, ey, L) or None for a corner.
+        """
+        return _cast_scalar(self._side_list, self._vert_list, self.r, self._r2, self._graze,
+                            x, y, ux, uy, within)
+
+    def contact_points(self, pos, u, within: float = BUMP_RANGE) -> list[tuple]:
+        """For one disk: the wall points (x, y) it touches moving ``within`` [m] along u."""
+        x, y = (float(v) for v in np.asarray(pos, dtype=float).reshape(2))
+        ux, uy = (float(v) for v in np.asarray(u, dtype=float).reshape(2))
+        return [(px, py) for px, py, _ in self.cast_one(x, y, ux, uy, within)]
+
+
+class LocalCaster:
+    """:class:`WallCaster` restricted to the walls near each ray origin, for short rays.
+
+    The bounding box of the walls is cut into a fine grid (cell ``g``); every fine cell keeps
+    the sides and corners within ``reach + g/√2`` of its centre, with ``reach = max_dist + r``.
+    A disk starting anywhere in the fine cell can only touch those within ``max_dist``, so
+    :meth:`cast` is exact below ``max_dist`` and returns some value >= ``max_dist`` (possibly
+    inf) otherwise. Per-cell parameter tables are padded with inert features.
+
+    Parameters
+    ----------
+    caster : WallCaster
+    max_dist : float   longest ray that must be exact [m]
+    fine : float, optional   fine-grid cell [m] (default r / 2)
+    """
+
+    def __init__(self, caster: WallCaster, max_dist: float, fine: float | None = None) -> None:
+        self.caster = caster
+        self.max_dist = float(max_dist)
+        r = caster.r
+        g = float(fine) if fine is not None else r / 2
+        seg = caster.segments
+        lo = np.minimum(seg[:, 0], seg[:, 1]).min(axis=0)
+        hi = np.maximum(seg[:, 0], seg[:, 1]).max(axis=0)
+        self.g = g
+        self.x0, self.y0 = float(lo[0]), float(lo[1])
+        self.nx = max(1, int(math.ceil((hi[0] - lo[0]) / g)))
+        self.ny = max(1, int(math.ceil((hi[1] - lo[1]) / g)))
+        jj, ii = np.mgrid[0:self.ny, 0:self.nx]
+        cen = np.column_stack([self.x0 + (ii.ravel() + 0.5) * g,
+                               self.y0 + (jj.ravel() + 0.5) * g])
+        reach = self.max_dist + r + g * math.sqrt(0.5) + 1e-9
+        # point-segment distances (F, m) and point-vertex distances (F, v)
+        rel = cen[:, None, :] - caster.A[None]
+        lam = np.clip((rel * caster.e[None]).sum(-1), 0.0, caster.L[None])
+        foot = caster.A[None] + lam[..., None] * caster.e[None]
+        ds = np.hypot(*(cen[:, None, :] - foot).transpose(2, 0, 1))
+        dv = np.hypot(*(cen[:, None, :] - caster.vertices[None]).transpose(2, 0, 1))
+        near_s, near_v = ds <= reach, dv <= reach
+        ks, kv = max(1, int(near_s.sum(1).max())), max(1, int(near_v.sum(1).max()))
+        F = len(cen)
+        far = 1e12
+        # sides: rows Ax, Ay, ex, ey, L; padding never approaches (n = 0)
+        side = np.zeros((F, 5, ks))
+        side[:, 0, :] = far
+        side[:, 1, :] = far
+        corner = np.full((F, 2, kv), far)
+        for f in range(F):
+            s_idx = np.flatnonzero(near_s[f])
+            side[f, 0, :len(s_idx)] = caster.A[s_idx, 0]
+            side[f, 1, :len(s_idx)] = caster.A[s_idx, 1]
+            side[f, 2, :len(s_idx)] = caster.e[s_idx, 0]
+            side[f, 3, :len(s_idx)] = caster.e[s_idx, 1]
+            side[f, 4, :len(s_idx)] = caster.L[s_idx]
+            v_idx = np.flatnonzero(near_v[f])
+            corner[f, 0, :len(v_idx)] = caster.vertices[v_idx, 0]
+            corner[f, 1, :len(v_idx)] = caster.vertices[v_idx, 1]
+        self._side, self._corner = side, corner
+        self.k_sides, self.k_corners = ks, kv
+
+    @cached_property
+    def _scalar_lists(self):
+        sides = [[tuple(row) for row in cell if row[0] < 1e11]
+                 for cell in self._side.transpose(0, 2, 1).tolist()]
+        verts = [[tuple(row) for row in cell if row[0] < 1e11]
+                 for cell in self._corner.transpose(0, 2, 1).tolist()]
+        return sides, verts
+
+    def cast_one(self, x: float, y: float, ux: float, uy: float,
+                 within: float | None = None):
+        """Scalar :meth:`cast` for one disk: exact below ``max_dist`` (else >= it); with
+        ``within`` <= ``max_dist``, the wall points touched within that distance."""
+        i = min(max(int((x - self.x0) / self.g), 0), self.nx - 1)
+        j = min(max(int((y - self.y0) / self.g), 0), self.ny - 1)
+        sides, verts = self._scalar_lists
+        f = j * self.nx + i
+        c = self.caster
+        return _cast_scalar(sides[f], verts[f], c.r, c._r2, c._graze, x, y, ux, uy, within)
+
+    def fine_cell(self, pos: np.ndarray) -> np.ndarray:
+        i = np.clip(((pos[:, 0] - self.x0) / self.g).astype(np.int64), 0, self.nx - 1)
+        j = np.clip(((pos[:, 1] - self.y0) / self.g).astype(np.int64), 0, self.ny - 1)
+        return j * self.nx + i
+
+    def cast(self, pos, u) -> np.ndarray:
+        """(n,) contact distance [m]: exact when below ``max_dist``, else >= ``max_dist``."""
+        pos = np.asarray(pos, dtype=float).reshape(-1, 2)
+        u = np.asarray(u, dtype=float).reshape(-1, 2)
+        f = self.fine_cell(pos)
+        r = self.caster.r
+        px, py = pos[:, 0:1], pos[:, 1:2]
+        ux, uy = u[:, 0:1], u[:, 1:2]
+        S = self._side[f]
+        Ax, Ay, ex, ey, L = S[:, 0], S[:, 1], S[:, 2], S[:, 3], S[:, 4]
+        rx = px - Ax
+        ry = py - Ay
+        s0 = rx * (-ey) + ry * ex
+        un = uy * ex - ux * ey
+        a = np.where(s0 >= 0, -un, un)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = np.maximum((np.abs(s0) - r) / a, 0.0)
+            lam = rx * ex + ry * ey + t * (ux * ex + uy * ey)
+        ok = (a > _APPROACH_MIN) & (lam >= 0.0) & (lam <= L)
+        ts = np.where(ok, t, np.inf).min(axis=1)
+        C = self._corner[f]
+        vx = px - C[:, 0]
+        vy = py - C[:, 1]
+        b = vx * ux + vy * uy
+        disc = self.caster._r2 - (vx * vx + vy * vy - b * b)
+        ok = (b < 0.0) & (disc > self.caster._graze)
+        with np.errstate(invalid="ignore"):
+            tc = np.where(ok, -b - np.sqrt(np.maximum(disc, 0.0)), np.inf)
+        return np.maximum(np.minimum(ts, tc.min(axis=1)), 0.0)
+
+
+@lru_cache(maxsize=32)
+def casters(env: Environment, step: float | None = None) -> tuple[WallCaster, LocalCaster]:
+    """The (cached) full and local casters of an environment; local range ``step`` [m]
+    (default the cell size)."""
+    full = WallCaster(env.wall_segments, env.robot_radius)
+    return full, LocalCaster(full, env.cell_size if step is None else step)

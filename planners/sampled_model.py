@@ -1,0 +1,170 @@
+"""The sampled coverage model: Hsu's generalized cell mapping over configuration cells.
+
+Every configuration cell (p, k) is represented by a deterministic stratified lattice of
+sample poses: m × m points spread over the position cell's square (those where the robot
+fits; the cell centre if none does) times ``theta_samples`` headings spread over
+[θ_k − Δ/2, θ_k + Δ/2]. Each sample makes one exact continuous step with the kinematic
+twin's rule (forward h when at least h − STEP_TOL is free, else a move to contact and a
+turn by φ + δ with the MODEL §7 noise) and is mapped to the configuration cell it ends in;
+the fractions give the row of (p, k) in a sparse N × N chain, analysed with
+:mod:`planners.markov` (uniform start over the N configurations, as MODEL §7). Coverage
+counts steps where the twin counts them: a forward step in its start cell, a bump step in
+the cell of the contact point (steps in no free cell are dropped; a sample that ends in a
+cell that is not free is sent to the nearest free cell for the chain).
+
+This is the established route for continuous dynamics; it re-randomises the position inside
+the cell at every step, which the event model avoids (``docs/model_continuous.md``).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from envs import UserError
+from envs.raycast import CONTACT_GAP, STEP_TOL, casters, unit
+
+from .cells import CellSpace
+from .markov import ChainAnalysis, analyse_chain
+
+__all__ = ["SampledSettings", "SampledModel", "SampledCoverage"]
+
+
+@dataclass(frozen=True)
+class SampledSettings:
+    """Settings of the sampled model.
+
+    Attributes
+    ----------
+    grid : int            m: an m × m lattice of sample points per position cell
+    theta_samples : int   sample headings per orientation cell
+    """
+
+    grid: int = 3
+    theta_samples: int = 2
+
+    def __post_init__(self) -> None:
+        for name in ("grid", "theta_samples"):
+            v = getattr(self, name)
+            if int(v) != v or v < 1:
+                raise UserError(f"{name} must be a positive integer, got {v}.")
+
+
+@dataclass(frozen=True, eq=False)
+class SampledCoverage:
+    """One bouncing angle under the sampled model: q (P,), π (N,) and the chain analysis."""
+
+    angle: float
+    eps: float
+    r: float
+    q: np.ndarray
+    pi: np.ndarray
+    analysis: ChainAnalysis
+    seconds: float
+
+
+@dataclass(eq=False)
+class SampledModel:
+    """The angle-independent part (sample steps) of the sampled model of one environment.
+
+    Attributes
+    ----------
+    fwd : csr (N, N)        forward samples' destination fractions (rows of bump-only cells
+                            are empty)
+    bump_frac : (N,)        fraction of each cell's samples that bump
+    bump_dest : csr (N, P)  bump samples' contact cells (fractions of all samples)
+    reward : csr (N, P)     counted steps per step from each cell (≤ 1 per row)
+    """
+
+    cs: CellSpace
+    settings: SampledSettings = field(default_factory=SampledSettings)
+
+    def __post_init__(self) -> None:
+        t0 = time.perf_counter()
+        cs, st = self.cs, self.settings
+        env, P, K, h = cs.env, cs.P, cs.K, cs.h
+        m, nt = int(st.grid), int(st.theta_samples)
+        off = (np.arange(m) + 0.5) / m - 0.5
+        ox, oy = np.meshgrid(off, off, indexing="ij")
+        lat = np.column_stack([ox.ravel(), oy.ravel()]) * h                # (m², 2)
+        pts = cs.centres[:, None, :] + lat[None]                           # (P, m², 2)
+        free = env.points_free(pts.reshape(-1, 2)).reshape(P, m * m)
+        pp, jj = np.nonzero(free)
+        none = np.flatnonzero(~free.any(axis=1))
+        pos_p = np.concatenate([pp, none])                                 # sample -> cell
+        pos_xy = np.concatenate([pts[pp, jj], cs.centres[none]])
+        dth = ((np.arange(nt) + 0.5) / nt - 0.5) * cs.delta_deg
+        # all samples: (position sample, orientation k, heading offset)
+        ns, nk = len(pos_p), K * nt
+        si = np.repeat(np.arange(ns), nk)
+        kk = np.tile(np.repeat(np.arange(K), nt), ns)
+        th = kk * cs.delta_deg + np.tile(dth, K * ns)
+        p = pos_p[si]
+        z = kk * P + p
+        w = 1.0 / np.bincount(z, minlength=cs.N)[z]                        # per-cell weight
+        xy = pos_xy[si]
+        u = unit(th)
+        local = casters(env, h)[1]
+        free_d = np.empty(len(xy))
+        for s in range(0, len(xy), 65536):
+            free_d[s:s + 65536] = local.cast(xy[s:s + 65536], u[s:s + 65536])
+        move = np.clip(free_d - CONTACT_GAP, 0.0, h)
+        bump = move < h - STEP_TOL
+        end = xy + move[:, None] * u
+        dest = cs.cell_of_point(end)
+        counted = np.where(bump, dest, p)
+        out = dest < 0
+        dest[out] = _nearest_free(cs, end[out])
+        f = ~bump
+        self.fwd = sp.csr_matrix((w[f], (z[f], kk[f] * P + dest[f])), shape=(cs.N, cs.N))
+        self.bump_frac = np.bincount(z[bump], weights=w[bump], minlength=cs.N)
+        self.bump_dest = sp.csr_matrix((w[bump], (z[bump], dest[bump])), shape=(cs.N, P))
+        ok = counted >= 0
+        self.reward = sp.csr_matrix((w[ok], (z[ok], counted[ok])), shape=(cs.N, P))
+        for M in (self.fwd, self.bump_dest, self.reward):
+            M.sum_duplicates()
+        self.n_samples = len(xy)
+        self.build_seconds = time.perf_counter() - t0
+
+    def chain(self, angle_deg: float, eps_deg: float = 0.0, r: float = 1.0) -> sp.csr_matrix:
+        """The N × N transition matrix of one angle."""
+        from .coverage import bump_turns
+        cs = self.cs
+        P, K = cs.P, cs.K
+        steps, probs = bump_turns(K, angle_deg, eps_deg, r)
+        keep = probs > 0
+        steps, probs = steps[keep], probs[keep]
+        B = self.bump_dest.tocoo()
+        k = B.row // P
+        rows = np.repeat(B.row, steps.size)
+        cols = (((k[:, None] + steps[None, :]) % K) * P + B.col[:, None]).ravel()
+        vals = (B.data[:, None] * probs[None, :]).ravel()
+        T = self.fwd + sp.csr_matrix((vals, (rows, cols)), shape=(cs.N, cs.N))
+        T = sp.csr_matrix(T)
+        T.sum_duplicates()
+        return T
+
+    def analyse(self, angle_deg: float, eps_deg: float = 0.0, r: float = 1.0
+                ) -> SampledCoverage:
+        """Limiting distribution (uniform start over N) and coverage of one angle."""
+        t0 = time.perf_counter()
+        res = analyse_chain(self.chain(angle_deg, eps_deg, r))
+        q = np.asarray(self.reward.T @ res.pi).ravel()
+        if not q.sum() > 0:
+            raise UserError("the sampled model counts no step in a free cell.")
+        return SampledCoverage(angle=float(angle_deg), eps=float(eps_deg), r=float(r),
+                               q=q / q.sum(), pi=res.pi, analysis=res,
+                               seconds=time.perf_counter() - t0)
+
+
+def _nearest_free(cs: CellSpace, pts: np.ndarray) -> np.ndarray:
+    """Nearest free position cell (by centre distance) of each point."""
+    out = np.empty(len(pts), dtype=np.int64)
+    for s in range(0, len(pts), 4096):
+        d = ((pts[s:s + 4096, None, :] - cs.centres[None]) ** 2).sum(-1)
+        out[s:s + 4096] = np.argmin(d, axis=1)
+    return out if len(pts) else np.zeros(0, dtype=np.int64)
+
