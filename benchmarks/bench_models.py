@@ -21,16 +21,11 @@ import numpy as np
 
 import envs
 from planners.cells import CellSpace
-from planners.coverage import coverage_pipeline
+from planners.coverage import coverage_pipeline, tv_distance
 
 ANGLES = (30.0, 75.0, 315.0)
 EPS, R = 5.0, 0.8
 
-
-def _tv(a, b) -> float:
-    a = np.asarray(a, float)
-    b = np.asarray(b, float)
-    return 0.5 * float(np.abs(a / a.sum() - b / b.sum()).sum())
 
 
 def twin_counts(cs: CellSpace, angle: float, steps: int, seed: int) -> np.ndarray:
@@ -56,7 +51,7 @@ def main(argv=None) -> int:
     cs0 = CellSpace(envs.load(args.env, orientations=args.orientations))
     _ = cs0.forward
     hist = {a: twin_counts(cs0, a, args.twin_steps, 0) for a in ANGLES}
-    floor = max(_tv(hist[a], twin_counts(cs0, a, args.twin_steps, 1)) for a in ANGLES)
+    floor = max(tv_distance(hist[a], twin_counts(cs0, a, args.twin_steps, 1)) for a in ANGLES)
     for model in args.models.split(","):
         coverage_models._model_cached.cache_clear()
         cs = CellSpace(envs.load(args.env, orientations=args.orientations))
@@ -64,7 +59,7 @@ def main(argv=None) -> int:
         _ = cs.forward
         res = coverage_pipeline(cs, ANGLES, EPS, R, model=model)
         wall, cpu = time.perf_counter() - w0, time.process_time() - c0
-        tv = max(_tv(ac.q, hist[a]) for a, ac in zip(ANGLES, res.per_angle))
+        tv = max(tv_distance(ac.q, hist[a]) for a, ac in zip(ANGLES, res.per_angle))
         rows.append((model, wall, cpu, tv, res.alpha))
     print(f"{args.env}, K = {args.orientations}, P = {cs0.P}, N = {cs0.N}; angles 30/75/315, "
           f"eps {EPS:g}°, r {R}; twin {args.twin_steps} steps per angle")

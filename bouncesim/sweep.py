@@ -338,7 +338,8 @@ def make_executor(args: argparse.Namespace):
 
 
 # ============================================================================ metadata
-def _git_revision() -> str | None:
+def git_revision() -> str | None:
+    """The current git commit (with '-dirty' when tracked files have changes), or None."""
     root = Path(__file__).resolve().parent.parent
     try:
         rev = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True,
@@ -360,7 +361,7 @@ def run_metadata() -> dict:
             vers[name] = metadata.version(name)
         except metadata.PackageNotFoundError:
             vers[name] = None
-    return {"versions": vers, "git_revision": _git_revision()}
+    return {"versions": vers, "git_revision": git_revision()}
 
 
 # ============================================================================ journal

@@ -36,18 +36,13 @@ from bouncesim.sweep import add_executor_args, make_executor, run_sweep
 from experiments.common import experiment_parser, output_dir
 from experiments.coverage_validation import ANGLES, EPS, R, policy_label, simulate
 from planners.cells import CellSpace
-from planners.coverage import coverage_pipeline, solve_mix, uniform_target
+from planners.coverage import coverage_pipeline, solve_mix, tv_distance, uniform_target
 
 __all__ = ["main", "draw_figure"]
 
 NAME = "alpha_delivery"
 ENV = "complex"
 
-
-def _tv(a, b) -> float:
-    a = np.asarray(a, float)
-    b = np.asarray(b, float)
-    return 0.5 * float(np.abs(a / a.sum() - b / b.sum()).sum())
 
 
 def _counts(rows) -> np.ndarray:
@@ -149,7 +144,7 @@ def main(argv=None) -> int:
         res = coverage_pipeline(cs, ANGLES, EPS, R, **({} if m == "step" else {"model": m}))
         secs = time.perf_counter() - t0
         mixes[m] = res.mixed_q()
-        promised[m] = _tv(mixes[m], b)
+        promised[m] = tv_distance(mixes[m], b)
         alpha_rows += [{"label": m, "angle": int(a), "alpha": float(x), "seconds": secs}
                        for a, x in zip(ANGLES, res.alpha)]
         trials += _trials(m, policy_label(ANGLES, res.alpha), K, args, twin_steps, pb_steps,
@@ -172,7 +167,7 @@ def main(argv=None) -> int:
     oracle = solve_mix(A_twin, b)
     alpha_rows += [{"label": "oracle", "angle": int(a), "alpha": float(x), "seconds": 0.0}
                    for a, x in zip(ANGLES, oracle.alpha)]
-    promised["oracle"] = _tv(A_twin @ oracle.alpha, b)
+    promised["oracle"] = tv_distance(A_twin @ oracle.alpha, b)
     mixes["oracle"] = A_twin @ oracle.alpha
     oracle_trials = _trials("oracle", policy_label(ANGLES, oracle.alpha), K, args, twin_steps,
                             pb_steps, pb_runs)
@@ -190,9 +185,9 @@ def main(argv=None) -> int:
             h = {rep: _counts(sel[sel.replicate == rep]) for rep in (0, 1)}
             pooled = h[0] + h[1]
             rows.append({"label": label, "backend": backend, "promised": promised[label],
-                         "delivered": _tv(pooled, b),
-                         "prediction_error": _tv(mixes[label], pooled),
-                         "noise_floor": _tv(h[0], h[1]),
+                         "delivered": tv_distance(pooled, b),
+                         "prediction_error": tv_distance(mixes[label], pooled),
+                         "noise_floor": tv_distance(h[0], h[1]),
                          "steps": int(sel.counted.sum() + sel.dropped.sum())})
     delivery = pd.DataFrame(rows)
     delivery.to_csv(out / "delivery.csv", index=False, float_format="%.4f")

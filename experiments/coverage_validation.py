@@ -52,7 +52,7 @@ import envs
 from bouncesim.sweep import add_executor_args, make_executor, run_sweep
 from experiments.common import experiment_parser, output_dir
 from planners.cells import CellSpace
-from planners.coverage import coverage_pipeline
+from planners.coverage import coverage_pipeline, tv_distance
 from planners.plan import PolicyMix
 
 __all__ = ["main", "simulate", "predict", "tv_table", "draw_figures", "ANGLES", "EPS", "R"]
@@ -143,11 +143,6 @@ def predict(cs: CellSpace, model: str = "step") -> dict:
             "seconds": time.perf_counter() - t0}
 
 
-def _tv(a, b) -> float:
-    a = np.asarray(a, float)
-    b = np.asarray(b, float)
-    return 0.5 * float(np.abs(a / a.sum() - b / b.sum()).sum())
-
 
 def tv_table(runs: pd.DataFrame, preds: pd.DataFrame) -> pd.DataFrame:
     """TV of each prediction against each backend's histograms (replicate 0, pooled, floor)."""
@@ -162,13 +157,13 @@ def tv_table(runs: pd.DataFrame, preds: pd.DataFrame) -> pd.DataFrame:
                 hist[int(r.replicate)] = hist.get(int(r.replicate), 0) + c
             h0 = hist.get(0)
             pooled = sum(hist.values())
-            floor = _tv(hist[0], hist[1]) if 0 in hist and 1 in hist else math.nan
+            floor = tv_distance(hist[0], hist[1]) if 0 in hist and 1 in hist else math.nan
             total = float(sb.counted.sum() + sb.dropped.sum())
             rows.append({"env": env, "model": model, "policy": policy, "backend": backend,
                          "steps": int(sb.counted.sum() + sb.dropped.sum()),
                          "dropped_fraction": float(sb.dropped.sum()) / total if total else 0.0,
-                         "tv": _tv(q, h0) if h0 is not None else math.nan,
-                         "tv_pooled": _tv(q, pooled), "noise_floor": floor})
+                         "tv": tv_distance(q, h0) if h0 is not None else math.nan,
+                         "tv_pooled": tv_distance(q, pooled), "noise_floor": floor})
     return pd.DataFrame(rows)
 
 

@@ -36,6 +36,7 @@ from bouncesim.sweep import add_executor_args, make_executor, run_sweep
 from experiments.common import experiment_parser, output_dir, write_config
 from experiments.coverage_validation import ANGLES, EPS, R, simulate
 from planners.cells import CellSpace
+from planners.coverage import tv_distance
 
 __all__ = ["main", "LADDER", "QUICK_LADDER", "draw_figure", "predict_q"]
 
@@ -67,11 +68,6 @@ def predict_q(cs: CellSpace, angle: float, model: str, settings: dict, rng) -> n
     return predict_coverage(cs, angle, EPS, R, model=model, settings=settings or None,
                             rng=rng).q
 
-
-def _tv(a, b) -> float:
-    a = np.asarray(a, float)
-    b = np.asarray(b, float)
-    return 0.5 * float(np.abs(a / a.sum() - b / b.sum()).sum())
 
 
 def draw_figure(out: Path) -> Path:
@@ -181,8 +177,8 @@ def main(argv=None) -> int:
         floors = []
         for a, qa in qs.items():
             h0, h1 = hist[(env_name, K, h, a, 0)], hist[(env_name, K, h, a, 1)]
-            row[f"tv_{a}"] = _tv(qa, h0 + h1)
-            floors.append(_tv(h0, h1))
+            row[f"tv_{a}"] = tv_distance(qa, h0 + h1)
+            floors.append(tv_distance(h0, h1))
         tvs = [row[f"tv_{a}"] for a in qs]
         row.update(tv_max=max(tvs), tv_mean=float(np.mean(tvs)), noise_floor=max(floors))
         rows.append(row)

@@ -52,9 +52,9 @@ from envs import UserError
 from .cells import CellSpace, angle_steps
 from .markov import ChainAnalysis, analyse_chain, analyse_run_chain
 
-__all__ = ["AngleCoverage", "MixResult", "CoverageResult", "TargetError", "bump_turns",
-           "transition_matrix", "analyse_angle", "solve_mix", "uniform_target",
-           "load_target", "coverage_pipeline", "check_reliability"]
+__all__ = ["AngleCoverage", "ChainSummary", "MixResult", "CoverageResult", "TargetError",
+           "bump_turns", "transition_matrix", "analyse_angle", "solve_mix", "uniform_target",
+           "load_target", "coverage_pipeline", "check_reliability", "tv_distance"]
 
 SPACES = ("positions", "configurations")
 
@@ -146,8 +146,32 @@ def transition_matrix(cs: CellSpace, angle_deg: float, eps_deg: float = 0.0,
     return M
 
 
+class ChainSummary:
+    """Read-only views of a coverage record's ``analysis`` (a ChainAnalysis) and its
+    ``angle``, shared by every coverage model's per-angle record."""
+
+    @property
+    def groups(self) -> tuple:
+        return self.analysis.groups
+
+    @property
+    def group_sizes(self) -> np.ndarray:
+        return self.analysis.group_sizes
+
+    @property
+    def transient_fraction(self) -> float:
+        return self.analysis.transient_fraction
+
+    def summary(self) -> dict:
+        """JSON-ready numbers: groups, their sizes and weights, transient fraction."""
+        return {"angle": _num(self.angle), "persistent_groups": self.analysis.n_groups,
+                "group_sizes": [int(s) for s in self.group_sizes],
+                "group_weights": [float(a) for a in self.analysis.absorption],
+                "transient_fraction": float(self.transient_fraction)}
+
+
 @dataclass(frozen=True, eq=False)
-class AngleCoverage:
+class AngleCoverage(ChainSummary):
     """Long-run behaviour of one bouncing angle.
 
     Attributes
@@ -170,25 +194,6 @@ class AngleCoverage:
     @property
     def pi(self) -> np.ndarray:
         return self.analysis.pi
-
-    @property
-    def groups(self) -> tuple:
-        return self.analysis.groups
-
-    @property
-    def group_sizes(self) -> np.ndarray:
-        return self.analysis.group_sizes
-
-    @property
-    def transient_fraction(self) -> float:
-        return self.analysis.transient_fraction
-
-    def summary(self) -> dict:
-        """JSON-ready numbers: groups, their sizes, transient fraction."""
-        return {"angle": _num(self.angle), "persistent_groups": self.analysis.n_groups,
-                "group_sizes": [int(s) for s in self.group_sizes],
-                "group_weights": [float(a) for a in self.analysis.absorption],
-                "transient_fraction": float(self.transient_fraction)}
 
 
 def analyse_angle(cs: CellSpace, angle_deg: float, eps_deg: float = 0.0, r: float = 1.0,
@@ -579,6 +584,18 @@ def coverage_pipeline(cs: CellSpace, angles, eps_deg: float = 0.0, r: float = 1.
     mix = solve_mix(A, b)
     return CoverageResult(angles=angles, eps=float(eps_deg), r=float(r), space=space,
                           per_angle=per, target=b, mix=mix)
+
+
+def tv_distance(a, b) -> float:
+    """Total-variation distance ½ Σ |a/Σa − b/Σb| between two non-negative vectors (counts
+    or probabilities; each is normalised first).
+
+    >>> tv_distance([1, 0], [0.5, 0.5]), tv_distance([2, 2], [1, 1])
+    (0.5, 0.0)
+    """
+    a = np.asarray(a, dtype=float)
+    b = np.asarray(b, dtype=float)
+    return 0.5 * float(np.abs(a / a.sum() - b / b.sum()).sum())
 
 
 def _num(x: float):

@@ -29,6 +29,7 @@ import numpy as np
 from envs import UserError
 
 from .cells import CellSpace
+from .coverage import ChainSummary
 from .event_model import EventModel, EventSettings
 from .markov import ChainAnalysis
 from .sampled_model import SampledModel, SampledSettings
@@ -84,7 +85,7 @@ def _settings(model: str, settings):
 
 
 @dataclass(frozen=True, eq=False)
-class ModelCoverage:
+class ModelCoverage(ChainSummary):
     """Predicted long-run coverage of one bouncing angle under one model.
 
     Attributes
@@ -114,27 +115,9 @@ class ModelCoverage:
     seconds: float
     detail: object
 
-    @property
-    def groups(self) -> tuple:
-        return self.analysis.groups
-
-    @property
-    def group_sizes(self) -> np.ndarray:
-        return self.analysis.group_sizes
-
-    @property
-    def transient_fraction(self) -> float:
-        return self.analysis.transient_fraction
-
     def summary(self) -> dict:
         """JSON-ready numbers: model, groups, their sizes and weights, transient fraction."""
-        a = self.angle
-        return {"model": self.model,
-                "angle": int(round(a)) if abs(a - round(a)) < 1e-9 else a,
-                "persistent_groups": self.analysis.n_groups,
-                "group_sizes": [int(s) for s in self.group_sizes],
-                "group_weights": [float(w) for w in self.analysis.absorption],
-                "transient_fraction": float(self.transient_fraction)}
+        return {"model": self.model, **super().summary()}
 
 
 @lru_cache(maxsize=2)

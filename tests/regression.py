@@ -37,7 +37,7 @@ import numpy as np
 
 import envs
 from planners.cells import CellSpace
-from planners.coverage import coverage_pipeline
+from planners.coverage import coverage_pipeline, tv_distance
 from planners.navigation import Navigator
 
 __all__ = ["COVERAGE_SETTINGS", "PLAN_QUERIES", "TV_SETTING", "TV_SLACK", "GOLDEN_DIR",
@@ -119,11 +119,6 @@ def compute_plans(pybullet: bool = True) -> list[dict]:
     return rows
 
 
-def _tv(a, b) -> float:
-    a = np.asarray(a, float)
-    b = np.asarray(b, float)
-    return 0.5 * float(np.abs(a / a.sum() - b / b.sum()).sum())
-
 
 def twin_histogram(cs: CellSpace, angle: float, seed: int) -> np.ndarray:
     from bouncesim.kinematic import KinematicBatch
@@ -158,19 +153,19 @@ def compute_tv(pybullet: bool = True, floors: bool = True) -> dict:
     out = {"setting": {k: (list(v) if isinstance(v, tuple) else v) for k, v in s.items()},
            "twin": {}, "pybullet": {}}
     for a, ac in zip(s["angles"], res.per_angle):
-        entry = {"tv": _tv(ac.q, twin_histogram(cs, a, s["seed"]))}
+        entry = {"tv": tv_distance(ac.q, twin_histogram(cs, a, s["seed"]))}
         if floors:
             h = [twin_histogram(cs, a, sd) for sd in s["floor_seeds"]]
-            entry["noise_floor"] = max(_tv(h[i], h[j]) for i in range(len(h))
+            entry["noise_floor"] = max(tv_distance(h[i], h[j]) for i in range(len(h))
                                        for j in range(i))
         out["twin"][f"{a:g}"] = entry
     if pybullet:
         a = s["pybullet_angle"]
         q = res.per_angle[list(s["angles"]).index(a)].q
-        entry = {"tv": _tv(q, pybullet_histogram(cs, a, s["pybullet_seeds"][0]))}
+        entry = {"tv": tv_distance(q, pybullet_histogram(cs, a, s["pybullet_seeds"][0]))}
         if floors:
             h = [pybullet_histogram(cs, a, sd) for sd in s["pybullet_seeds"]]
-            entry["noise_floor"] = max(_tv(h[i], h[j]) for i in range(len(h))
+            entry["noise_floor"] = max(tv_distance(h[i], h[j]) for i in range(len(h))
                                        for j in range(i))
         out["pybullet"][f"{a:g}"] = entry
     return out

@@ -8,6 +8,7 @@ import importlib
 import pytest
 
 MODULES = ["envs", "envs.environment", "planners.cells", "planners.plan", "planners.roadmap",
+           "planners.coverage",
            "planners.navigation", "bouncesim.commands.plan", "bouncesim.pybullet_world",
            "bouncesim.sweep", "envs.raycast", "planners.event_model",
            "planners.coverage_models"]
