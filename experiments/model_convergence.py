@@ -85,11 +85,12 @@ def draw_figure(out: Path) -> Path:
     for row, env_name in zip(axes, envs_):
         de = d[d.env == env_name]
         for model, knob in knobs:
-            dk = de[(de.model == model) & (de.knob == knob)].sort_values("seconds")
+            dk = de[(de.model == model) & (de.knob == knob)]        # ladder order
             if dk.empty:
                 continue
             ls = styles[[k for m, k in knobs if m == model].index(knob) % len(styles)]
-            row[1].plot(dk.seconds, dk.tv_max, ls, marker="o", color=colors.get(model),
+            bt = dk.sort_values("seconds")
+            row[1].plot(bt.seconds, bt.tv_max, ls, marker="o", color=colors.get(model),
                         label=f"{model}: {knob}")
             for x, y, v in zip(dk.seconds, dk.tv_max, dk.value):
                 row[1].annotate(f"{v:g}", (x, y), fontsize=7, xytext=(3, 3),
@@ -107,8 +108,8 @@ def draw_figure(out: Path) -> Path:
         row[1].set_xscale("log")
         row[1].set_xlabel("compute time for the three angles [s]")
         row[0].set_title(f"{env_name}: TV to the twin along each resolution ladder")
-        row[1].set_title(f"{env_name}: TV against compute time (dashed: 0.05 goal, "
-                         f"dotted: noise floor)")
+        row[1].set_title(f"{env_name}: TV against compute time\n(dashed: the 0.05 goal, "
+                         f"dotted: twin noise floor)", fontsize=10)
         row[0].legend(fontsize=7)
     fig.tight_layout()
     p = out / "convergence.png"
