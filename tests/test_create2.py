@@ -405,8 +405,12 @@ def _controller(url: str) -> subprocess.Popen:
     cmd = [sys.executable, "-m", "bouncesim.cli", "run-plan", "lab", "--angles", "90",
            "--start", "103", "--goal", "8", "--robot", "create2", "--port", url,
            "--speed", "0.2"]
+    # A shell that starts a job in the background (as a CI runner may) sets SIGINT to
+    # "ignore", which children inherit and Python then keeps: give the controller the
+    # default disposition a foreground Ctrl-C meets.
     return subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True)
+                            text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
 
 
 @pytest.mark.parametrize("sig,code", [
