@@ -5,6 +5,7 @@ configuration cells) plus the cell space, so figures can be drawn from CSV files
 
 - :func:`draw_map`: walls and obstacles of an environment.
 - :func:`heatmap`: one value per position cell as coloured squares on the map.
+- :func:`diff_heatmap`: signed differences on a symmetric diverging scale.
 - :func:`save_heatmap`: one heatmap per file.
 - :func:`save_mix_vs_target`: the mixed coverage next to the target (same colour scale) and
   their difference.
@@ -22,8 +23,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.colors import ListedColormap  # noqa: E402
 
-__all__ = ["draw_map", "heatmap", "save_heatmap", "save_mix_vs_target", "save_group_slices",
-           "position_grid"]
+__all__ = ["draw_map", "heatmap", "diff_heatmap", "save_heatmap", "save_mix_vs_target",
+           "save_group_slices", "position_grid"]
 
 
 def position_grid(cs, values) -> np.ndarray:
@@ -73,15 +74,33 @@ def heatmap(ax, cs, values, title: str | None = None, vmax: float | None = None,
     return im
 
 
+def _save(fig, path, dpi: int = 120) -> Path:
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)
+    return path
+
+
+def diff_heatmap(ax, cs, values, title: str | None = None):
+    """Signed values per position cell (e.g. simulated − predicted) on a symmetric diverging
+    colour scale, with a colour bar; returns the image."""
+    lim = float(np.abs(np.asarray(values, dtype=float)).max()) or 1.0
+    im = ax.imshow(np.ma.masked_invalid(position_grid(cs, values)), origin="lower",
+                   extent=_extent(cs), cmap="RdBu_r", vmin=-lim, vmax=lim,
+                   interpolation="nearest")
+    draw_map(ax, cs.env)
+    if title:
+        ax.set_title(title, fontsize=10)
+    ax.figure.colorbar(im, ax=ax, shrink=0.8)
+    return im
+
+
 def save_heatmap(path, cs, values, title: str | None = None, vmax: float | None = None) -> Path:
     """Write one heatmap PNG [values over position cells]."""
     fig, ax = plt.subplots(figsize=(6, 5))
     heatmap(ax, cs, values, title=title, vmax=vmax)
-    fig.tight_layout()
-    path = Path(path)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
 
 
 def save_mix_vs_target(path, cs, mixed, target, title: str | None = None) -> Path:
@@ -92,21 +111,10 @@ def save_mix_vs_target(path, cs, mixed, target, title: str | None = None) -> Pat
     fig, axes = plt.subplots(1, 3, figsize=(16, 4.8))
     heatmap(axes[0], cs, mixed, title="mixed coverage Aα", vmax=vmax)
     heatmap(axes[1], cs, target, title="target b", vmax=vmax)
-    diff = mixed - target
-    lim = float(np.abs(diff).max()) or 1.0
-    grid = position_grid(cs, diff)
-    im = axes[2].imshow(np.ma.masked_invalid(grid), origin="lower", extent=_extent(cs),
-                        cmap="RdBu_r", vmin=-lim, vmax=lim, interpolation="nearest")
-    draw_map(axes[2], cs.env)
-    axes[2].set_title("Aα − b", fontsize=10)
-    fig.colorbar(im, ax=axes[2], shrink=0.8)
+    diff_heatmap(axes[2], cs, mixed - target, title="Aα − b")
     if title:
         fig.suptitle(title)
-    fig.tight_layout()
-    path = Path(path)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
 
 
 def save_group_slices(path, cs, labels, orientations, title: str | None = None) -> Path:

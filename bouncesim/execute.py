@@ -214,6 +214,20 @@ def _back_off(robot: Robot, speed: float, distance: float) -> None:
         robot.stop()
 
 
+def _robot_error(robot: Robot, trace: Trace, t0: float, exc: RobotError) -> str:
+    """Log a RobotError that ended a run; return the run's reason."""
+    trace.add(robot.clock() - t0, robot.true_pose(), "error", str(exc))
+    return f"robot error: {exc}"
+
+
+def _stopped(robot: Robot, trace: Trace, t0: float, reason: str) -> tuple:
+    """Log the stop of a run; return (elapsed [s], final pose or None)."""
+    elapsed = robot.clock() - t0
+    final = robot.true_pose()
+    trace.add(elapsed, final, "stop", reason)
+    return elapsed, final
+
+
 def _side(ev) -> str:
     return "+".join(s for s, on in (("left", ev.left), ("right", ev.right)) if on) or "none"
 
@@ -319,13 +333,10 @@ def execute_plan(plan, robot: Robot, env: Environment, start, goal=None,
         else:
             completed = True
     except RobotError as exc:
-        reason = f"robot error: {exc}"
-        trace.add(robot.clock() - t0, robot.true_pose(), "error", str(exc))
+        reason = _robot_error(robot, trace, t0, exc)
     finally:
         robot.stop()
-    elapsed = robot.clock() - t0
-    final = robot.true_pose()
-    trace.add(elapsed, final, "stop", reason or "plan finished")
+    elapsed, final = _stopped(robot, trace, t0, reason or "plan finished")
 
     success: bool | None = None
     pos_err = head_err = None
@@ -481,13 +492,10 @@ def execute_mix(policy_mix, robot: Robot, env: Environment, steps: int, epoch: i
                     trace.add(robot.clock() - t0, robot.true_pose(), "turn", f"{angle:g}")
             done += 1
     except RobotError as exc:
-        reason = f"robot error: {exc}"
-        trace.add(robot.clock() - t0, robot.true_pose(), "error", str(exc))
+        reason = _robot_error(robot, trace, t0, exc)
     finally:
         robot.stop()
-    elapsed = robot.clock() - t0
-    final = robot.true_pose()
-    trace.add(elapsed, final, "stop", reason)
+    elapsed, final = _stopped(robot, trace, t0, reason)
     return MixRun(counts=counts if known else None, dropped=dropped, steps=done, bumps=bumps,
                   reason=reason, epoch_angles=tuple(epoch_angles), final_pose=final,
                   elapsed=elapsed, trace=trace)

@@ -174,7 +174,7 @@ def draw_figures(out: Path) -> list[Path]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from bouncesim.coverage_plots import heatmap, position_grid
+    from bouncesim.coverage_plots import diff_heatmap, heatmap
 
     out = Path(out)
     preds = pd.read_csv(out / "predictions.csv", dtype={"policy": str})
@@ -199,20 +199,10 @@ def draw_figures(out: Path) -> list[Path]:
             heatmap(row[0], cs, q, title=f"{name}: predicted ({model})", vmax=vmax)
             heatmap(row[1], cs, sim, title=f"{name}: twin ({int(hb['count'].sum())} steps)",
                     vmax=vmax)
-            diff = sim - q
-            lim = float(np.abs(diff).max()) or 1.0
-            x0, y0 = cs.env.origin
-            rws, cls = cs.index_grid.shape
-            im = row[2].imshow(np.ma.masked_invalid(position_grid(cs, diff)), origin="lower",
-                               extent=(x0, x0 + cls * cs.h, y0, y0 + rws * cs.h),
-                               cmap="RdBu_r", vmin=-lim, vmax=lim, interpolation="nearest")
-            from bouncesim.coverage_plots import draw_map
-            draw_map(row[2], cs.env)
             t = tv[(tv.env == env_name) & (tv.model == model) & (tv.policy == pol)
                    & (tv.backend == "twin")]
             tvs = f"TV {float(t.tv_pooled.iloc[0]):.3f}" if len(t) else ""
-            row[2].set_title(f"twin − predicted  {tvs}", fontsize=10)
-            fig.colorbar(im, ax=row[2], shrink=0.8)
+            diff_heatmap(row[2], cs, sim - q, title=f"twin − predicted  {tvs}")
         fig.suptitle(f"{env_name}: predicted ({model} model) vs simulated coverage")
         fig.tight_layout()
         p = out / f"heatmaps_{env_name}_{model}.png"

@@ -20,13 +20,12 @@ TWIN_GLANCE_DEG = 80.0
 
 
 def make_robot(backend: str, env, noise, rng):
-    if backend == "kinematic":
-        from bouncesim.kinematic import KinematicRobot
-        return KinematicRobot(env, noise=noise, rng=rng, glance_deg=TWIN_GLANCE_DEG)
-    if backend == "pybullet":
-        from bouncesim.pybullet_world import PyBulletRobot
-        return PyBulletRobot(env, noise=noise, rng=rng)
-    raise ValueError(f"unknown backend {backend!r}")
+    """The CLI's robot builder, with the twin's bumper arc matched to PyBullet's."""
+    from bouncesim.commands.run_plan import make_robot as build
+    if backend not in BACKENDS:
+        raise ValueError(f"unknown backend {backend!r}")
+    glance = TWIN_GLANCE_DEG if backend == "kinematic" else None
+    return build(backend, env, noise, rng, glance=glance)
 
 
 def execute_fig3(env, cells, routes, table, args, out):
