@@ -103,15 +103,17 @@ def save_heatmap(path, cs, values, title: str | None = None, vmax: float | None 
     return _save(fig, path)
 
 
-def save_mix_vs_target(path, cs, mixed, target, title: str | None = None) -> Path:
-    """Three panels: mixed coverage Aα, target b (same colour scale) and Aα − b."""
+def save_mix_vs_target(path, cs, mixed, target, title: str | None = None,
+                       label: str = "Aα") -> Path:
+    """Three panels: mixed coverage (``label``, default Aα), target b (same colour scale)
+    and their difference."""
     mixed = np.asarray(mixed, dtype=float)
     target = np.asarray(target, dtype=float)
     vmax = float(max(mixed.max(), target.max()))
     fig, axes = plt.subplots(1, 3, figsize=(16, 4.8))
-    heatmap(axes[0], cs, mixed, title="mixed coverage Aα", vmax=vmax)
+    heatmap(axes[0], cs, mixed, title=f"mixed coverage {label}", vmax=vmax)
     heatmap(axes[1], cs, target, title="target b", vmax=vmax)
-    diff_heatmap(axes[2], cs, mixed - target, title="Aα − b")
+    diff_heatmap(axes[2], cs, mixed - target, title=f"{label} − b")
     if title:
         fig.suptitle(title)
     return _save(fig, path)

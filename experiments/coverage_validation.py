@@ -16,7 +16,11 @@ step-sampled visit histogram q̂ of simulated runs:
 
 The same simulation is run twice with independent seeds (replicates 0 and 1); the TV between
 the two is the noise floor of the estimate at that step count. A mix is run by time-sharing
-in epochs of ``--epoch`` steps (MODEL §8); its prediction is Σ α_i q_i.
+in epochs of ``--epoch`` steps (MODEL §8); its prediction is the model's *time-shared*
+coverage (:mod:`planners.timeshare`: the model's chain followed through the epochs), and
+MODEL §7's Σ α_i q_i is reported beside it (``tv_pooled_sum``). The two differ when an
+epoch is short against an angle's mixing: in fig1 at 315° the robot leaks into a pocket at
+about 1e-4 per step, which a 1000-step epoch rarely reaches.
 
 Outputs (under ``--out``, default results/coverage_validation/):
 
@@ -24,10 +28,11 @@ Outputs (under ``--out``, default results/coverage_validation/):
   steps, counted, dropped, bumps, wall time, and the raw counts), written by the resumable sweep
   runner (:mod:`bouncesim.sweep`; trial i's seed is spawned from ``--seed`` and i);
 - ``histograms.csv``: env, policy, backend, replicate, run, p, count (the raw visit counts);
-- ``predictions.csv``: env, model, policy, p, q (and the α of each model's mix in
-  ``alpha.csv``);
+- ``predictions.csv``: env, model, policy, p, q, q_sum (Σ α_i q_i for a mix, q for an
+  angle); the α of each model's mix is in ``alpha.csv``;
 - ``tv.csv``: env, model, policy, backend, steps, dropped fraction, TV(q, q̂) of replicate 0,
-  of the pooled replicates, and the noise floor TV(q̂₀, q̂₁);
+  of the pooled replicates, TV(Σ α_i q_i, q̂) pooled (mixes only) and the noise floor
+  TV(q̂₀, q̂₁);
 - ``heatmaps_<env>_<model>.png``: predicted, simulated (twin, pooled) and their difference
   for every policy; ``tv_<backend>.png``: the TV table as bars;
 - ``config.json``: every parameter, the seed, package versions and the git revision.
@@ -53,6 +58,7 @@ from bouncesim.sweep import add_executor_args, make_executor, run_sweep
 from experiments.common import experiment_parser, output_dir
 from planners.cells import CellSpace
 from planners.coverage import coverage_pipeline, tv_distance
+from planners.coverage_models import timeshared_coverage
 from planners.plan import PolicyMix
 
 __all__ = ["main", "simulate", "predict", "tv_table", "draw_figures", "ANGLES", "EPS", "R"]
@@ -128,27 +134,35 @@ def simulate(params: dict, rng: np.random.Generator) -> dict:
 
 
 # ----------------------------------------------------------------------------- predictions
-def predict(cs: CellSpace, model: str = "step") -> dict:
+def predict(cs: CellSpace, model: str = "step", epoch: int | None = None) -> dict:
     """Predicted coverage of each angle and of the model's own α mix (uniform target).
 
-    Returns {"q": {label: (P,) array}, "alpha": (m,) array, "mix": label, "seconds": float}.
+    The mix's prediction is the model's time-shared coverage with epochs of ``epoch`` steps
+    (:func:`planners.coverage_models.timeshared_coverage`, MODEL §8), or MODEL §7's Σ α_i q_i
+    when ``epoch`` is None.
+
+    Returns {"q": {label: (P,) array}, "q_sum": {label: Σ α_i q_i for the mix, q for an
+    angle}, "alpha": (m,) array, "mix": label, "seconds": float}.
     """
     t0 = time.perf_counter()
     kw = {} if model == "step" else {"model": model}
     res = coverage_pipeline(cs, ANGLES, EPS, R, **kw)
     q = {f"{_num(a)}": ac.q for a, ac in zip(ANGLES, res.per_angle)}
     mix = policy_label(ANGLES, res.alpha)
-    q[mix] = res.mixed_q()
-    return {"q": q, "alpha": np.asarray(res.alpha), "mix": mix,
+    q_sum = {**q, mix: res.mixed_q()}
+    q[mix] = res.mixed_q() if epoch is None else timeshared_coverage(
+        cs, ANGLES, res.alpha, EPS, R, epoch=epoch, model=model).q
+    return {"q": q, "q_sum": q_sum, "alpha": np.asarray(res.alpha), "mix": mix,
             "seconds": time.perf_counter() - t0}
-
 
 
 def tv_table(runs: pd.DataFrame, preds: pd.DataFrame) -> pd.DataFrame:
     """TV of each prediction against each backend's histograms (replicate 0, pooled, floor)."""
     rows = []
     for (env, model, policy), pq in preds.groupby(["env", "model", "policy"], sort=False):
-        q = pq.sort_values("p")["q"].to_numpy()
+        pq = pq.sort_values("p")
+        q = pq["q"].to_numpy()
+        q_sum = pq["q_sum"].to_numpy() if "q_sum" in pq else q
         sims = runs[(runs.env == env) & (runs.policy == policy)]
         for backend, sb in sims.groupby("backend", sort=False):
             hist = {}
@@ -163,7 +177,10 @@ def tv_table(runs: pd.DataFrame, preds: pd.DataFrame) -> pd.DataFrame:
                          "steps": int(sb.counted.sum() + sb.dropped.sum()),
                          "dropped_fraction": float(sb.dropped.sum()) / total if total else 0.0,
                          "tv": tv_distance(q, h0) if h0 is not None else math.nan,
-                         "tv_pooled": tv_distance(q, pooled), "noise_floor": floor})
+                         "tv_pooled": tv_distance(q, pooled),
+                         "tv_pooled_sum": (tv_distance(q_sum, pooled)
+                                           if policy.startswith("mix") else math.nan),
+                         "noise_floor": floor})
     return pd.DataFrame(rows)
 
 
@@ -195,7 +212,7 @@ def draw_figures(out: Path) -> list[Path]:
             sim = sim.to_numpy(float)
             sim = sim / sim.sum() if sim.sum() > 0 else sim
             vmax = float(max(q.max(), sim.max()))
-            name = pol if not pol.startswith("mix") else "mix α"
+            name = pol if not pol.startswith("mix") else f"mix α, {cfg['epoch']}-step epochs"
             heatmap(row[0], cs, q, title=f"{name}: predicted ({model})", vmax=vmax)
             heatmap(row[1], cs, sim, title=f"{name}: twin ({int(hb['count'].sum())} steps)",
                     vmax=vmax)
@@ -260,8 +277,8 @@ def main(argv=None) -> int:
                    "quick 2000): the prediction is the *limiting* distribution, and in fig1 "
                    "at 315° the robots leak into an absorbing pocket at about 1e-4 per step")
     p.add_argument("--epoch", type=int, default=1000,
-                   help="steps per epoch when a mix is time-shared (default 1000: long "
-                   "against the chains' mixing, so the mix's coverage is close to Σ α_i q_i)")
+                   help="steps per epoch when a mix is time-shared (default 1000); the "
+                   "mix's prediction follows the same epochs")
     p.add_argument("--speed", type=float, default=0.3,
                    help="PyBullet drive speed [m/s] (default 0.3)")
     add_executor_args(p)
@@ -282,12 +299,13 @@ def main(argv=None) -> int:
         cs = CellSpace(envs.load(name, orientations=K))
         policies = []
         for model in models:
-            pr = predict(cs, model)
+            pr = predict(cs, model, args.epoch)
             alpha_rows += [{"env": name, "model": model, "angle": _num(a), "alpha": float(al),
                             "seconds": pr["seconds"]} for a, al in zip(ANGLES, pr["alpha"])]
             for label, qv in pr["q"].items():
                 pred_rows.append(pd.DataFrame({"env": name, "model": model, "policy": label,
-                                               "p": np.arange(cs.P), "q": qv}))
+                                               "p": np.arange(cs.P), "q": qv,
+                                               "q_sum": pr["q_sum"][label]}))
                 policies.append(label)
         for label in dict.fromkeys(policies):
             for rep in (0, 1):

@@ -35,7 +35,8 @@ from .markov import ChainAnalysis
 from .sampled_model import SampledModel, SampledSettings
 
 __all__ = ["MODELS", "StepSettings", "EventSettings", "SampledSettings", "ModelCoverage",
-           "default_settings", "predict_coverage", "model_for", "check_model"]
+           "default_settings", "predict_coverage", "model_for", "check_model",
+           "timeshared_coverage"]
 
 MODELS = ("step", "sampled", "event")
 
@@ -173,3 +174,56 @@ def predict_coverage(cs: CellSpace, angle_deg: float, eps_deg: float = 0.0, r: f
     return ModelCoverage(model=model, settings=st, angle=det.angle, eps=det.eps, r=det.r,
                          q=det.q, pi=det.pi, analysis=det.analysis,
                          seconds=time.process_time() - t0, detail=det)
+
+
+def timeshared_coverage(cs: CellSpace, angles, alpha, eps_deg: float = 0.0, r: float = 1.0,
+                        epoch: int = 1000, model: str = "step", settings=None, **kw):
+    """Predicted coverage of a policy mix executed in epochs of ``epoch`` steps (MODEL §8).
+
+    MODEL §7's Σ α_i q_i assumes every epoch reaches its angle's limiting distribution; this
+    follows the model's own chain through the epochs instead (:mod:`planners.timeshare`).
+
+    Parameters
+    ----------
+    cs : CellSpace
+    angles : sequence of float     bouncing angles [deg]
+    alpha : sequence of float      their weights (normalised)
+    eps_deg, r : float             rotation noise (MODEL §7)
+    epoch : int                    steps per epoch
+    model : {"step", "sampled", "event"}
+    settings : the model's settings, optional
+    **kw : tol, max_epochs, progress (see :meth:`planners.timeshare.TimeShared.run`)
+
+    Returns
+    -------
+    planners.timeshare.TimeSharedCoverage
+
+    >>> import envs
+    >>> cs = CellSpace(envs.load("lab"))
+    >>> res = timeshared_coverage(cs, [90, 135], [0.5, 0.5], epoch=50)
+    >>> res.converged, res.q.shape
+    (True, (48,))
+    """
+    import scipy.sparse as sp
+
+    from .coverage import bump_turns, transition_matrix
+    from .timeshare import DelayChain, timeshared
+    model = check_model(model)
+    st = _settings(model, settings)
+    angles = [float(a) for a in angles]
+    for a in angles:
+        bump_turns(cs.K, a, eps_deg, r)            # validate before any heavy work
+    if model == "step":
+        z = np.arange(cs.N)
+        reward = sp.csr_matrix((np.ones(cs.N), (z, z % cs.P)), shape=(cs.N, cs.P))
+        chain = DelayChain.stepwise(reward, np.full(cs.N, 1.0 / cs.N))
+        turns = [transition_matrix(cs, a, eps_deg, r) for a in angles]
+    else:
+        m = model_for(cs, model, st)
+        if model == "sampled":
+            chain = DelayChain.stepwise(m.reward, np.full(cs.N, 1.0 / cs.N))
+            turns = [m.chain(a, eps_deg, r) for a in angles]
+        else:
+            chain = m.delay_chain()
+            turns = [m.turn_matrix(a, eps_deg, r) for a in angles]
+    return timeshared(chain, turns, alpha, epoch, **kw)

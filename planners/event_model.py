@@ -333,6 +333,9 @@ class EventModel:
     length : (n_states,)          expected steps per flight (dropped ones included)
     start_pre : (n_states,)       distribution of the first landing (pre-turn states) from
                                   the uniform cell-centre start over the N configurations
+    flights : tuple of (F,) arrays
+        Every sampled flight: (start state, landing pre-turn state, steps including the bump
+        step, weight 1/samples); ``flight``, ``reward`` and ``length`` are its sums.
     build_seconds : float
     """
 
@@ -369,6 +372,8 @@ class EventModel:
         self.flight = sp.csr_matrix((w, (state, lb * K + k)), shape=(n, n))
         self.flight.sum_duplicates()
         n_fwd = flight_steps(dist, cs.h)
+        # every sampled flight: (start state, landing pre-turn state, steps incl. the bump)
+        self.flights = (state, lb * K + k, n_fwd + 1, w)
         own, cells, ww = _step_cells(cs, pts, u, n_fwd, dist, state, w)
         self.reward = sp.csr_matrix((ww, (own, cells)), shape=(n, cs.P))
         self.reward.sum_duplicates()
@@ -398,6 +403,14 @@ class EventModel:
                           shape=(self.n_states, self.n_states))
         M.sum_duplicates()
         return M
+
+    def delay_chain(self):
+        """The model as a :class:`planners.timeshare.DelayChain`: the sampled flights with
+        their steps (forward steps + the bump step), the flight rewards and the first landing."""
+        from .timeshare import DelayChain
+        src, dst, delay, w = self.flights
+        return DelayChain(src=src, dst=dst, delay=delay, weight=w, reward=self.reward,
+                          start=self.start_pre)
 
     def chain(self, angle_deg: float, eps_deg: float = 0.0, r: float = 1.0
               ) -> tuple[sp.csr_matrix, np.ndarray]:

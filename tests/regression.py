@@ -6,8 +6,9 @@ regenerates them.
 
 Three golden files:
 
-- ``coverage.json``: the predicted coverage q of every angle and the policy mix α (targets
-  over positions and over configurations) of fixed settings. Any drift beyond 1e-9 fails.
+- ``coverage.json``: the predicted coverage q of every angle, the policy mix α (targets
+  over positions and over configurations) and the mix's time-shared coverage in 1000-step
+  epochs (:mod:`planners.timeshare`) of fixed settings. Any drift beyond ``ATOL`` fails.
 - ``plans.json``: the shortest plans (observation strings and costs) of a fixed set of
   (start, goal) queries, and whether each plan reaches its goal when executed without noise
   in the kinematic twin (and, for the Fig. 3 plans, in PyBullet).
@@ -38,14 +39,17 @@ import numpy as np
 import envs
 from planners.cells import CellSpace
 from planners.coverage import coverage_pipeline, tv_distance
+from planners.coverage_models import timeshared_coverage
 from planners.navigation import Navigator
 
-__all__ = ["COVERAGE_SETTINGS", "PLAN_QUERIES", "TV_SETTING", "TV_SLACK", "GOLDEN_DIR",
+__all__ = ["COVERAGE_SETTINGS", "MIX_EPOCH", "PLAN_QUERIES", "TV_SETTING", "TV_SLACK", "GOLDEN_DIR",
            "compute_coverage", "compute_plans", "compute_tv", "load", "main"]
 
 GOLDEN_DIR = Path(__file__).resolve().parent / "golden"
 ATOL = {"step": 1e-9,      # exact sparse linear algebra
-        "event": 1e-6}     # the event model's power iteration stops at an L1 error < 1e-6
+        "event": 1e-6,     # the event model's power iteration stops at an L1 error < 1e-6
+        "timeshared": 1e-6}   # float32 products, deterministic stopping rule
+MIX_EPOCH = 1000        # steps per epoch of the time-shared mix
 TV_SLACK = 1.5          # allowed |TV − golden TV| in units of the stored noise floor
 
 # (name, env, orientations, angles, eps, r, model)
@@ -54,6 +58,7 @@ COVERAGE_SETTINGS = [
     ("complex-72-table1", "complex", 72, (30.0, 75.0, 315.0), 5.0, 0.8, "step"),
     ("fig1-8-45-90-135", "fig1", 8, (45.0, 90.0, 135.0), 45.0, 0.9, "step"),
     ("lab-72-table1-event", "lab", 72, (30.0, 75.0, 315.0), 5.0, 0.8, "event"),
+    ("fig1-72-table1-event", "fig1", 72, (30.0, 75.0, 315.0), 5.0, 0.8, "event"),
 ]
 
 # (env, angles, [(start z, goal z), ...]): Fig. 3's two queries, then fixed samples.
@@ -80,7 +85,9 @@ def compute_coverage() -> dict:
         pos = coverage_pipeline(cs, angles, eps, r, **kw)
         entry = {"env": env_name, "orientations": K, "angles": list(angles), "eps": eps,
                  "r": r, "model": model, "alpha": pos.alpha.tolist(),
-                 "q": {f"{a:g}": ac.q.tolist() for a, ac in zip(angles, pos.per_angle)}}
+                 "q": {f"{a:g}": ac.q.tolist() for a, ac in zip(angles, pos.per_angle)},
+                 "mix_epochs": timeshared_coverage(cs, angles, pos.alpha, eps, r,
+                                                   epoch=MIX_EPOCH, model=model).q.tolist()}
         if model == "step":
             conf = coverage_pipeline(cs, angles, eps, r, space="configurations")
             entry["alpha_configurations"] = conf.alpha.tolist()

@@ -35,6 +35,9 @@ def test_coverage_matches_golden(name, coverage_now):
                                    err_msg=f"{name}: q of {angle}° drifted")
     np.testing.assert_allclose(now["alpha"], gold["alpha"], rtol=0, atol=atol,
                                err_msg=f"{name}: α drifted")
+    np.testing.assert_allclose(now["mix_epochs"], gold["mix_epochs"], rtol=0,
+                               atol=reg.ATOL["timeshared"],
+                               err_msg=f"{name}: the time-shared mix drifted")
     if "alpha_configurations" in gold:
         np.testing.assert_allclose(now["alpha_configurations"], gold["alpha_configurations"],
                                    rtol=0, atol=atol)

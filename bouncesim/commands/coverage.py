@@ -37,6 +37,13 @@ for A alpha and "target" for b, over position cells), alpha.json (angles, alpha,
 groups, their sizes and the transient fraction), heatmap_angle_<A>.png per angle and
 heatmap_mix_vs_target.png. With --target-space configurations also
 coverage_configurations.csv (angle,z,p,k,pi).
+
+A x alpha assumes every epoch of the executed mix reaches its angle's limiting distribution.
+With --epoch STEPS the mix is also predicted as MODEL section 8 runs it (epochs of STEPS
+steps, each with one angle drawn with probabilities alpha; the robot carries its state from
+epoch to epoch): alpha.json gains "timeshared" (its TV to the target and to A alpha),
+coverage.csv the series "mix_epochs" and the plots heatmap_mix_epochs_vs_target.png. Where
+an angle mixes slowly (a pocket the robot leaks into rarely) the two differ a lot.
 """
 
 EXAMPLES = """\
@@ -46,6 +53,8 @@ examples:
   bouncesim coverage complex --orientations 360 --angles 30,75,315 --eps 5 --r 0.8 --model event
   bouncesim coverage lab --orientations 72 --angles 30,75,315 --eps 5 --r 0.8 --model event \
       --model-option bin_length=0.01
+  bouncesim coverage fig1 --orientations 72 --angles 30,75,315 --eps 5 --r 0.8 --model event \
+      --epoch 1000
 
 """ + TARGET_FORMATS
 
@@ -79,6 +88,10 @@ def register(sub) -> None:
                    help="a setting of the chosen model, repeatable: event: bin_length [m] "
                    "(default 0.03), samples (flight starts per bin, default 2); sampled: grid "
                    "(m x m points per cell, default 3), theta_samples (default 2)")
+    p.add_argument("--epoch", type=int, default=None, metavar="STEPS",
+                   help="also predict the mix as it is executed: epochs of STEPS steps, each "
+                   "with one angle drawn with probabilities alpha (MODEL section 8); positions "
+                   "only")
     p.add_argument("--out", type=Path, default=None, metavar="DIR",
                    help="output folder (CSV, JSON, PNG); without it only the table is printed")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG heatmaps")
@@ -115,6 +128,12 @@ def run(args) -> int:
     if args.model != "step" and args.target_space != "positions":
         raise UserError(f"the {args.model} model predicts coverage over position cells only; "
                         "use --target-space positions.")
+    if args.epoch is not None:
+        if args.epoch < 1:
+            raise UserError(f"--epoch must be at least one step, got {args.epoch}.")
+        if args.target_space != "positions":
+            raise UserError("--epoch predicts coverage over position cells only; use "
+                            "--target-space positions.")
     result = coverage_pipeline(cs, angles, args.eps, r, target=target,
                                space=args.target_space, progress=_progress(len(angles)),
                                model=args.model, model_settings=settings)
@@ -123,8 +142,21 @@ def run(args) -> int:
     if settings is not None:
         summary["model_settings"] = {k: getattr(settings, k)
                                      for k in settings.__dataclass_fields__}
+    timeshared = None
+    if args.epoch is not None:
+        from planners.coverage import tv_distance
+        from planners.coverage_models import timeshared_coverage
+        ts = timeshared_coverage(cs, angles, result.alpha, args.eps, r, epoch=args.epoch,
+                                 model=args.model, settings=settings)
+        timeshared = ts.q
+        summary["timeshared"] = {
+            "epoch": ts.epoch, "tv": tv_distance(ts.q, result.target),
+            "tv_to_A_alpha": tv_distance(ts.q, result.mixed_q()),
+            "epoch_iterations": ts.epochs, "converged": ts.converged,
+            "error_bound": ts.error_bound, "counted_fraction": ts.counted_fraction}
     if args.out is not None:
-        write_outputs(result, cs, args.out, summary, plots=not args.no_plots)
+        write_outputs(result, cs, args.out, summary, plots=not args.no_plots,
+                      timeshared=timeshared)
     if args.json:
         print(json.dumps(summary))
     else:
@@ -187,12 +219,19 @@ def format_table(summary: dict) -> str:
                      f"{largest:8d} {100 * pa['transient_fraction']:9.1f}%")
     lines.append(f"residual ||A alpha - b||_2 = {summary['residual']:.6g}, "
                  f"TV = {summary['tv']:.6g}")
+    ts = summary.get("timeshared")
+    if ts:
+        note = "" if ts["converged"] else \
+            f" (not converged: error bound {ts['error_bound']:.2g})"
+        lines.append(f"executed in {ts['epoch']}-step epochs: TV to target = {ts['tv']:.6g}, "
+                     f"TV to A alpha = {ts['tv_to_A_alpha']:.6g}{note}")
     return "\n".join(lines)
 
 
 def write_outputs(result: CoverageResult, cs: CellSpace, out_dir, summary: dict,
-                  plots: bool = True) -> Path:
-    """Write coverage.csv, alpha.json (and the heatmaps) into out_dir."""
+                  plots: bool = True, timeshared=None) -> Path:
+    """Write coverage.csv, alpha.json (and the heatmaps) into out_dir; ``timeshared`` is the
+    mix's predicted coverage when executed in epochs (series "mix_epochs")."""
     out = Path(out_dir)
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -204,6 +243,8 @@ def write_outputs(result: CoverageResult, cs: CellSpace, out_dir, summary: dict,
         result.target.reshape(cs.K, cs.P).sum(axis=0)
     series = [(_num(a.angle), a.q) for a in result.per_angle]
     series += [("mix", mixed), ("target", target_q)]
+    if timeshared is not None:
+        series.append(("mix_epochs", timeshared))
     with open(out / "coverage.csv", "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(["angle", "p", "i", "j", "x", "y", "q"])
@@ -228,10 +269,15 @@ def write_outputs(result: CoverageResult, cs: CellSpace, out_dir, summary: dict,
             save_heatmap(out / f"heatmap_angle_{_num(a.angle)}.png", cs, a.q,
                          title=f"{cs.env.name}: coverage of {_num(a.angle)}° "
                          f"(eps {_num(result.eps)}°, r {result.r:g})")
+        alpha_title = "alpha = " + ", ".join(f"{_num(a)}°: {al:.3f}" for a, al in
+                                             zip(result.angles, result.alpha))
         save_mix_vs_target(out / "heatmap_mix_vs_target.png", cs, mixed, target_q,
-                           title="alpha = " + ", ".join(
-                               f"{_num(a)}°: {al:.3f}" for a, al in
-                               zip(result.angles, result.alpha)))
+                           title=alpha_title)
+        if timeshared is not None:
+            save_mix_vs_target(out / "heatmap_mix_epochs_vs_target.png", cs, timeshared,
+                               target_q, label="executed",
+                               title=f"{alpha_title}, executed in "
+                               f"{summary['timeshared']['epoch']}-step epochs")
     return out
 
 

@@ -1,0 +1,256 @@
+"""Time-shared policy mixes: the coverage a mix delivers when it runs in epochs (MODEL §8).
+
+MODEL §7 predicts a mix's coverage as Σ α_i q_i, which holds when every epoch is long enough
+for its angle's chain to reach its limiting distribution. MODEL §8 runs a mix in epochs of E
+steps, each with one angle drawn with probabilities α, and the robot carries its state from one
+epoch into the next. When an angle's chain mixes slowly (in ``fig1`` at 315° the robot leaks
+into a pocket at about 1e-4 per step, so a 1000-step epoch rarely gets there) the executed mix
+covers the map very differently from Σ α_i q_i. This module predicts the executed mix.
+
+**Delay chains.** Every coverage model is written as a *delay chain* (:class:`DelayChain`):
+n states; in an angle's *turn* a state moves by the angle's random transition W_φ (n × n,
+row-stochastic); then its *flight* takes a whole number d ≥ 1 of steps and lands in a state
+again. Flights are sampled: flight f leaves state src_f with weight w_f (the weights of one
+state sum to 1), takes delay_f steps and lands in dst_f. Every flight's counted steps are a
+reward R (n × P: expected counted steps per position cell of a flight leaving each state).
+
+- step and sampled models: the states are the N configurations, every flight is the identity
+  with d = 1, W_φ is the model's one-step chain and R counts the step in its cell;
+- event model: the states are the contact states (bin, heading); W_φ is the turn at the bump
+  and the flights are the model's sampled bump-to-bump flights with d = forward steps + 1.
+
+**The recursion.** In step t of an epoch that uses angle i,
+
+    x_t = Σ_f w_f v_{t−d_f}[src_f] e_{dst_f}      (mass that bumps — lands — at step t)
+    v_t = W_iᵀ x_t                                 (mass that turns and leaves at step t)
+
+and the epoch's counted steps are (Σ_t v_t)ᵀ R (renewal–reward: a flight's steps are counted
+when it leaves; over a long run the attribution does not matter). The state at an epoch
+boundary is the last D = max d departures. The angle is drawn independently of the state, so
+the boundary state of the next epoch is the α-mixture of the three epochs' end states; the
+recursion iterates that epoch map (damped by β = 0.05 like the event model's power iteration)
+from the model's start (the uniform start, MODEL §9) until q settles, and
+q = Σ_i α_i (Σ_t v_t^{(i)})ᵀ R normalised over the P cells.
+
+This is exact for the model's own dynamics: with one angle it converges to that angle's q; with
+E → ∞ it tends to Σ α_i q_i. Cost: E matrix–vector products per angle and epoch iteration; the
+epoch map contracts by 0.1–0.3 per epoch in the catalogue, so a handful of iterations do.
+
+Two states counted in two cells, both turns deterministic: angle A always goes to state 1;
+angle B goes from state 0 to 0 and from state 1 to either state. Alone, A covers (0, 1) and
+B (1, 0), so Σ α_i q_i = (½, ½) at α = (½, ½). Switching every step (E = 1) is the chain
+½(W_A + W_B) = [[½, ½], [¼, ¾]], whose stationary distribution is (⅓, ⅔); long epochs tend
+to (½, ½):
+
+>>> import scipy.sparse as sp
+>>> chain = DelayChain.stepwise(sp.identity(2, format="csr"), [0.5, 0.5])
+>>> WA, WB = sp.csr_matrix([[0, 1], [0, 1.]]), sp.csr_matrix([[1, 0], [0.5, 0.5]])
+>>> timeshared(chain, [WA, WB], [0.5, 0.5], epoch=1, tol=1e-9).q.round(6).tolist()
+[0.333333, 0.666667]
+>>> timeshared(chain, [WA, WB], [0.5, 0.5], epoch=10000).q.round(3).tolist()
+[0.5, 0.5]
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from envs import UserError
+
+__all__ = ["DelayChain", "TimeShared", "TimeSharedCoverage", "timeshared"]
+
+_LAZY = 0.05          # weight of the previous epoch-boundary state (damps periodic modes)
+TOL = 1e-4            # default bound on the TV error of q
+MAX_EPOCHS = 200      # default cap on epoch iterations
+
+
+@dataclass(frozen=True, eq=False)
+class DelayChain:
+    """The angle-independent part of a model as a delay chain (see the module docstring).
+
+    Attributes
+    ----------
+    src, dst : (F,) int      flight f leaves state src_f and lands in state dst_f
+    delay : (F,) int         steps of flight f (≥ 1, the bump step included)
+    weight : (F,) float      probability of flight f given its start state
+    reward : csr (n, P)      expected counted steps per cell of a flight leaving each state
+    start : (n,)             distribution of the first landing (mass that turns at step 0)
+    """
+
+    src: np.ndarray
+    dst: np.ndarray
+    delay: np.ndarray
+    weight: np.ndarray
+    reward: sp.csr_matrix
+    start: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return int(self.reward.shape[0])
+
+    @classmethod
+    def stepwise(cls, reward, start) -> "DelayChain":
+        """A one-step chain (step and sampled models): every state flies to itself in 1 step."""
+        n = reward.shape[0]
+        z = np.arange(n)
+        return cls(src=z, dst=z, delay=np.ones(n, dtype=np.int64), weight=np.ones(n),
+                   reward=sp.csr_matrix(reward), start=np.asarray(start, dtype=float))
+
+    def __post_init__(self) -> None:
+        n = self.n
+        d = np.asarray(self.delay)
+        if d.size == 0 or d.min() < 1:
+            raise ValueError("every flight of a delay chain takes at least one step.")
+        out = np.bincount(self.src, weights=self.weight, minlength=n)
+        if not np.allclose(out, 1.0, atol=1e-9):
+            raise ValueError("the flights of every state must have weights summing to 1.")
+        if np.asarray(self.start).shape != (n,):
+            raise ValueError(f"the start distribution must have {n} entries.")
+
+
+@dataclass(frozen=True, eq=False)
+class TimeSharedCoverage:
+    """Predicted coverage of a policy mix run in epochs.
+
+    Attributes
+    ----------
+    q : (P,) ndarray        predicted step-sampled coverage (sum 1)
+    epoch : int             steps per epoch
+    epochs : int            epoch iterations run
+    converged : bool        the error bound fell below the tolerance
+    error_bound : float     geometric bound on the TV error of q (inf before 3 iterations)
+    counted_fraction : float  share of the steps counted in a free cell (the rest dropped)
+    seconds : float
+    """
+
+    q: np.ndarray
+    epoch: int
+    epochs: int
+    converged: bool
+    error_bound: float
+    counted_fraction: float
+    seconds: float
+
+
+class TimeShared:
+    """The epoch recursion of one delay chain (built once, run for any α and angles).
+
+    Parameters
+    ----------
+    chain : DelayChain
+
+    Notes
+    -----
+    The last D departures are kept in a buffer of 2D rows, each written twice (rows p and
+    p + D, with p = −t mod D), so that rows p+1 … p+D are always v_{t−1} … v_{t−D} in delay
+    order and one sparse product H x (H: n × D·n, column (d−1)·n + src) gives x_t. Vectors and
+    matrices are float32 (the products are memory bound), sums float64.
+    """
+
+    def __init__(self, chain: DelayChain) -> None:
+        self.chain = chain
+        n = chain.n
+        self.D = D = int(chain.delay.max())
+        cols = (np.asarray(chain.delay) - 1) * n + np.asarray(chain.src)
+        self.H = sp.csr_matrix((np.asarray(chain.weight, dtype=np.float32),
+                                (np.asarray(chain.dst), cols)), shape=(n, D * n))
+        self.H.sum_duplicates()
+        self.RT = sp.csr_matrix(chain.reward.T)
+        # expected steps (counted or dropped) of a flight leaving each state
+        self.length = np.bincount(chain.src, weights=np.asarray(chain.weight)
+                                  * np.asarray(chain.delay), minlength=n)
+
+    def _epoch(self, WT, hist: np.ndarray, steps: int, inject=None):
+        """Run ``steps`` steps of one angle from boundary state ``hist`` (D, n).
+
+        Returns (end state (D, n), Σ_t v_t (n,) float64)."""
+        D, n = self.D, self.chain.n
+        buf = np.zeros((2 * D, n), dtype=np.float32)
+        buf[1:D + 1] = hist                  # row 0 is written at t = 0 before it is read
+        buf[D + 1:] = hist[:D - 1]
+        flat = buf.reshape(-1)
+        dep = np.zeros(n)
+        for t in range(steps):
+            p = (-t) % D
+            x = self.H @ flat[(p + 1) * n:(p + 1 + D) * n]
+            if inject is not None and t == 0:
+                x += inject
+            v = WT @ x
+            buf[p] = v
+            buf[p + D] = v
+            dep += v
+        p = (-steps) % D
+        return buf[p + 1:p + 1 + D].copy(), dep
+
+    def run(self, turns, alpha, epoch: int, *, tol: float = TOL, max_epochs: int = MAX_EPOCHS,
+            progress=None) -> TimeSharedCoverage:
+        """Coverage of the mix: angle i's turn matrix ``turns[i]`` (n × n) with weight α_i.
+
+        Parameters
+        ----------
+        turns : sequence of sparse (n, n)   W_φ of every angle (rows sum to 1)
+        alpha : (m,) array                  the mix (non-negative, normalised here)
+        epoch : int                         steps per epoch E ≥ 1
+        tol : float                         stop when the bound on the TV error of q < tol
+        max_epochs : int                    cap on epoch iterations
+        progress : callable, optional       wraps the iterable of epoch iterations (tqdm)
+        """
+        t0 = time.perf_counter()
+        alpha = np.asarray(alpha, dtype=float).ravel()
+        if len(turns) != alpha.size or alpha.size == 0:
+            raise UserError("a mix needs one α per angle.")
+        if not np.all(np.isfinite(alpha)) or (alpha < 0).any() or not alpha.sum() > 0:
+            raise UserError("α must be non-negative with a positive sum.")
+        epoch = int(epoch)
+        if epoch < 1:
+            raise UserError(f"epoch must be at least one step, got {epoch}.")
+        alpha = alpha / alpha.sum()
+        use = [i for i in range(alpha.size) if alpha[i] > 0]
+        WT = {i: sp.csr_matrix(turns[i].T).astype(np.float32) for i in use}
+        n = self.chain.n
+        hist = np.zeros((self.D, n), dtype=np.float32)
+        inject = np.asarray(self.chain.start, dtype=np.float32)
+        prev_q, prev_dq, bound = None, None, math.inf
+        converged = False
+        q = counted = None
+        it_range = range(1, int(max_epochs) + 1)
+        for it in (progress(it_range) if progress else it_range):
+            new = np.zeros_like(hist)
+            dep = np.zeros(n)
+            for i in use:
+                end, d = self._epoch(WT[i], hist, epoch, inject if it == 1 else None)
+                new += np.float32(alpha[i]) * end
+                dep += alpha[i] * d
+            # the first epoch is the real first epoch; later ones are damped (same fixed point)
+            hist = new if it == 1 else (np.float32(1 - _LAZY) * new + np.float32(_LAZY) * hist)
+            cells = self.RT @ dep
+            counted = float(cells.sum())
+            if not counted > 0:
+                raise UserError("the mix counts no step in a free cell.")
+            q = cells / counted
+            if prev_q is not None:
+                dq = 0.5 * float(np.abs(q - prev_q).sum())
+                if dq == 0.0:
+                    bound, converged = 0.0, True
+                elif prev_dq is not None and dq < prev_dq:
+                    rho = dq / prev_dq
+                    bound = dq * rho / (1 - rho)
+                    converged = bound < tol
+                prev_dq = dq
+            prev_q = q
+            if converged:
+                break
+        total = float(dep @ self.length)
+        return TimeSharedCoverage(q=q, epoch=epoch, epochs=it, converged=converged,
+                                  error_bound=bound, counted_fraction=counted / total,
+                                  seconds=time.perf_counter() - t0)
+
+
+def timeshared(chain: DelayChain, turns, alpha, epoch: int, **kw) -> TimeSharedCoverage:
+    """:meth:`TimeShared.run` on a fresh :class:`TimeShared` of ``chain``."""
+    return TimeShared(chain).run(turns, alpha, epoch, **kw)
