@@ -27,10 +27,10 @@ reward R (n × P: expected counted steps per position cell of a flight leaving e
 and the epoch's counted steps are (Σ_t v_t)ᵀ R (renewal–reward: a flight's steps are counted
 when it leaves; over a long run the attribution does not matter). The state at an epoch
 boundary is the last D = max d departures. The angle is drawn independently of the state, so
-the boundary state of the next epoch is the α-mixture of the three epochs' end states; the
+the boundary state of the next epoch is the α-mixture of the angles' epoch end states. The
 recursion iterates that epoch map (damped by β = 0.05 like the event model's power iteration)
-from the model's start (the uniform start, MODEL §9) until q settles, and
-q = Σ_i α_i (Σ_t v_t^{(i)})ᵀ R normalised over the P cells.
+from the model's start (the uniform start, MODEL §9) until q settles (estimated TV error
+below 1e-4); then q = Σ_i α_i (Σ_t v_t^{(i)})ᵀ R normalised over the P cells.
 
 This is exact for the model's own dynamics: with one angle it converges to that angle's q; with
 E → ∞ it tends to Σ α_i q_i. Cost: E matrix–vector products per angle and epoch iteration; the
@@ -55,6 +55,7 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -65,8 +66,9 @@ from envs import UserError
 __all__ = ["DelayChain", "TimeShared", "TimeSharedCoverage", "timeshared"]
 
 _LAZY = 0.05          # weight of the previous epoch-boundary state (damps periodic modes)
-TOL = 1e-4            # default bound on the TV error of q
-MAX_EPOCHS = 200      # default cap on epoch iterations
+TOL = 1e-4            # default tolerance on the estimated TV error of q
+MAX_STEPS = 200_000   # default cap on the steps run per angle (epoch iterations × E)
+MIN_EPOCHS = 200      # ... but at least this many epoch iterations
 
 
 @dataclass(frozen=True, eq=False)
@@ -122,8 +124,9 @@ class TimeSharedCoverage:
     q : (P,) ndarray        predicted step-sampled coverage (sum 1)
     epoch : int             steps per epoch
     epochs : int            epoch iterations run
-    converged : bool        the error bound fell below the tolerance
-    error_bound : float     geometric bound on the TV error of q (inf before 3 iterations)
+    converged : bool        the estimated error fell below the tolerance
+    error_bound : float     geometric estimate dq·ρ/(1 − ρ) of the TV error of q (inf before
+                            3 iterations); an estimate: it assumes a steady contraction ρ
     counted_fraction : float  share of the steps counted in a free cell (the rest dropped)
     seconds : float
     """
@@ -187,8 +190,8 @@ class TimeShared:
         p = (-steps) % D
         return buf[p + 1:p + 1 + D].copy(), dep
 
-    def run(self, turns, alpha, epoch: int, *, tol: float = TOL, max_epochs: int = MAX_EPOCHS,
-            progress=None) -> TimeSharedCoverage:
+    def run(self, turns, alpha, epoch: int, *, tol: float = TOL,
+            max_epochs: int | None = None, progress=None) -> TimeSharedCoverage:
         """Coverage of the mix: angle i's turn matrix ``turns[i]`` (n × n) with weight α_i.
 
         Parameters
@@ -196,8 +199,9 @@ class TimeShared:
         turns : sequence of sparse (n, n)   W_φ of every angle (rows sum to 1)
         alpha : (m,) array                  the mix (non-negative, normalised here)
         epoch : int                         steps per epoch E ≥ 1
-        tol : float                         stop when the bound on the TV error of q < tol
-        max_epochs : int                    cap on epoch iterations
+        tol : float                         stop when the estimated TV error of q < tol
+        max_epochs : int, optional          cap on epoch iterations (default: enough for
+                                            200 000 steps per angle, at least 200)
         progress : callable, optional       wraps the iterable of epoch iterations (tqdm)
         """
         t0 = time.perf_counter()
@@ -218,6 +222,8 @@ class TimeShared:
         prev_q, prev_dq, bound = None, None, math.inf
         converged = False
         q = counted = None
+        if max_epochs is None:
+            max_epochs = max(MIN_EPOCHS, math.ceil(MAX_STEPS / epoch))
         it_range = range(1, int(max_epochs) + 1)
         for it in (progress(it_range) if progress else it_range):
             new = np.zeros_like(hist)
@@ -245,6 +251,10 @@ class TimeShared:
             prev_q = q
             if converged:
                 break
+        if not converged:
+            warnings.warn(f"the time-shared recursion stopped after {it} epochs with a TV "
+                          f"error bound of {bound:.2g} (tolerance {tol:g}).", RuntimeWarning,
+                          stacklevel=2)
         total = float(dep @ self.length)
         return TimeSharedCoverage(q=q, epoch=epoch, epochs=it, converged=converged,
                                   error_bound=bound, counted_fraction=counted / total,

@@ -87,6 +87,9 @@ def test_configuration_space(tmp_path, capsys):
     (["--angles", "90", "--target", "{short}"], "must have 6 rows x 9 columns"),
     (["--angles", "90", "--target", "{neg}", "--target-space", "configurations"],
      "needs columns z and weight"),
+    (["--angles", "90", "--epoch", "0"], "--epoch must be at least one step"),
+    (["--angles", "90", "--epoch", "10", "--target-space", "configurations"],
+     "--epoch predicts coverage over position cells only"),
 ])
 def test_user_errors_exit_2_with_one_sentence(tmp_path, capsys, argv, match):
     files = {"missing": tmp_path / "missing.csv", "neg": tmp_path / "neg.csv",
@@ -100,6 +103,41 @@ def test_user_errors_exit_2_with_one_sentence(tmp_path, capsys, argv, match):
     err = capsys.readouterr().err.strip()
     assert err.startswith("bouncesim: error: ") and match in err
     assert "\n" not in err and "Traceback" not in err
+
+
+def test_epoch_reports_the_mix_as_executed(tmp_path, capsys):
+    """--epoch: the time-shared prediction next to A alpha, consistent across the outputs.
+    The target ½(q_90 + q_135) makes alpha = (½, ½); switching the angle every step (1-step
+    epochs) is then the chain ½(W_90 + W_135), whose coverage differs from A alpha."""
+    first = tmp_path / "first"
+    assert main(["coverage", "lab", "--angles", "90,135", "--eps", "45", "--r", "0.8",
+                 "--out", str(first), "--no-plots"]) == 0
+    q = {}
+    for r in read_csv(first / "coverage.csv"):
+        q.setdefault(r["angle"], []).append(float(r["q"]))
+    target = tmp_path / "target.csv"
+    target.write_text("p,weight\n" + "".join(
+        f"{p},{0.5 * (a + b)!r}\n" for p, (a, b) in enumerate(zip(q["90"], q["135"]))))
+    out = tmp_path / "cov"
+    capsys.readouterr()
+    rc = main(["coverage", "lab", "--angles", "90,135", "--eps", "45", "--r", "0.8",
+               "--target", str(target), "--epoch", "1", "--out", str(out)])
+    assert rc == 0
+    assert "executed in 1-step epochs: TV to target" in capsys.readouterr().out
+    assert (out / "heatmap_mix_epochs_vs_target.png").stat().st_size > 0
+    summary = json.loads((out / "alpha.json").read_text())
+    np.testing.assert_allclose(summary["alpha"], [0.5, 0.5], atol=1e-6)
+    ts = summary["timeshared"]
+    assert ts["epoch"] == 1 and ts["converged"]
+    series = {}
+    for r in read_csv(out / "coverage.csv"):
+        series.setdefault(r["angle"], []).append(float(r["q"]))
+    executed, mixed, tgt = (np.array(series[k]) for k in ("mix_epochs", "mix", "target"))
+    assert executed.sum() == pytest.approx(1.0)
+    assert ts["tv"] == pytest.approx(0.5 * np.abs(executed - tgt).sum(), abs=1e-12)
+    assert ts["tv_to_A_alpha"] == pytest.approx(0.5 * np.abs(executed - mixed).sum(),
+                                                abs=1e-12)
+    assert ts["tv_to_A_alpha"] > 0.01
 
 
 def test_help_documents_target_formats(capsys):

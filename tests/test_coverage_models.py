@@ -56,7 +56,7 @@ def tv(a, b):
 
 # ---------------------------------------------------------------------------- hand cases
 @pytest.mark.parametrize("name", ["envs.raycast", "planners.event_model",
-                                  "planners.coverage_models"])
+                                  "planners.coverage_models", "planners.timeshare"])
 def test_doctests(name):
     mod = importlib.import_module(name)
     result = doctest.testmod(mod, optionflags=doctest.ELLIPSIS)

@@ -100,7 +100,7 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def _progress(total: int):
+def _progress(total: int | None, desc: str = "chains", unit: str = "angle"):
     try:
         from tqdm import tqdm
     except ImportError:                          # pragma: no cover - tqdm is a dependency
@@ -108,7 +108,7 @@ def _progress(total: int):
 
     def wrap(it):
         # delay: nothing is shown for short runs; disable=None: only on a terminal.
-        return tqdm(it, total=total, desc="chains", unit="angle", file=sys.stderr,
+        return tqdm(it, total=total, desc=desc, unit=unit, file=sys.stderr,
                     delay=1.0, disable=None, leave=False)
     return wrap
 
@@ -147,7 +147,8 @@ def run(args) -> int:
         from planners.coverage import tv_distance
         from planners.coverage_models import timeshared_coverage
         ts = timeshared_coverage(cs, angles, result.alpha, args.eps, r, epoch=args.epoch,
-                                 model=args.model, settings=settings)
+                                 model=args.model, settings=settings,
+                                 progress=_progress(None, "epochs", "epoch"))
         timeshared = ts.q
         summary["timeshared"] = {
             "epoch": ts.epoch, "tv": tv_distance(ts.q, result.target),
