@@ -125,8 +125,8 @@ class TimeSharedCoverage:
     epoch : int             steps per epoch
     epochs : int            epoch iterations run
     converged : bool        the estimated error fell below the tolerance
-    error_bound : float     geometric estimate dq·ρ/(1 − ρ) of the TV error of q (inf before
-                            3 iterations); an estimate: it assumes a steady contraction ρ
+    error_estimate : float  geometric estimate dq·ρ/(1 − ρ) of the TV error of q (inf before
+                            3 iterations; it assumes a steady contraction ρ)
     counted_fraction : float  share of the steps counted in a free cell (the rest dropped)
     seconds : float
     """
@@ -135,7 +135,7 @@ class TimeSharedCoverage:
     epoch: int
     epochs: int
     converged: bool
-    error_bound: float
+    error_estimate: float
     counted_fraction: float
     seconds: float
 
@@ -253,11 +253,11 @@ class TimeShared:
                 break
         if not converged:
             warnings.warn(f"the time-shared recursion stopped after {it} epochs with a TV "
-                          f"error bound of {bound:.2g} (tolerance {tol:g}).", RuntimeWarning,
+                          f"error estimate of {bound:.2g} (tolerance {tol:g}).", RuntimeWarning,
                           stacklevel=2)
         total = float(dep @ self.length)
         return TimeSharedCoverage(q=q, epoch=epoch, epochs=it, converged=converged,
-                                  error_bound=bound, counted_fraction=counted / total,
+                                  error_estimate=bound, counted_fraction=counted / total,
                                   seconds=time.perf_counter() - t0)
 
 

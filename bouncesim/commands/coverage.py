@@ -154,7 +154,7 @@ def run(args) -> int:
             "epoch": ts.epoch, "tv": tv_distance(ts.q, result.target),
             "tv_to_A_alpha": tv_distance(ts.q, result.mixed_q()),
             "epoch_iterations": ts.epochs, "converged": ts.converged,
-            "error_bound": ts.error_bound, "counted_fraction": ts.counted_fraction}
+            "error_estimate": ts.error_estimate, "counted_fraction": ts.counted_fraction}
     if args.out is not None:
         write_outputs(result, cs, args.out, summary, plots=not args.no_plots,
                       timeshared=timeshared)
@@ -223,7 +223,7 @@ def format_table(summary: dict) -> str:
     ts = summary.get("timeshared")
     if ts:
         note = "" if ts["converged"] else \
-            f" (not converged: error bound {ts['error_bound']:.2g})"
+            f" (not converged: estimated error {ts['error_estimate']:.2g})"
         lines.append(f"executed in {ts['epoch']}-step epochs: TV to target = {ts['tv']:.6g}, "
                      f"TV to A alpha = {ts['tv_to_A_alpha']:.6g}{note}")
     return "\n".join(lines)
