@@ -23,6 +23,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.colors import ListedColormap  # noqa: E402
 
+from .plots import save_figure  # noqa: E402
+
 __all__ = ["draw_map", "heatmap", "diff_heatmap", "save_heatmap", "save_mix_vs_target",
            "save_group_slices", "position_grid"]
 
@@ -74,14 +76,6 @@ def heatmap(ax, cs, values, title: str | None = None, vmax: float | None = None,
     return im
 
 
-def _save(fig, path, dpi: int = 120) -> Path:
-    fig.tight_layout()
-    path = Path(path)
-    fig.savefig(path, dpi=dpi)
-    plt.close(fig)
-    return path
-
-
 def diff_heatmap(ax, cs, values, title: str | None = None):
     """Signed values per position cell (e.g. simulated − predicted) on a symmetric diverging
     colour scale, with a colour bar; returns the image."""
@@ -100,7 +94,7 @@ def save_heatmap(path, cs, values, title: str | None = None, vmax: float | None 
     """Write one heatmap PNG [values over position cells]."""
     fig, ax = plt.subplots(figsize=(6, 5))
     heatmap(ax, cs, values, title=title, vmax=vmax)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def save_mix_vs_target(path, cs, mixed, target, title: str | None = None,
@@ -116,7 +110,7 @@ def save_mix_vs_target(path, cs, mixed, target, title: str | None = None,
     diff_heatmap(axes[2], cs, mixed - target, title=f"{label} − b")
     if title:
         fig.suptitle(title)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def save_group_slices(path, cs, labels, orientations, title: str | None = None) -> Path:
@@ -152,8 +146,4 @@ def save_group_slices(path, cs, labels, orientations, title: str | None = None) 
                      fontsize=9)
     if title:
         fig.suptitle(title)
-    fig.tight_layout()
-    path = Path(path)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=110)

@@ -12,7 +12,16 @@ import numpy as np
 from matplotlib.patches import FancyArrow
 from matplotlib.patches import Polygon as MplPolygon
 
-__all__ = ["angle_use_bars", "draw_env", "draw_route"]
+__all__ = ["angle_use_bars", "draw_env", "draw_route", "save_figure"]
+
+
+def save_figure(fig, path, dpi: int = 120) -> Path:
+    """Lay out, write and close a figure; returns the path."""
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)
+    return path
 
 
 def angle_use_bars(hist, path: Path, title: str = "", reference: dict | None = None) -> None:
@@ -25,9 +34,7 @@ def angle_use_bars(hist, path: Path, title: str = "", reference: dict | None = N
     ax.set_ylabel("number of (start, goal) pairs")
     ax.set_xticks(list(hist["angles_used"]))
     ax.set_title(title, fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def draw_env(ax, env, cells=None, grid: bool = True) -> None:

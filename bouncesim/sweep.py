@@ -182,6 +182,17 @@ def _exit_with_parent(parent: int) -> None:
     threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
 
 
+def _results_as_completed(futures: list, as_completed: Callable) -> Iterator:
+    """Results of ``futures`` as they complete; the rest are cancelled when the consumer
+    stops early (an error, or a closed generator)."""
+    try:
+        for fut in as_completed(futures):
+            yield fut.result()
+    finally:
+        for fut in futures:
+            fut.cancel()
+
+
 class SerialExecutor:
     """Run chunks one after the other in this process (debugging, ``--workers 1``)."""
 
@@ -231,13 +242,7 @@ class PoolExecutor:
 
     def map_unordered(self, fn: Callable, args: Sequence[tuple]) -> Iterator:
         from concurrent.futures import as_completed
-        futures = [self._pool.submit(fn, *a) for a in args]
-        try:
-            for fut in as_completed(futures):
-                yield fut.result()
-        finally:
-            for fut in futures:
-                fut.cancel()
+        return _results_as_completed([self._pool.submit(fn, *a) for a in args], as_completed)
 
     def describe(self) -> dict:
         return {"kind": self.name, "workers": self.workers}
@@ -292,13 +297,8 @@ class DaskExecutor:
 
     def map_unordered(self, fn: Callable, args: Sequence[tuple]) -> Iterator:
         from distributed import as_completed
-        futures = [self._client.submit(fn, *a, pure=False) for a in args]
-        try:
-            for fut in as_completed(futures):
-                yield fut.result()
-        finally:
-            for fut in futures:
-                fut.cancel()
+        return _results_as_completed(
+            [self._client.submit(fn, *a, pure=False) for a in args], as_completed)
 
     def describe(self) -> dict:
         return {"kind": self.name, "workers": self.workers,

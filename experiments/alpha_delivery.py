@@ -69,6 +69,8 @@ def draw_figure(out: Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from bouncesim.plots import save_figure
+
     out = Path(out)
     d = pd.read_csv(out / "delivery.csv")
     al = pd.read_csv(out / "alpha.csv")
@@ -101,11 +103,7 @@ def draw_figure(out: Path) -> Path:
     ax2.set_ylabel("α")
     ax2.set_title("the mixes")
     ax2.legend(fontsize=8)
-    fig.tight_layout()
-    p = out / "alpha_delivery.png"
-    fig.savefig(p, dpi=110)
-    plt.close(fig)
-    return p
+    return save_figure(fig, out / "alpha_delivery.png", dpi=110)
 
 
 def main(argv=None) -> int:

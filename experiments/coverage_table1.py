@@ -86,6 +86,8 @@ def draw_figures(out: Path, cs: CellSpace) -> list[Path]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from bouncesim.plots import save_figure
+
     from bouncesim.coverage_plots import heatmap, save_group_slices, save_mix_vs_target
     table = pd.read_csv(out / "table1.csv")
     cov = pd.read_csv(out / "coverage.csv", dtype={"angle": str})
@@ -112,11 +114,7 @@ def draw_figures(out: Path, cs: CellSpace) -> list[Path]:
         heatmap(ax, cs, q_of(angle), vmax=vmax,
                 title=f"{angle}°: limiting coverage (α = {al:.3f})")
     fig.suptitle(f"complex, K={K}, ε={_num(EPS)}°, r={R}: coverage of each bouncing angle")
-    fig.tight_layout()
-    p = out / "fig10_limiting.png"
-    fig.savefig(p, dpi=110)
-    plt.close(fig)
-    paths.append(p)
+    paths.append(save_figure(fig, out / "fig10_limiting.png", dpi=110))
     alpha_txt = ", ".join(f"{a}°: {al:.3f}" for a, al in zip(table["angle"], table["alpha"]))
     paths.append(save_mix_vs_target(out / "fig11_mix_vs_target.png", cs, q_of("mix"),
                                     q_of("target"), title=f"α = {alpha_txt}"))

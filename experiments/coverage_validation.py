@@ -150,7 +150,7 @@ def predict(cs: CellSpace, model: str = "step", epoch: int | None = None) -> dic
     q = {f"{_num(a)}": ac.q for a, ac in zip(ANGLES, res.per_angle)}
     mix = policy_label(ANGLES, res.alpha)
     q_sum = {**q, mix: res.mixed_q()}
-    q[mix] = res.mixed_q() if epoch is None else timeshared_coverage(
+    q[mix] = q_sum[mix] if epoch is None else timeshared_coverage(
         cs, ANGLES, res.alpha, EPS, R, epoch=epoch, model=model).q
     return {"q": q, "q_sum": q_sum, "alpha": np.asarray(res.alpha), "mix": mix,
             "seconds": time.perf_counter() - t0}
@@ -191,6 +191,8 @@ def draw_figures(out: Path) -> list[Path]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from bouncesim.plots import save_figure
+
     from bouncesim.coverage_plots import diff_heatmap, heatmap
 
     out = Path(out)
@@ -221,11 +223,7 @@ def draw_figures(out: Path) -> list[Path]:
             tvs = f"TV {float(t.tv_pooled.iloc[0]):.3f}" if len(t) else ""
             diff_heatmap(row[2], cs, sim - q, title=f"twin − predicted  {tvs}")
         fig.suptitle(f"{env_name}: predicted ({model} model) vs simulated coverage")
-        fig.tight_layout()
-        p = out / f"heatmaps_{env_name}_{model}.png"
-        fig.savefig(p, dpi=90)
-        plt.close(fig)
-        paths.append(p)
+        paths.append(save_figure(fig, out / f"heatmaps_{env_name}_{model}.png", dpi=90))
     for backend, tb in tv.groupby("backend", sort=False):
         tb = tb.assign(label=tb.env + " " + tb.policy.str.replace(r"mix:.*", "mix", regex=True))
         models = list(dict.fromkeys(tb.model))
@@ -244,11 +242,7 @@ def draw_figures(out: Path) -> list[Path]:
         ax.set_ylabel("TV(predicted, simulated)")
         ax.set_title(f"predicted vs {backend} coverage")
         ax.legend(fontsize=8)
-        fig.tight_layout()
-        p = out / f"tv_{backend}.png"
-        fig.savefig(p, dpi=110)
-        plt.close(fig)
-        paths.append(p)
+        paths.append(save_figure(fig, out / f"tv_{backend}.png", dpi=110))
     return paths
 
 

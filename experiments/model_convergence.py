@@ -75,6 +75,8 @@ def draw_figure(out: Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from bouncesim.plots import save_figure
+
     out = Path(out)
     d = pd.read_csv(out / "convergence.csv")
     envs_ = list(dict.fromkeys(d.env))
@@ -111,11 +113,7 @@ def draw_figure(out: Path) -> Path:
         row[1].set_title(f"{env_name}: TV against compute time\n(dashed: the 0.05 goal, "
                          f"dotted: twin noise floor)", fontsize=10)
         row[0].legend(fontsize=7)
-    fig.tight_layout()
-    p = out / "convergence.png"
-    fig.savefig(p, dpi=100)
-    plt.close(fig)
-    return p
+    return save_figure(fig, out / "convergence.png", dpi=100)
 
 
 def main(argv=None) -> int:

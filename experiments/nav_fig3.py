@@ -66,7 +66,7 @@ def _cost(plan: Plan, w1: float, w2: float) -> float:
 
 
 def draw(env, cells, routes, table, path, executed=None) -> None:
-    from bouncesim.plots import draw_env, draw_route, plt
+    from bouncesim.plots import draw_env, draw_route, plt, save_figure
     fig, axes = plt.subplots(1, len(routes), figsize=(5.2 * len(routes), 4))
     for ax, route, (_, row) in zip(axes, routes, table.iterrows()):
         draw_env(ax, env, cells)
@@ -80,9 +80,7 @@ def draw(env, cells, routes, table, path, executed=None) -> None:
         ax.set_title(f"{row['plan']}: id {row['start_id']} → id {row['goal_id']}\n"
                      f"{row['ours']}", fontsize=9)
         ax.legend(fontsize=7, loc="upper right")
-    fig.tight_layout()
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
+    save_figure(fig, path, dpi=130)
 
 
 def main(argv=None) -> int:

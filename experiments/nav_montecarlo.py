@@ -213,6 +213,8 @@ def draw(runs_csv: Path, path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from bouncesim.plots import save_figure
+
     runs = pd.read_csv(runs_csv)
     s = summarise(runs, [])
     fig, axes = plt.subplots(1, 2, figsize=(10.5, 4.0), sharey=True)
@@ -249,9 +251,7 @@ def draw(runs_csv: Path, path: Path) -> None:
     axes[0].legend(fontsize=8, loc="upper right")
     fig.suptitle("Shortest bouncing plans (Φ = {45°, 90°, 135°}) executed under rotation noise",
                  fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
+    save_figure(fig, path, dpi=130)
 
 
 def draw_by_length(runs_csv: Path, path: Path, backend: str = "kinematic") -> None:
@@ -260,6 +260,8 @@ def draw_by_length(runs_csv: Path, path: Path, backend: str = "kinematic") -> No
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
+    from bouncesim.plots import save_figure
 
     runs = pd.read_csv(runs_csv)
     runs = runs[runs["backend"] == backend]
@@ -293,9 +295,7 @@ def draw_by_length(runs_csv: Path, path: Path, backend: str = "kinematic") -> No
         ax.set_ylim(-0.02, 1.02)
     axes[0][0].set_ylabel("success rate (95 % Wilson interval)")
     axes[0][-1].legend(fontsize=7, loc="upper right")
-    fig.tight_layout()
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
+    save_figure(fig, path, dpi=130)
 
 
 # ============================================================================ main
