@@ -8,8 +8,10 @@ generalized cell mapping; event = bump-to-bump) at its default settings: the wal
 time to compute the three chains (30°, 75°, 315°, ε = 5°, r = 0.8) and the policy mix α for
 the uniform target, the largest TV over the three angles between the predicted coverage and
 a kinematic-twin histogram (``--twin-steps`` per angle, seed 0), and the resulting α. The
-twin's seed-to-seed noise floor is printed under the table. Each model runs in a fresh
-state (no cached flights), one after the other in the same process.
+twin's seed-to-seed noise floor is printed under the table. The last timing column is the
+mix's time-shared coverage in ``--epoch``-step epochs (:mod:`planners.timeshare`), computed
+after the pipeline (its model already built). Each model runs in a fresh state (no cached
+flights), one after the other in the same process.
 """
 
 from __future__ import annotations
@@ -45,6 +47,8 @@ def main(argv=None) -> int:
     ap.add_argument("--twin-steps", type=int, default=2_000_000,
                     help="twin steps per angle for the accuracy column (default 2e6)")
     ap.add_argument("--models", default="step,sampled,event")
+    ap.add_argument("--epoch", type=int, default=1000,
+                    help="steps per epoch of the time-shared mix column (default 1000; 0 skips)")
     args = ap.parse_args(argv)
     from planners import coverage_models
     rows = []
@@ -60,14 +64,21 @@ def main(argv=None) -> int:
         res = coverage_pipeline(cs, ANGLES, EPS, R, model=model)
         wall, cpu = time.perf_counter() - w0, time.process_time() - c0
         tv = max(tv_distance(ac.q, hist[a]) for a, ac in zip(ANGLES, res.per_angle))
-        rows.append((model, wall, cpu, tv, res.alpha))
+        mix_wall = float("nan")
+        if args.epoch > 0:
+            w1 = time.perf_counter()
+            coverage_models.timeshared_coverage(cs, ANGLES, res.alpha, EPS, R,
+                                                epoch=args.epoch, model=model)
+            mix_wall = time.perf_counter() - w1
+        rows.append((model, wall, cpu, tv, res.alpha, mix_wall))
     print(f"{args.env}, K = {args.orientations}, P = {cs0.P}, N = {cs0.N}; angles 30/75/315, "
           f"eps {EPS:g}°, r {R}; twin {args.twin_steps} steps per angle")
-    print(f"{'model':>8} {'wall [s]':>9} {'CPU [s]':>8} {'vs step':>8} {'max TV':>7}  alpha")
+    print(f"{'model':>8} {'wall [s]':>9} {'CPU [s]':>8} {'vs step':>8} {'max TV':>7} "
+          f"{'mix in epochs [s]':>18}  alpha")
     base = rows[0][1] if rows and rows[0][0] == "step" else None
-    for model, wall, cpu, tv, alpha in rows:
+    for model, wall, cpu, tv, alpha, mix_wall in rows:
         rel = f"{wall / base:7.1f}x" if base else "     -"
-        print(f"{model:>8} {wall:9.2f} {cpu:8.2f} {rel:>8} {tv:7.3f}  "
+        print(f"{model:>8} {wall:9.2f} {cpu:8.2f} {rel:>8} {tv:7.3f} {mix_wall:18.2f}  "
               + " / ".join(f"{a:.3f}" for a in alpha))
     print(f"twin noise floor (seed 0 vs seed 1, max over angles): TV {floor:.3f}")
     return 0
