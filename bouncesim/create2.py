@@ -71,6 +71,7 @@ from dataclasses import dataclass
 from envs import UserError
 
 from . import oi
+from .lockstep import LockstepClosed
 from .robot import CREATE2, BumpEvent, Robot, RobotError, RobotSpec
 
 __all__ = ["Create2Robot", "SensorState", "SENSOR_IDS"]
@@ -79,6 +80,9 @@ SENSOR_IDS = (7, 43, 44, 35)
 """Packets read every sensor period: bumps and wheel drops, encoders, OI mode."""
 _MIN_WHEEL = 0.02          # [m/s] below this a wheel command is not checked for a stall
 _STALL_COUNTS = 2          # encoder counts that prove a wheel turns
+_CREEP_SPEED = 0.015       # [m/s] wheel speed at the end of a predictive turn
+_SLOW_ZONE_DEG = 10.0      # [deg] predictive turns slow down over the last this many degrees
+_TURN_CORRECTIONS = 3      # measured misses a predictive turn corrects at most
 
 
 @dataclass(frozen=True)
@@ -120,6 +124,14 @@ class Create2Robot(Robot):
         the turn speed (the paper's clock-only robot).
     turn_speed : float
         Wheel speed of in-place turns [m/s].
+    turn_control : {"predictive", "plain"}
+        Encoder turns: ``predictive`` (default) slows the wheels near the target, stops where
+        the angle will be when the stop command lands (from the measured age of the reading
+        and the command latency), and corrects a measured miss with short turns at creep
+        speed; ``plain`` stops at the first reading within half a reading of the target (a
+        late reading on a busy host overshoots). See docs/readme_hardware.md.
+    turn_tolerance : float
+        [deg] predictive turns correct a measured miss larger than this.
     sensing : {"stream", "query"}
         Read the sensors from a Stream (148) or by Query List (149) every sensor period.
     baudrate : int
@@ -129,7 +141,9 @@ class Create2Robot(Robot):
         when driving an emulator that runs faster than real time.
     emulator : OIEmulator, optional
         An in-process emulator behind ``port``: :meth:`place` and :meth:`true_pose` go to it
-        (simulation only; on hardware ``place`` raises NotImplementedError).
+        (simulation only; on hardware ``place`` raises NotImplementedError). When it runs in
+        lockstep (``OIEmulator(..., lockstep=True)``) the adapter's clock is the emulated one
+        and ``time_scale`` is ignored: see :mod:`bouncesim.lockstep`.
     max_distance : float
         ``drive_until_bump`` gives up (no bump) after this distance [m].
     watchdog, stall_time : float
@@ -150,7 +164,8 @@ class Create2Robot(Robot):
     """
 
     def __init__(self, port: str | None, *, mode: str = "safe", turn: str = "encoders",
-                 turn_speed: float = 0.1, sensing: str = "stream", baudrate: int = 115200,
+                 turn_speed: float = 0.1, turn_control: str = "predictive",
+                 turn_tolerance: float = 0.4, sensing: str = "stream", baudrate: int = 115200,
                  time_scale: float = 1.0, emulator=None, max_distance: float = 10.0,
                  watchdog: float = 1.0, link_timeout: float = 0.5, stall_time: float = 0.5,
                  connect_timeout: float = 2.0, handle_sigterm: bool = True, link=None,
@@ -160,6 +175,12 @@ class Create2Robot(Robot):
             raise UserError(f"OI mode must be 'safe' or 'full', got {mode!r}.")
         if turn not in ("encoders", "clock"):
             raise UserError(f"turn must be 'encoders' or 'clock', got {turn!r}.")
+        if turn_control not in ("predictive", "plain"):
+            raise UserError(f"turn control must be 'predictive' or 'plain', got "
+                            f"{turn_control!r}.")
+        if not (math.isfinite(turn_tolerance) and 0.05 <= turn_tolerance <= 10):
+            raise UserError(f"turn tolerance must lie in [0.05, 10] degrees, got "
+                            f"{turn_tolerance:g}.")
         if sensing not in ("stream", "query"):
             raise UserError(f"sensing must be 'stream' or 'query', got {sensing!r}.")
         if not 0 < turn_speed <= self.spec.max_wheel_speed:
@@ -171,9 +192,16 @@ class Create2Robot(Robot):
         self.mode = mode
         self.turn_mode = turn
         self.turn_speed = float(turn_speed)
+        self.turn_control = turn_control
+        self.turn_tolerance = float(turn_tolerance)
         self.sensing = sensing
         self.time_scale = float(time_scale)
         self.emulator = emulator
+        self._ls = getattr(emulator, "lockstep", None)      # lockstep with the emulator
+        self._tx = 0                                # bytes written / read on the link
+        self._rx = 0
+        self._last_valid = 0.0                      # robot time of the last valid reading
+        self._latency = self.spec.sensor_period     # age of a reading when acted on [s]
         self.own_emulator = bool(own_emulator)
         self.max_distance = float(max_distance)
         self.watchdog = float(watchdog)
@@ -304,17 +332,31 @@ class Create2Robot(Robot):
         try:
             with self._wlock:
                 self._ser.write(data)
+                self._tx += len(data)
         except Exception as exc:                  # serial, OS and socket errors alike
             err = RobotError(f"lost the serial link to {self.port}: {exc}")
             self._set_fault(err)
             raise err from None
 
     def _flush_input(self) -> None:
-        try:
-            self._ser.reset_input_buffer()
-        except Exception:                          # noqa: BLE001 - best effort
-            pass
+        if self._ls is not None:                   # lockstep: read what was sent, to count it
+            self._read_until(self._ls.robot_bytes)
+        else:
+            try:
+                self._ser.reset_input_buffer()
+            except Exception:                      # noqa: BLE001 - best effort
+                pass
         self._parser.reset()
+
+    def _read_until(self, total: int) -> bytes:
+        """Lockstep: read until ``total`` bytes have arrived on the link since it opened."""
+        data = bytearray()
+        end = time.monotonic() + self._ls.wall_timeout
+        while self._rx < total and time.monotonic() < end:
+            chunk = self._ser.read(total - self._rx)
+            self._rx += len(chunk)
+            data += chunk
+        return bytes(data)
 
     def _set_fault(self, err: RobotError, stop: bool = False) -> None:
         with self._cv:
@@ -331,8 +373,10 @@ class Create2Robot(Robot):
     def _send_stop(self) -> bool:
         """Best effort zero Drive Direct; True when it was written."""
         try:
+            data = oi.encode_drive_direct(0, 0)
             with self._wlock:
-                self._ser.write(oi.encode_drive_direct(0, 0))
+                self._ser.write(data)
+                self._tx += len(data)
             with self._cv:
                 self._cmd = (0, 0)
             return True
@@ -368,6 +412,11 @@ class Create2Robot(Robot):
                 for values in self._parser.feed(chunk):
                     self._update(values)
                     last_wall = time.monotonic()
+                with self._cv:
+                    self._rx += len(chunk)
+                    self._cv.notify_all()
+            if self._ls is not None:               # lockstep: judged in robot time
+                continue
             # the link is judged in wall-clock time (a scaled emulator on a busy machine
             # must not look like a lost link)
             silent = time.monotonic() - last_wall
@@ -384,6 +433,8 @@ class Create2Robot(Robot):
             self._check_watchdog(self.clock())
 
     def _check_watchdog(self, now: float) -> None:
+        if self._ls is not None:                   # lockstep: time stands still unless asked
+            return
         with self._cv:
             driving = self._cmd != (0, 0)
             idle = now - self._last_call
@@ -394,7 +445,7 @@ class Create2Robot(Robot):
 
     def _update(self, values: dict) -> SensorState:
         """Take one reading; detect wheel drops, mode drops and stalls (stopping the robot)."""
-        now = self.clock()
+        now = self.clock() if self._ls is None else self._ls.reaching()
         bits = values[7]
         raw = (values[43], values[44])
         problem = None
@@ -405,6 +456,7 @@ class Create2Robot(Robot):
                 counts = (self._counts[0] + oi.encoder_delta(raw[0], self._raw[0]),
                           self._counts[1] + oi.encoder_delta(raw[1], self._raw[1]))
             self._raw, self._counts = raw, counts
+            self._last_valid = now
             seq = 0 if self._state is None else self._state.seq + 1
             st = SensorState(seq, now, bool(bits & oi.BUMP_LEFT), bool(bits & oi.BUMP_RIGHT),
                              bool(bits & (oi.WHEEL_DROP_LEFT | oi.WHEEL_DROP_RIGHT)),
@@ -444,6 +496,8 @@ class Create2Robot(Robot):
     def _query(self, deadline: float = math.inf) -> SensorState | None:
         """Query mode: one Query List exchange, retried after a short or garbled reply; None
         when the robot clock reaches ``deadline`` before the next query is due."""
+        if self._ls is not None:
+            return self._query_lockstep(deadline)
         need = oi.reply_size(SENSOR_IDS)
         request = oi.encode_query_list(SENSOR_IDS)
         wall_period = self.spec.sensor_period / self.time_scale
@@ -478,6 +532,67 @@ class Create2Robot(Robot):
         self._set_fault(err, stop=True)
         raise err
 
+    def _query_lockstep(self, deadline: float) -> SensorState | None:
+        """:meth:`_query` in lockstep: the clock moves to the next sensor period, then the
+        query is asked and answered with the clock standing still."""
+        need = oi.reply_size(SENSOR_IDS)
+        request = oi.encode_query_list(SENSOR_IDS)
+        for _ in range(3):
+            due = self._last_query + self.spec.sensor_period
+            if due > deadline:
+                self._advance(deadline)
+                return None
+            while self.clock() < due - 1e-12:
+                self._advance(due)
+            self._flush_input()
+            self._write(request)
+            self._last_query = self.clock()
+            data = self._read_until(self._advance(self.clock()))
+            if len(data) == need:
+                return self._update(oi.decode_packets(SENSOR_IDS, data))
+        err = RobotError(f"no valid reply to a sensor query from {self.port} in 3 tries: "
+                         "lost the link; tried to stop the robot")
+        self._set_fault(err, stop=True)
+        raise err
+
+    def _advance(self, until: float) -> int:
+        """Lockstep: move the emulated clock towards ``until`` (at most one sensor period);
+        returns the bytes the emulator has written by then. A gone emulator is a lost link."""
+        try:
+            return self._ls.advance(self._tx, until)
+        except LockstepClosed as exc:
+            err = RobotError(f"lost the link to {self.port}: {exc}")
+            self._set_fault(err)
+            raise err from None
+
+    def _next_state_lockstep(self, after: int | None, deadline: float) -> SensorState | None:
+        """:meth:`_next_state` in stream mode and lockstep: read what the emulator sent, and
+        move its clock to the next frame until a new reading or ``deadline`` comes."""
+        while True:
+            with self._cv:
+                self._cv.wait_for(lambda: self._rx >= self._ls.robot_bytes or
+                                  self._fault is not None, timeout=self._ls.wall_timeout)
+                if self._fault is not None:
+                    raise self._fault
+                if self._rx < self._ls.robot_bytes:
+                    err = RobotError(f"lost the link to {self.port}: the bytes sent did not "
+                                     "arrive")
+                    self._fault = err
+                    raise err
+                st = self._state
+                self._last_call = self.clock()
+                if st is not None and (after is None or st.seq > after):
+                    return st
+            now = self.clock()
+            if now - self._last_valid > self.link_timeout:
+                self._set_fault(RobotError(
+                    f"no valid sensor data from {self.port} for {now - self._last_valid:.2f} s "
+                    "of robot time: lost the link; tried to stop the robot"), stop=True)
+                raise self._fault
+            if now >= deadline:
+                return None
+            self._advance(min(deadline, self._ls.next_frame))
+
     def _next_state(self, after: int | None, deadline: float, check: bool = True
                     ) -> SensorState | None:
         """The next reading newer than ``after`` (None: any), or None once the robot clock
@@ -492,6 +607,8 @@ class Create2Robot(Robot):
             st = self._query(deadline)
             self._raise_fault()
             return st
+        if self._ls is not None:
+            return self._next_state_lockstep(after, deadline)
         with self._cv:
             while True:
                 if self._fault is not None:
@@ -539,6 +656,8 @@ class Create2Robot(Robot):
         return st.bump_left, st.bump_right
 
     def clock(self) -> float:
+        if self._ls is not None:
+            return self._ls.now()
         return (time.monotonic() - self._t0) * self.time_scale
 
     def wait(self, duration: float) -> None:
@@ -572,6 +691,9 @@ class Create2Robot(Robot):
                 self._drive_direct(v, -v)
                 self.wait(duration)
                 return
+            if self.turn_control == "predictive":
+                self._turn_predictive(angle)
+                return
             start = self._fresh(1)
             target = math.radians(abs(angle))
             omega = 2 * self.turn_speed / self.spec.wheel_base
@@ -592,6 +714,69 @@ class Create2Robot(Robot):
                     return
         finally:
             self.stop()
+
+    def _turn_predictive(self, angle: float) -> None:
+        """Encoder turn that tolerates a slow host (docs/readme_hardware.md, "Turns on a busy
+        host"): legs that slow down near the target and stop where the angle will be when the
+        stop lands; then the settled miss is measured and corrected at creep speed."""
+        b, mpc, period = self.spec.wheel_base, self.spec.metres_per_count, self.spec.sensor_period
+        sense = 1.0 if angle > 0 else -1.0
+        target = math.radians(abs(angle))
+        start = self._fresh(1)
+
+        def miss(st: SensorState) -> float:
+            """[rad] still to turn in the commanded sense (negative: overshot)."""
+            return target - sense * ((st.right - start.right) - (st.left - start.left)) * \
+                mpc / b
+
+        st = start
+        for _ in range(1 + _TURN_CORRECTIONS):
+            e = miss(st)
+            if abs(e) <= math.radians(self.turn_tolerance):
+                return
+            self._turn_leg(sense if e > 0 else -sense, lambda s, d=math.copysign(1.0, e):
+                           d * miss(s), st)
+            st = self._settled()
+
+    def _turn_leg(self, sense: float, remaining, st: SensorState) -> None:
+        """Spin in ``sense`` (+1 CCW) until ``remaining(reading)`` [rad] is used up: full turn
+        speed far from the end, slowing linearly to creep speed within the slow zone, and a
+        stop issued early by the rotation expected while it travels (the reading's age plus
+        half a sensor period)."""
+        b, period = self.spec.wheel_base, self.spec.sensor_period
+        v_max, v_min = self.turn_speed, min(self.turn_speed, _CREEP_SPEED)
+        zone = math.radians(_SLOW_ZONE_DEG)
+        budget = self.spec.turn_time(math.degrees(remaining(st)), v_max) * 2 + \
+            2 * zone / (2 * v_min / b) + 1.0
+        limit = self.clock() + budget
+        v_cmd = 0.0
+        try:
+            while True:
+                omega = 2 * v_cmd / b
+                lead = omega * (max(self.clock() - st.t, 0.0) + period / 2)
+                left = remaining(st) - lead
+                if left <= omega * period / 2:      # the next reading would come too late
+                    return
+                v = v_min + (v_max - v_min) * min(1.0, max(left, 0.0) / zone)
+                if abs(v - v_cmd) >= 0.002:
+                    self._drive_direct(sense * v, -sense * v)
+                    v_cmd = v
+                st = self._next_state(st.seq, limit)
+                if st is None:
+                    raise RobotError(f"a turn by encoders did not finish in {budget:.1f} s; "
+                                     "stopped")
+        finally:
+            self.stop()
+
+    def _settled(self) -> SensorState:
+        """The first reading whose encoders equal the one before (at most 20 readings)."""
+        prev = self._fresh(1)
+        for _ in range(20):
+            st = self._fresh(1)
+            if (st.left, st.right) == (prev.left, prev.right):
+                return st
+            prev = st
+        return prev
 
     def drive_until_bump(self, speed: float, timeout: float) -> BumpEvent:
         speed = float(speed)
@@ -637,6 +822,7 @@ class Create2Robot(Robot):
                 try:
                     with self._wlock:
                         ser.write(data)
+                        self._tx += len(data)
                 except Exception:                  # noqa: BLE001 - best effort
                     break
         with self._cv:

@@ -73,6 +73,7 @@ CENTRE_ZONE_DEG = 10.0
 """[deg] contacts within ±this of straight ahead close both bumper switches."""
 _EXACT = NoNoise()
 _MAX_EVENTS = 64         # contacts and slides handled within one forward drive
+_SAME_CONTACT = 1e-5     # [m] contacts closer than this are one
 _SCALAR_MAX = 8          # batches up to this size cast robot by robot in plain Python
 
 
@@ -264,13 +265,19 @@ class KinematicRobot(Robot):
     def _slide(self, contacts, speed: float, budget: float) -> float | None:
         """Slide along the one glancing contact for at most ``budget`` [s]; the time used,
         or None when the robot is wedged (two walls at once, or the slide is blocked)."""
-        pts = {(round(px, 9), round(py, 9)): (b, px, py, side) for b, px, py, side in contacts}
-        if len(pts) != 1:
-            sides = [c for c in contacts if c[3] is not None]
-            if len(sides) != 1 or len({(round(c[1], 9), round(c[2], 9)) for c in contacts}) > 1:
-                return None
-            contacts = sides
-        beta, px, py, side = contacts[0]
+        # contacts closer than _SAME_CONTACT are one (a wall's end and its corner vertex a
+        # micrometre apart); of those, a straight wall is preferred to its corner
+        groups: list[list] = []
+        for c in sorted(contacts, key=lambda c: c[3] is None):
+            for g in groups:
+                if math.hypot(c[1] - g[0][1], c[2] - g[0][2]) < _SAME_CONTACT:
+                    g.append(c)
+                    break
+            else:
+                groups.append([c])
+        if len(groups) != 1:
+            return None
+        beta, px, py, side = groups[0][0]
         x, y, ux, uy = self._x, self._y, self._ux, self._uy
         nx, ny = x - px, y - py
         nn = math.hypot(nx, ny)

@@ -28,7 +28,8 @@ What it does
 Faults (for tests and demonstrations)
 -------------------------------------
 - ``noise``: a :class:`bouncesim.noise.NoiseModel` applied once per in-place spin (at its
-  end, to the whole commanded spin): the body slips, the encoders do not see it.
+  end, to the whole spin; a spin ends when the wheels stop, reverse or stop spinning in
+  place, not when they slow down): the body slips, the encoders do not see it.
 - ``angle_bug``: packet 20 is scaled by 0.324056 (firmware up to 3.4.0).
 - scheduled or immediate (:meth:`OIEmulator.inject`): ``wheel-drop``, ``charger`` (the
   robot sees a charger: Safe drops to Passive, no wheel-drop bits), ``stall-left``,
@@ -40,6 +41,11 @@ Faults (for tests and demonstrations)
 Time can run faster than real time (``time_scale``): emulated seconds per wall-clock second.
 The adapter must then be given the same scale (:class:`bouncesim.create2.Create2Robot`
 ``time_scale``), so that its clock and the emulator's agree. Real hardware always runs at 1.
+
+Or time can run in lockstep with an adapter in the same process (``lockstep=True``; see
+:mod:`bouncesim.lockstep`): the emulated clock moves only when the adapter has read the sensor
+frame it is owed and asks for the next one, so a run gives the same bytes and the same poses on
+any machine, however busy. ``Create2Robot(emu.url, emulator=emu)`` picks this up by itself.
 
 Examples
 --------
@@ -73,6 +79,7 @@ from envs import Environment, UserError
 
 from . import oi
 from .kinematic import KinematicRobot
+from .lockstep import Lockstep
 from .noise import NoiseModel, NoNoise
 from .robot import CREATE2
 
@@ -193,17 +200,19 @@ class _Transport:
                 data = b""
         return data
 
-    def write(self, data: bytes) -> None:
-        """Send without blocking: bytes nobody reads are lost, as on a serial line."""
+    def write(self, data: bytes) -> int:
+        """Send without blocking: bytes nobody reads are lost, as on a serial line. Returns
+        the number of bytes sent."""
         if not data:
-            return
+            return 0
         try:
             if self.kind == "pty":
-                os.write(self.master, data)
-            elif self.client is not None:
-                self.client.send(data)
+                return os.write(self.master, data)
+            if self.client is not None:
+                return self.client.send(data)
         except (BlockingIOError, OSError):
             pass
+        return 0
 
     def close(self) -> None:
         for fd in (self.master, self.slave):
@@ -249,6 +258,10 @@ class OIEmulator:
         would read a bump at once, which a real bumper does not do.
     mode_offset : int
         Added to packet 35 (some units report the OI mode off by one).
+    lockstep : bool
+        Run the emulated clock in lockstep with an in-process adapter instead of by the wall
+        clock (``time_scale`` is then ignored); :attr:`lockstep` is the shared
+        :class:`bouncesim.lockstep.Lockstep`.
     log : callable, optional
         Called with one line of text per event (connection, mode change, fault).
 
@@ -263,7 +276,8 @@ class OIEmulator:
                  port: int = 0, time_scale: float = 1.0, noise: NoiseModel | None = None,
                  rng=None, angle_bug: bool = False, faults=(),
                  encoder_offset: tuple[int, int] = (0, 0), start=None,
-                 glance_deg: float | None = 80.0, mode_offset: int = 0, log=None) -> None:
+                 glance_deg: float | None = 80.0, mode_offset: int = 0, lockstep: bool = False,
+                 log=None) -> None:
         if not (math.isfinite(time_scale) and 0 < time_scale <= 20):
             raise UserError(f"time scale must lie in (0, 20], got {time_scale:g}.")
         self.env = env
@@ -280,6 +294,8 @@ class OIEmulator:
         self._enc_offset = (int(encoder_offset[0]), int(encoder_offset[1]))
         self._transport = _Transport(transport, host, port)
         self.url = self._transport.url
+        self.lockstep = Lockstep(_PERIOD) if lockstep else None
+        self._rx = 0                               # bytes received from the controller
         self._lock = threading.RLock()
         self._stop_evt = threading.Event()
         self._thread: threading.Thread | None = None
@@ -325,6 +341,8 @@ class OIEmulator:
             self._thread = None
         with self._lock:
             self._transport.close()
+        if self.lockstep is not None:
+            self.lockstep.close()
 
     def __enter__(self) -> OIEmulator:
         return self.start()
@@ -335,6 +353,8 @@ class OIEmulator:
     # ------------------------------------------------------------------ views
     def clock(self) -> float:
         """Emulated time [s] since the emulator was built."""
+        if self.lockstep is not None:
+            return self.lockstep.now()
         return (time.monotonic() - self._t0_wall) * self.time_scale
 
     def place(self, x: float, y: float, heading_deg: float) -> None:
@@ -381,9 +401,46 @@ class OIEmulator:
     # ------------------------------------------------------------------ the loop
     def _serve(self) -> None:
         tr = self._transport
+        once = self._serve_once if self.lockstep is None else self._serve_lockstep
         while not self._stop_evt.is_set():
-            self._serve_once(tr)
-        self._serve_once(tr, final=True)       # what the controller sent last (e.g. Stop)
+            once(tr)
+        once(tr, final=True)                   # what the controller sent last (e.g. Stop)
+
+    def _receive(self, tr: _Transport, ready) -> None:
+        """Read what arrived and obey it (at the current emulated time)."""
+        before = tr.connections
+        data = tr.read(ready) if ready else b""
+        if tr.connections != before:
+            self._note(f"controller connected ({tr.connections})")
+        self._rx += len(data)
+        self._advance_to(self.clock())
+        for op, payload in self._parser.feed(data):
+            self._execute(op, payload)
+
+    def _serve_lockstep(self, tr: _Transport, final: bool = False) -> None:
+        """Lockstep: obey bytes as they come; move the clock only when the adapter asks and
+        every byte it wrote before asking has been read."""
+        ls = self.lockstep
+        try:
+            ready, _, _ = select.select(tr.fds() + [ls.wake_fd], [], [], 0.02 if final else
+                                        0.05)
+        except (OSError, ValueError):
+            return
+        with self._lock:
+            if self._stop_evt.is_set() and not final:
+                return
+            if ls.wake_fd in ready:
+                ls.drain_wake()
+            self._receive(tr, ready)
+            want = ls.request()
+            if want is None or self._rx < want[0]:
+                return
+            self._advance_to(want[1])
+            if ls.at_boundary() and self._stream_on and self._stream_ids and \
+                    self.mode != oi.MODE_OFF:
+                self._send(oi.encode_stream_frame(self._frame_items()))
+                self.frames_sent += 1
+            ls.complete()
 
     def _serve_once(self, tr: _Transport, final: bool = False) -> None:
         """Wait for bytes or the next tick; advance the body, obey commands, stream."""
@@ -396,14 +453,8 @@ class OIEmulator:
         with self._lock:
             if self._stop_evt.is_set() and not final:
                 return
-            before = tr.connections
-            data = tr.read(ready) if ready else b""
-            if tr.connections != before:
-                self._note(f"controller connected ({tr.connections})")
-            now = self.clock()
-            self._advance_to(now)
-            for op, payload in self._parser.feed(data):
-                self._execute(op, payload)
+            self._receive(tr, ready)
+            now = self._t_phys
             if now >= self._next_tick:
                 self._next_tick += _PERIOD
                 if self._next_tick < now:              # fell behind: skip, don't burst
@@ -420,7 +471,12 @@ class OIEmulator:
             data = data[:i] + data[i + 1:]
             self._drop_next = False
             self._note(f"dropped byte {i} of an outgoing frame")
-        self._transport.write(data)
+        self._write(data)
+
+    def _write(self, data: bytes) -> None:
+        n = self._transport.write(data)
+        if self.lockstep is not None:
+            self.lockstep.wrote(n)
 
     # ------------------------------------------------------------------ commands
     def _execute(self, op: int, data: bytes) -> None:
@@ -428,7 +484,7 @@ class OIEmulator:
         if op == oi.RESET:
             self._set_mode(oi.MODE_OFF)
             self._stream_on = False
-            self._transport.write(BANNER)
+            self._write(BANNER)
             return
         if op == oi.START:
             self._set_mode(oi.MODE_PASSIVE)
@@ -487,8 +543,9 @@ class OIEmulator:
     def _set_wheels(self, right: int, left: int) -> None:
         right = max(-oi.MAX_WHEEL_MM_S, min(oi.MAX_WHEEL_MM_S, int(right)))
         left = max(-oi.MAX_WHEEL_MM_S, min(oi.MAX_WHEEL_MM_S, int(left)))
-        if (right, left) != (self._right, self._left):
-            self._end_spin()
+        if (right, left) != (self._right, self._left) and \
+                _spin_sense(right, left) != _spin_sense(self._right, self._left):
+            self._end_spin()                   # (slowing a spin down does not end it)
         self._right, self._left = right, left
         if (right or left) and self._first_drive is None:
             self._first_drive = self.clock()
@@ -518,7 +575,7 @@ class OIEmulator:
         elif kind == "garbage":
             junk = self.rng.integers(0, 256, size=int(self.rng.integers(5, 40)))
             junk[:: 4] = oi.STREAM_HEADER            # plenty of false frame headers
-            self._transport.write(bytes(int(b) for b in junk))
+            self._write(bytes(int(b) for b in junk))
         elif kind == "mute":
             self._muted = True
 
@@ -606,6 +663,13 @@ class OIEmulator:
             else:
                 items.append((pid, vals.get(pid, 0)))
         return items
+
+
+def _spin_sense(right: int, left: int) -> int:
+    """+1 / -1 for an in-place spin CCW / CW, 0 for anything else."""
+    if right == -left and right != 0:
+        return 1 if right > 0 else -1
+    return 0
 
 
 def _wrap16(v: int) -> int:

@@ -3,9 +3,13 @@ through real serial transports (a pseudo-terminal and a loopback TCP socket): th
 conformance suite, Fig. 3 plans, every injected fault, and a controller process killed by a
 signal. No hardware needed.
 
-The emulator runs faster than real time (``SCALE`` emulated seconds per second) and the
-adapter is given the same scale, so its clock follows the emulated one. The conformance
-tolerances are in robot time; at scale 2 the clock check's 10 ms is 5 ms of wall time.
+Functional tests run the emulator in lockstep with the adapter (bouncesim.lockstep): the
+emulated clock moves only when the adapter asks for its next reading, so they give the same
+bytes and poses however busy the machine is. Tests of behaviour that needs wall time (the
+watchdog, a controller killed by a signal, the stand-alone emulator process, turns on a real
+clock) are marked ``realtime``: they run faster than real time (``SCALE`` emulated seconds per
+second, the adapter given the same scale), use generous wall-clock bounds, and check what they
+claim (the robot is stopped, the turn is within its tolerance) rather than exact timings.
 """
 
 from __future__ import annotations
@@ -56,9 +60,10 @@ def deadline(seconds: float):
 
 
 @contextlib.contextmanager
-def rig(env=None, *, transport="pty", scale=SCALE, emu_kw=None, **bot_kw):
+def rig(env=None, *, transport="pty", scale=SCALE, lockstep=True, emu_kw=None, **bot_kw):
     env = env if env is not None else room_env()
-    emu = OIEmulator(env, transport=transport, time_scale=scale, **(emu_kw or {})).start()
+    emu = OIEmulator(env, transport=transport, time_scale=scale, lockstep=lockstep,
+                     **(emu_kw or {})).start()
     try:
         bot = Create2Robot(emu.url, emulator=emu, time_scale=scale, **bot_kw)
         try:
@@ -69,7 +74,7 @@ def rig(env=None, *, transport="pty", scale=SCALE, emu_kw=None, **bot_kw):
         emu.close()
 
 
-def wait_until(pred, timeout: float = 2.0) -> bool:
+def wait_until(pred, timeout: float = 10.0) -> bool:
     end = time.monotonic() + timeout
     while time.monotonic() < end:
         if pred():
@@ -79,8 +84,9 @@ def wait_until(pred, timeout: float = 2.0) -> bool:
 
 
 def assert_stopped(emu: OIEmulator) -> None:
-    """The emulated wheels are stopped and the body stays put."""
-    assert wait_until(lambda: emu.wheel_command == (0, 0), 1.0), \
+    """The emulated wheels are stopped and the body stays put (in lockstep the clock stands
+    still, so only the wheel command says anything)."""
+    assert wait_until(lambda: emu.wheel_command == (0, 0)), \
         f"the robot is still driving: {emu.wheel_command}"
     x0, y0, h0 = emu.true_pose()
     time.sleep(0.2)
@@ -88,9 +94,9 @@ def assert_stopped(emu: OIEmulator) -> None:
     assert math.hypot(x1 - x0, y1 - y0) < 1e-6 and abs(h1 - h0) < 1e-6
 
 
-def _emulated(scale=SCALE, transport="pty", **kw):
+def _emulated(scale=SCALE, transport="pty", lockstep=True, **kw):
     def make(env):
-        emu = OIEmulator(env, transport=transport, time_scale=scale).start()
+        emu = OIEmulator(env, transport=transport, time_scale=scale, lockstep=lockstep).start()
         return Create2Robot(emu.url, emulator=emu, own_emulator=True, time_scale=scale, **kw)
     return make
 
@@ -155,7 +161,7 @@ def test_same_plan_through_the_cli_on_kinematic_and_emulator(capsys):
     assert main(common) == 0
     kin = capsys.readouterr().out
     with deadline(60):
-        assert main(common + ["--robot", "emulator", "--time-scale", "4"]) == 0
+        assert main(common + ["--robot", "emulator", "--lockstep"]) == 0
     emu = capsys.readouterr().out
     import json
     a, b = json.loads(kin), json.loads(emu)
@@ -230,18 +236,21 @@ def test_encoder_turn_across_the_16_bit_wrap():
         assert abs((e1[1] - e0[1]) - arc) < 12 and abs((e1[0] - e0[0]) + arc) < 12
 
 
-def test_turns_by_clock_and_encoders_agree_without_noise():
+@pytest.mark.parametrize("lockstep", [True, pytest.param(False, marks=pytest.mark.realtime)])
+def test_turns_by_clock_and_encoders_agree_without_noise(lockstep):
     # within the conformance suite's 3° (a clock turn is as good as the timing of its start
-    # and stop commands: 1° is 20 ms at the default 0.1 m/s wheel speed)
+    # and stop commands: 1° is 20 ms at the default 0.1 m/s wheel speed); in lockstep the
+    # encoder turn is within its 0.4° tolerance plus one encoder count (0.22°)
     for turn in ("clock", "encoders"):
-        with rig(turn=turn, scale=4.0) as (emu, bot):
+        with rig(turn=turn, scale=4.0, lockstep=lockstep) as (emu, bot):
             bot.place(0.85, 0.51, 0.0)
             for a in (-90.0, 135.0):
                 _, _, h0 = emu.true_pose()
                 bot.turn(a)
                 _, _, h1 = emu.true_pose()
                 d = (h1 - h0 + 180) % 360 - 180
-                assert abs(d - a) <= 3.0, (turn, a, d)
+                bound = 0.65 if lockstep and turn == "encoders" else 3.0
+                assert abs(d - a) <= bound, (turn, a, d)
 
 
 def test_time_out_without_a_bump_within_max_distance():
@@ -305,7 +314,7 @@ def test_lost_link_stops_with_a_clear_error(sensing):
         t0 = time.monotonic()
         with pytest.raises(RobotError, match="lost the link"):
             _drive_into_fault(bot)
-        assert time.monotonic() - t0 < 3.0
+        assert time.monotonic() - t0 < 10.0                 # not the 20 s timeout
         assert_stopped(emu)
 
 
@@ -318,11 +327,13 @@ def test_emulator_gone_is_an_error_not_a_hang():
             bot.wait(5.0)
 
 
+@pytest.mark.realtime
 def test_watchdog_stops_a_drive_nobody_watches():
-    with deadline(20), rig(watchdog=0.5) as (emu, bot):
+    # needs the wall clock: in lockstep time stands still while nobody reads the sensors
+    with deadline(30), rig(watchdog=0.5, lockstep=False) as (emu, bot):
         bot.place(0.3, 0.51, 0.0)
         bot.drive(0.1)
-        assert wait_until(lambda: emu.wheel_command == (100, 100), 1.0)
+        assert wait_until(lambda: emu.wheel_command == (100, 100))
         time.sleep(1.0 / SCALE)                      # 1 s of robot time without a call
         assert_stopped(emu)
         with pytest.raises(RobotError, match="watchdog"):
@@ -348,27 +359,40 @@ def test_desync_is_survived(sensing):
 
 
 def test_angle_packet_bug_is_reported_and_does_not_matter():
-    with rig(scale=4.0, emu_kw={"angle_bug": True}) as (emu, bot):
+    with rig(emu_kw={"angle_bug": True}) as (emu, bot):
         bot.place(0.85, 0.51, 0.0)
         bot.turn(90.0)
         _, _, h = emu.true_pose()
-        assert abs(h - 90.0) <= 1.5
+        assert abs(h - 90.0) <= 0.65
         assert 20 not in emu.packets_requested
-    # the same emulator answer read directly: 90° reported as int(90 * 0.324056) = 29
-    with OIEmulator(room_env(), time_scale=4.0, angle_bug=True, transport="tcp") as emu:
+    # the same emulator answer read directly, the lockstep clock moved by hand: a spin of
+    # exactly 90° is reported as int(90 * 0.324056) = 29
+    with OIEmulator(room_env(), lockstep=True, angle_bug=True, transport="tcp") as emu:
         import serial
         link = serial.serial_for_url(emu.url, timeout=1.0)
+        ls, sent, received = emu.lockstep, 0, 0
+
+        def send(data: bytes, until: float) -> bytes:
+            """Write, let the emulated clock reach ``until``, read what the emulator sent."""
+            nonlocal sent, received
+            link.write(data)
+            sent += len(data)
+            total = ls.advance(sent, until)
+            while ls.now() < until:
+                total = ls.advance(sent, until)
+            reply = link.read(total - received)
+            received += len(reply)
+            return reply
         try:
-            link.write(bytes([oi.START, oi.SAFE]) + oi.encode_sensors(20))
-            assert oi.decode_packets([20], link.read(2)) == {20: 0}
-            link.write(oi.encode_drive_direct(100, -100))
+            reply = send(bytes([oi.START, oi.SAFE]) + oi.encode_sensors(20), 0.0)
+            assert oi.decode_packets([20], reply) == {20: 0}
             turn_s = math.radians(90) / (0.2 / 0.235)
-            time.sleep(turn_s / 4.0)
-            link.write(oi.encode_drive_direct(0, 0) + oi.encode_sensors(20))
-            reported = oi.decode_packets([20], link.read(2))[20]
+            send(oi.encode_drive_direct(100, -100), turn_s)
+            reply = send(oi.encode_drive_direct(0, 0) + oi.encode_sensors(20), turn_s)
+            reported = oi.decode_packets([20], reply)[20]
         finally:
             link.close()
-        assert 26 <= reported <= 32                 # 29 +- the command timing
+        assert reported == 29
 
 
 def test_turn_noise_is_invisible_to_the_encoders():
@@ -413,29 +437,32 @@ def _controller(url: str) -> subprocess.Popen:
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
 
 
+@pytest.mark.realtime
 @pytest.mark.parametrize("sig,code", [
     (signal.SIGTERM, 143), pytest.param(signal.SIGINT, 130, marks=pytest.mark.slow),
     pytest.param(signal.SIGKILL, -9, marks=pytest.mark.slow)])
 def test_killed_controller_leaves_the_robot_stopped(sig, code):
+    # Wall-clock bounds are generous (a loaded machine starts a Python process slowly); what
+    # is checked is the robot's state after the signal, not how fast anything happened.
     env = envs.load("lab")
     start = CellSpace(env).pose(103)
-    with deadline(60), OIEmulator(env, transport="tcp", start=start) as emu:
+    with deadline(240), OIEmulator(env, transport="tcp", start=start) as emu:
         proc = _controller(emu.url)
         try:
             # the plan's long drive west (7 cells, 12 s at 0.2 m/s), well away from a turn
             assert wait_until(lambda: emu.wheel_command == (200, 200)
-                              and abs(emu.true_pose()[2] - 180.0) < 10, 30.0), \
+                              and abs(emu.true_pose()[2] - 180.0) < 20, 120.0), \
                 "the controller never started the long drive"
             time.sleep(0.5)
             proc.send_signal(sig)
             try:
                 # generous: an ignored signal would let the plan finish (exit 0 or 4, which
                 # the return-code check below catches), a slow machine only delays the exit
-                proc.wait(timeout=30)
+                proc.wait(timeout=60)
             except subprocess.TimeoutExpired:
                 proc.kill()
                 _, err = proc.communicate()
-                pytest.fail(f"the controller did not exit within 30 s of signal {sig}; its "
+                pytest.fail(f"the controller did not exit within 60 s of signal {sig}; its "
                             f"stderr: {err[-2000:]}")
         finally:
             if proc.poll() is None:
@@ -453,6 +480,7 @@ def test_killed_controller_leaves_the_robot_stopped(sig, code):
 
 # ---------------------------------------------------------------- standalone emulator
 @pytest.mark.slow
+@pytest.mark.realtime
 def test_standalone_emulator_command_end_to_end():
     cmd = [sys.executable, "-m", "bouncesim.cli", "emulator", "lab", "--port", "0",
            "--start", "8", "--time-scale", "4", "--duration", "60", "--quiet"]
@@ -469,7 +497,7 @@ def test_standalone_emulator_command_end_to_end():
         env = envs.load("lab")
         cells = CellSpace(env)
         route = Navigator(cells, (90, 135)).plan(8, 0)
-        with deadline(60), Create2Robot(url, time_scale=4.0) as bot:
+        with deadline(120), Create2Robot(url, time_scale=4.0) as bot:
             run = execute_plan(route.plan, bot, env, 8, 0, cells, speed=0.5)
         assert run.completed and run.success is None     # hardware: no pose to check
         proc.send_signal(signal.SIGTERM)

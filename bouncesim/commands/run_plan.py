@@ -67,6 +67,10 @@ def register(sub) -> None:
     p.add_argument("--time-scale", type=float, default=1.0, metavar="X",
                    help="emulator only: run the emulated robot X times faster than real "
                    "time (default 1)")
+    p.add_argument("--lockstep", action="store_true",
+                   help="emulator only: run the emulated clock in lockstep with the adapter "
+                   "(it moves only when the adapter reads the sensors): as fast as the host "
+                   "allows, and the same result on a busy machine")
     p.add_argument("--fault", action="append", default=[], metavar="KIND[@S]",
                    help="emulator only: inject a fault S seconds after the first drive "
                    "(wheel-drop, charger, stall-left, stall-right, drop-byte, garbage, "
@@ -96,7 +100,7 @@ def register(sub) -> None:
 def make_robot(kind: str, env, noise, rng, *, gui: bool = False, record=None,
                glance: float | None = None, port: str | None = None, turn: str = "encoders",
                full: bool = False, sensing: str = "stream", time_scale: float = 1.0,
-               faults=(), wheel_base: float | None = None):
+               faults=(), wheel_base: float | None = None, lockstep: bool = False):
     """Build a robot by name (``kinematic``, ``pybullet``, ``create2`` or ``emulator``,
     imported lazily). ``emulator`` starts an OI emulator in this process (on a pty, or on a
     loopback TCP port with ``port="tcp"``) and connects the Create 2 adapter to it through
@@ -126,7 +130,8 @@ def make_robot(kind: str, env, noise, rng, *, gui: bool = False, record=None,
         if transport not in ("pty", "tcp"):
             raise UserError(f"--robot emulator takes --port pty or tcp, got {port!r}.")
         emu = OIEmulator(env, transport=transport, time_scale=time_scale, noise=noise,
-                         rng=rng, faults=[parse_fault(f) for f in faults]).start()
+                         rng=rng, faults=[parse_fault(f) for f in faults],
+                         lockstep=lockstep).start()
         try:
             return Create2Robot(emu.url, mode=mode, turn=turn, sensing=sensing,
                                 time_scale=time_scale, emulator=emu, own_emulator=True,
@@ -171,8 +176,8 @@ def run(args) -> int:
                                                       args.wheel_base is not None):
         raise UserError("--port, --full and --wheel-base are for --robot create2 or "
                         "emulator.")
-    if args.robot != "emulator" and (args.time_scale != 1.0 or args.fault):
-        raise UserError("--time-scale and --fault are for --robot emulator.")
+    if args.robot != "emulator" and (args.time_scale != 1.0 or args.fault or args.lockstep):
+        raise UserError("--time-scale, --lockstep and --fault are for --robot emulator.")
     if args.robot == "create2" and not noise.exact:
         raise UserError("--noise is for simulated robots; a real Create 2 brings its own.")
     if args.robot in ("create2", "emulator") and (args.gui or args.record):
@@ -190,7 +195,7 @@ def run(args) -> int:
     robot = make_robot(args.robot, env, noise, rng, gui=args.gui, record=args.record,
                        glance=args.glance, port=args.port, turn=args.turn, full=args.full,
                        sensing=args.sensing, time_scale=args.time_scale, faults=args.fault,
-                       wheel_base=args.wheel_base)
+                       wheel_base=args.wheel_base, lockstep=args.lockstep)
     with robot:
         result = execute_plan(route.plan, robot, env, start, goal, cells, speed=args.speed,
                               back_off=args.back_off)
