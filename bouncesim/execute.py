@@ -1,4 +1,4 @@
-"""Executors: run a plan or a policy mix on any :class:`bouncesim.robot.Robot` (MODEL §8-9).
+"""Executors: run a plan or a policy mix on any :class:`bouncesim.robot.Robot` (docs/model.md §8-9).
 
 Both executors control the robot through the bump-and-clock interface only (drive, stop,
 bumper, clock, wait, turn and the composite drive_until_bump / drive_for). Simulators are
@@ -8,8 +8,11 @@ visit histogram; it never feeds back into control.
 
 - :func:`execute_plan` runs an observation string: for every segment (n zeros, angle) drive
   until a bump, log a deviation when the travelled distance (speed x elapsed time: the robot
-  only has a clock) differs from n·h by more than one cell, optionally back off, turn CCW by
-  the angle; a trailing run of n zeros drives n·h by the clock and stops.
+  only has a clock) differs from the run's length by more than one cell, optionally back off,
+  turn CCW by the angle; a trailing run of n zeros drives its length by the clock and stops.
+  A run's length is the distance the step model moves in n steps at the current heading
+  (:meth:`planners.cells.CellSpace.run_length`: n·h along an axis, n·√2·h along a diagonal
+  at K = 8), known from the start heading and the angles before it.
 - :func:`execute_mix` time-shares a policy mix: epochs of ``epoch`` steps, each with one
   angle drawn with probabilities α; a step drives h by the clock or until a bump, and on a
   bump turns by the epoch's angle (the robot's own noise model perturbs the turn).
@@ -53,12 +56,12 @@ STEP_TOL = 1e-6
 
 @dataclass(frozen=True)
 class Deviation:
-    """A bump more than one cell length early or late (MODEL §8).
+    """A bump more than one cell length early or late (docs/model.md §8).
 
     Attributes
     ----------
     segment : int        index into ``plan.segments()``
-    expected : float     planned travel n·h [m]
+    expected : float     planned travel: the run's length in the step model [m]
     travelled : float    speed x elapsed time [m]
     kind : str           'early' or 'late'
     t : float            robot clock at the bump [s]
@@ -149,7 +152,7 @@ class MixRun:
 
     @property
     def coverage(self) -> np.ndarray | None:
-        """(P,) fraction of the counted steps per position cell (MODEL §9)."""
+        """(P,) fraction of the counted steps per position cell (docs/model.md §9)."""
         if self.counts is None:
             return None
         s = self.counts.sum()
@@ -237,16 +240,17 @@ def execute_plan(plan, robot: Robot, env: Environment, start, goal=None,
                  cells: CellSpace | None = None, *, speed: float = 0.2,
                  back_off: float = 0.0, max_factor: float = 2.0,
                  max_time: float | None = None) -> PlanRun:
-    """Run an observation string on a robot (MODEL §8).
+    """Run an observation string on a robot (docs/model.md §8).
 
     Parameters
     ----------
     plan : Plan or str
     robot : Robot
     env : Environment
-    start : int, (x, y, heading) or None
-        Start configuration z or pose [m, m, deg]; simulators are placed there (on hardware,
-        or with None, the robot is assumed to be there already).
+    start : int or (x, y, heading)
+        Start configuration z or pose [m, m, deg]; simulators are placed there (on hardware
+        the robot is assumed to be there already). Its heading fixes the heading of every
+        run of zeros, hence how far each run drives.
     goal : int or (x, y, heading), optional
         Goal configuration (or a pose mapped to its cell) for the success check.
     cells : CellSpace, optional
@@ -273,7 +277,11 @@ def execute_plan(plan, robot: Robot, env: Environment, start, goal=None,
     if back_off < 0 or not math.isfinite(back_off):
         raise UserError(f"back-off must be a non-negative distance in metres, got {back_off:g}.")
     h = cells.h
+    if start is None:
+        raise UserError("a plan needs its start configuration or pose: the start heading "
+                        "fixes how far each run of zeros drives.")
     _, start_pose = _resolve_pose(start, cells, "start")
+    k = int(cells.orientation_of(start_pose[2]))        # orientation of the current run
     goal_z, goal_pose = _resolve_pose(goal, cells, "goal")
     if goal is not None and goal_z is None:
         raise UserError(f"goal pose {goal_pose} is not in a free cell.")
@@ -296,8 +304,8 @@ def execute_plan(plan, robot: Robot, env: Environment, start, goal=None,
             if max_time is not None and robot.clock() - t0 > max_time:
                 reason = f"time limit of {max_time:g} s exceeded"
                 break
-            expected = zeros * h
-            if angle is None:                           # trailing zeros: drive n·h and stop
+            expected = cells.run_length(k, zeros)       # the step model's distance [m]
+            if angle is None:                           # trailing zeros: drive it and stop
                 ev = robot.drive_for(speed, expected / speed)
                 travelled = speed * ev.elapsed
                 if ev.bumped and travelled < expected - STEP_TOL:   # not just touching at the end
@@ -329,6 +337,7 @@ def execute_plan(plan, robot: Robot, env: Environment, start, goal=None,
                 _back_off(robot, speed, back_off)
                 trace.add(robot.clock() - t0, robot.true_pose(), "back_off", f"{back_off:g} m")
             robot.turn(angle)
+            k = int(cells.orientation_of(k * cells.delta_deg + angle))
             trace.add(robot.clock() - t0, robot.true_pose(), "turn", f"{angle:g}")
         else:
             completed = True
@@ -377,7 +386,8 @@ def execute_mix(policy_mix, robot: Robot, env: Environment, steps: int, epoch: i
                 cells: CellSpace | None = None, back_off: float = 0.0,
                 max_stuck: int | None = None, max_time: float | None = None,
                 record_trace: bool = True) -> MixRun:
-    """Run a policy mix by time-sharing (MODEL §8) and count visits per step (MODEL §9).
+    """Run a policy mix by time-sharing (docs/model.md §8) and count visits per step
+    (docs/model.md §9).
 
     Parameters
     ----------
@@ -393,7 +403,7 @@ def execute_mix(policy_mix, robot: Robot, env: Environment, steps: int, epoch: i
         Draws the epoch angles (and the start when ``start`` is None).
     speed : float          drive speed [m/s]
     start : int or (x, y, heading), optional
-        Start configuration or pose; default uniform over the N configurations (MODEL §9).
+        Start configuration or pose; default uniform over the N configurations (docs/model.md §9).
     back_off : float       distance [m] to back off after a bump before turning
     max_stuck : int, optional
         Stop ("stuck") after this many bumps in a row without moving. Default None: no such

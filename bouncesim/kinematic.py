@@ -1,4 +1,4 @@
-"""The kinematic twin: exact continuous geometry, simulated time (MODEL §8-9).
+"""The kinematic twin: exact continuous geometry, simulated time (docs/model.md §8-9).
 
 The robot is a disk of radius r whose centre moves inside the C-space (E eroded by r). A
 straight drive is a ray cast against the walls *grown into capsules*: the disk centred at c
@@ -13,8 +13,8 @@ Two bodies use it:
 - :class:`KinematicRobot`, a :class:`bouncesim.robot.Robot` for the executors: ``wait(dt)``
   advances the pose under the current wheel command, ``drive_until_bump`` jumps straight to
   the contact (or the timeout), ``turn`` is exact plus a seeded noise sample.
-- :class:`KinematicBatch`, thousands of independent robots stepped at once under the MODEL §9
-  step semantics, for Monte-Carlo coverage.
+- :class:`KinematicBatch`, thousands of independent robots stepped at once under the
+  docs/model.md §9 step semantics, for Monte-Carlo coverage.
 
 Contact conventions (shared by both)
 ------------------------------------
@@ -96,7 +96,7 @@ class KinematicRobot(Robot):
         turn by exactly the commanded arc) and take the same time.
     glance_deg : float, optional
         Opt-in glancing-contact model. Default None: every contact on the front half stops
-        the robot and closes the bumper (the MODEL §8 twin). With a value in (0°, 90°), a
+        the robot and closes the bumper (the docs/model.md §8 twin). With a value in (0°, 90°), a
         contact whose bearing from the heading exceeds it (a wall met at less than
         90° − glance_deg) does not press the bumper: the body slides along the wall (heading
         kept, speed v·sin β along the wall; around a corner it wraps on the corner's circle
@@ -377,7 +377,7 @@ class KinematicRobot(Robot):
 # ============================================================================ many robots
 @dataclass(frozen=True)
 class BatchCoverage:
-    """Step-sampled visit histogram of a batch run (MODEL §9).
+    """Step-sampled visit histogram of a batch run (docs/model.md §9).
 
     Attributes
     ----------
@@ -413,7 +413,7 @@ class BatchCoverage:
 
 
 class KinematicBatch:
-    """Many independent kinematic robots stepped together (MODEL §9 step semantics).
+    """Many independent kinematic robots stepped together (docs/model.md §9 step semantics).
 
     A step: if the wall ahead is at least h away, move h forward (counted in the cell where
     the step starts); otherwise move to contact, then rotate in place by the current bouncing
@@ -441,7 +441,7 @@ class KinematicBatch:
     Notes
     -----
     Starts are uniform over the N free configurations: the centre of position cell p facing
-    θ_k, (p, k) drawn uniformly (as MODEL §7 starts the chain).
+    θ_k, (p, k) drawn uniformly (as docs/model.md §7 starts the chain).
 
     Examples
     --------
@@ -530,7 +530,7 @@ class KinematicBatch:
         Parameters
         ----------
         policy : float or PolicyMix
-            One bouncing angle [deg], or a mix time-shared in epochs (MODEL §8): every robot
+            One bouncing angle [deg], or a mix time-shared in epochs (docs/model.md §8): every robot
             draws, independently, one angle with probabilities α per epoch.
         steps : int          counted steps per robot
         epoch : int          steps per epoch (required for a mix of two or more angles)
@@ -546,7 +546,7 @@ class KinematicBatch:
         else:
             angles, alpha = np.array([float(policy)]), np.ones(1)
         for a in angles:
-            self.cells.angle_steps(a)                  # a multiple of 360°/K (MODEL §5)
+            self.cells.angle_steps(a)                  # a multiple of 360°/K (docs/model.md §5)
         noise = noise if noise is not None else NoNoise()
         mixed = np.count_nonzero(alpha > 0) > 1
         if mixed and (epoch is None or int(epoch) < 1):

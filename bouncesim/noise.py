@@ -1,4 +1,4 @@
-"""Seeded rotation-noise models for simulated turns (MODEL §7-8).
+"""Seeded rotation-noise models for simulated turns (docs/model.md §7-8).
 
 A noise model maps a commanded in-place turn [deg] to the turn the body actually makes.
 Every model is a frozen dataclass with
@@ -13,8 +13,8 @@ seed gives the same turns.
 Models
 ------
 - :class:`NoNoise`: exact turns.
-- :class:`SteppedNoise`: the MODEL §7 model. Exact with probability ``r``; otherwise the turn
-  is off by a uniform non-zero multiple of Δ in [−ε, ε].
+- :class:`SteppedNoise`: the docs/model.md §7 model. Exact with probability ``r``; otherwise
+  the turn is off by a uniform non-zero multiple of Δ in [−ε, ε].
 - :class:`GaussianNoise`: commanded + N(0, σ²).
 
 Examples
@@ -91,7 +91,7 @@ class NoNoise(NoiseModel):
 
 @dataclass(frozen=True)
 class SteppedNoise(NoiseModel):
-    """The MODEL §7 rotation model.
+    """The docs/model.md §7 rotation model.
 
     With probability ``r`` the turn is exact; otherwise it is off by δ drawn uniformly from
     {−ε, …, −Δ, Δ, …, ε} (non-zero multiples of Δ), i.e. each such δ has probability

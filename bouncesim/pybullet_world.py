@@ -11,7 +11,7 @@ client), so several robots/worlds coexist in one process. PyBullet in ``DIRECT``
 deterministic; the only randomness is the rotation noise, drawn from the robot's seeded
 ``rng``: the same seed gives the same trajectory.
 
-Geometry (world frame of MODEL §1: x east, y north, headings CCW from east):
+Geometry (world frame of docs/model.md §1: x east, y north, headings CCW from east):
 
 - the outer boundary becomes one thin convex slab per boundary edge, lying outside the free
   space (:func:`wall_pieces`), extended past convex corners and mitred at reflex ones;

@@ -1,4 +1,4 @@
-"""Environments: polygons, validation, free space and segment checks (MODEL §1-3).
+"""Environments: polygons, validation, free space and segment checks (docs/model.md §1-3).
 
 An :class:`Environment` holds the outer wall polygon W, the obstacle polygons, the robot
 radius [m] and the discretisation (cell size [m], number of orientations K). It answers the
@@ -98,7 +98,7 @@ class Environment:
     @classmethod
     def from_dict(cls, data: dict, *, name: str | None = None,
                   source: str | None = None) -> Environment:
-        """Validate a parsed env file (MODEL §2) and build the environment."""
+        """Validate a parsed env file (docs/model.md §2) and build the environment."""
         if not isinstance(data, dict):
             raise InvalidEnvironment("an environment file must hold a JSON/YAML object.")
         unknown = sorted(set(data) - _TOP_KEYS)
@@ -210,7 +210,7 @@ class Environment:
     # ------------------------------------------------------------------ geometry
     @property
     def tol(self) -> float:
-        """Distance tolerance [m]: 1e-9 * max(cell_size, 1) (MODEL §3)."""
+        """Distance tolerance [m]: 1e-9 * max(cell_size, 1) (docs/model.md §3)."""
         return 1e-9 * max(self.cell_size, 1.0)
 
     @cached_property
@@ -266,7 +266,7 @@ class Environment:
         return nrows, ncols
 
     def points_free(self, points) -> np.ndarray:
-        """Whether the robot disk centred at each point lies inside E (MODEL §3).
+        """Whether the robot disk centred at each point lies inside E (docs/model.md §3).
 
         Parameters
         ----------
@@ -289,7 +289,7 @@ class Environment:
         """Whether the disk can slide along each segment [start, end] without a wall.
 
         The segment is free when it stays at distance >= radius - tol from every wall and its
-        end point is covered by E (MODEL §5).
+        end point is covered by E (docs/model.md §5).
         """
         a = np.asarray(starts, dtype=float).reshape(-1, 2)
         b = np.asarray(ends, dtype=float).reshape(-1, 2)

@@ -4,7 +4,7 @@ Table I's setting (the complex environment, Φ = {30°, 75°, 315°}, ε = 5°, 
 orientations, uniform target over the position cells): each coverage model (``--models``,
 default step, sampled and event) predicts the coverage q of every angle and designs its mix
 α = argmin ‖Aα − b‖ over the simplex. Each α is then *executed* — time-shared in epochs
-(MODEL §8) in the kinematic twin (long runs) and in PyBullet (shorter runs) — and the
+(docs/model.md §8) in the kinematic twin (long runs) and in PyBullet (shorter runs) — and the
 simulated coverage is compared with the target:
 
 - ``promised``: TV(Σ α_i q_i, b), what the model says its α achieves;

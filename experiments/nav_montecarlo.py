@@ -7,7 +7,7 @@ For a seeded sample of reachable (start, goal) pairs of `lab` and `complex` (sho
 from the all-pairs table at the catalogue discretisation, Φ = {45°, 90°, 135°}, w1 = 1,
 w2 = 100, as in ``experiments.allpairs_fig7``), the planned observation strings are executed
 by :func:`bouncesim.execute.execute_plan` in the kinematic twin (every pair) and in PyBullet (a
-subset of the pairs), under Gaussian rotation noise σ and the MODEL §7 model (ε = Δ, several
+subset of the pairs), under Gaussian rotation noise σ and the docs/model.md §7 model (ε = Δ, several
 r). Every execution is one trial of :mod:`bouncesim.sweep` (seeded, resumable, any executor).
 
 Outputs in ``--out``: ``runs.csv`` (one row per trial), ``runs.jsonl`` (the resume journal),
@@ -223,7 +223,7 @@ def draw(runs_csv: Path, path: Path) -> None:
     colours = {("lab", "kinematic"): "C0", ("lab", "pybullet"): "C9",
                ("complex", "kinematic"): "C3", ("complex", "pybullet"): "C1"}
     for ax, kind, xlabel in ((axes[0], "gauss", "Gaussian rotation noise σ [deg]"),
-                             (axes[1], "model", "MODEL §7 noise: 1 − r (ε = Δ = 45°)")):
+                             (axes[1], "model", "docs/model.md §7 noise: 1 − r (ε = Δ = 45°)")):
         groups = list(s.groupby(["env", "backend"], sort=False))
         levels = s.loc[s["noise_kind"] == kind, "noise_level"]
         span = float(levels.max()) if len(levels) and levels.max() > 0 else 1.0
@@ -366,7 +366,7 @@ def main(argv=None) -> int:
                   "(start != goal), numpy default_rng(SeedSequence([seed, 1])), per "
                   "environment in order; PyBullet runs the first physics_pairs of them",
                   "success": "final position in the goal cell and heading within ±Δ/2 "
-                  "(MODEL §8)",
+                  "(docs/model.md §8)",
                   "confidence_intervals": "95 % Wilson score (scipy.stats.binomtest)",
                   "length_bins": [str(b) for b in LENGTH_BINS]}
         sweep = Sweep(nav_trial, trials, args.seed, out, config, name="runs")

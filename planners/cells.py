@@ -1,4 +1,5 @@
-"""The discrete cell model: free cells, configuration indices and the step table (MODEL §3-5).
+"""The discrete cell model: free cells, configuration indices and the step table
+(docs/model.md §3-5).
 
 Position index p numbers the free cells row-major from the bottom; configuration index
 z = k * P + p with orientation k = 0..K-1 at heading 360° k / K. The step table says, for every
@@ -207,6 +208,34 @@ class CellSpace:
         out = np.full(self.N, -1, dtype=np.int64)
         out[ok] = k_of_z[ok] * P + dest[ok]
         return out
+
+    @cached_property
+    def step_offsets(self) -> np.ndarray:
+        """(K, 2) int: the grid offset (di, dj) of a forward move at each orientation (§5).
+
+        A forward move from the centre of cell (i, j) lands in the cell containing
+        c + (1 + 1e-6)·h·u_k, which is cell (i + di, j + dj) with
+        di = floor(½ + (1 + 1e-6)·cos θ_k) and dj = floor(½ + (1 + 1e-6)·sin θ_k), the same
+        for every cell (the grid is translation invariant). K = 8: (1, 0), (1, 1), (0, 1), …
+        """
+        u = np.column_stack([np.cos(self.headings), np.sin(self.headings)])
+        u[np.abs(u) < 1e-12] = 0.0
+        return np.floor(0.5 + (1 + 1e-6) * u).astype(np.int64)
+
+    def run_length(self, k: int, n: int) -> float:
+        """[m] distance between the centres of the cells where n forward moves at orientation
+        k start and end: n·h·|(di, dj)| (§8: how far a run of n zeros drives).
+
+        >>> from envs import Environment
+        >>> env = Environment.from_dict({"boundary": [[0, 0], [1.02, 0], [1.02, 1.02],
+        ...     [0, 1.02]], "robot_radius": 0.17,
+        ...     "discretization": {"cell_size": 0.34, "orientations": 8}})
+        >>> cs = CellSpace(env)
+        >>> round(cs.run_length(0, 2), 6), round(cs.run_length(1, 2), 6)   # east, north-east
+        (0.68, 0.961665)
+        """
+        di, dj = self.step_offsets[int(k) % self.K]
+        return float(n) * self.h * math.hypot(int(di), int(dj))
 
     @property
     def bumps(self) -> np.ndarray:

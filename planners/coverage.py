@@ -1,4 +1,4 @@
-"""Coverage by bouncing policies: the paper's Algorithm 3 (MODEL §7).
+"""Coverage by bouncing policies: the paper's Algorithm 3 (docs/model.md §7).
 
 For one bouncing angle φ, error range ε and reliability r the robot's motion over the N
 configuration cells is a Markov chain: a forward cell moves to its step-table successor with
@@ -77,7 +77,7 @@ def check_reliability(r: float) -> float:
 
 def bump_turns(K: int, angle_deg: float, eps_deg: float = 0.0, r: float = 1.0
                ) -> tuple[np.ndarray, np.ndarray]:
-    """Orientation offsets and probabilities of one bump (MODEL §7).
+    """Orientation offsets and probabilities of one bump (docs/model.md §7).
 
     Parameters
     ----------

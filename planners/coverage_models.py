@@ -1,13 +1,13 @@
 """One entry point for the coverage models: the paper's step model and two continuous ones.
 
 - ``"step"``: the paper's Algorithm 3 on the configuration-cell chain
-  (:func:`planners.coverage.analyse_angle`, MODEL §5 and §7), bit-identical here.
+  (:func:`planners.coverage.analyse_angle`, docs/model.md §5 and §7), bit-identical here.
 - ``"sampled"``: Hsu's generalized cell mapping (:mod:`planners.sampled_model`): each
   configuration cell's transition probabilities from a lattice of exact continuous steps.
 - ``"event"``: the bump-to-bump model (:mod:`planners.event_model`): exact flights between
   binned contact points, occupancy by renewal–reward. Recommended (``docs/model_continuous.md``).
 
-All three predict the step-sampled coverage of MODEL §9 (what
+All three predict the step-sampled coverage of docs/model.md §9 (what
 :class:`bouncesim.kinematic.KinematicBatch` measures), one probability per position cell.
 
 >>> import envs
@@ -178,9 +178,9 @@ def predict_coverage(cs: CellSpace, angle_deg: float, eps_deg: float = 0.0, r: f
 
 def timeshared_coverage(cs: CellSpace, angles, alpha, eps_deg: float = 0.0, r: float = 1.0,
                         epoch: int = 1000, model: str = "step", settings=None, **kw):
-    """Predicted coverage of a policy mix executed in epochs of ``epoch`` steps (MODEL §8).
+    """Predicted coverage of a policy mix executed in epochs of ``epoch`` steps (docs/model.md §8).
 
-    MODEL §7's Σ α_i q_i assumes every epoch reaches its angle's limiting distribution; this
+    docs/model.md §7's Σ α_i q_i assumes every epoch reaches its angle's limiting distribution; this
     follows the model's own chain through the epochs instead (:mod:`planners.timeshare`).
 
     Parameters
@@ -188,7 +188,7 @@ def timeshared_coverage(cs: CellSpace, angles, alpha, eps_deg: float = 0.0, r: f
     cs : CellSpace
     angles : sequence of float     bouncing angles [deg]
     alpha : sequence of float      their weights (normalised)
-    eps_deg, r : float             rotation noise (MODEL §7)
+    eps_deg, r : float             rotation noise (docs/model.md §7)
     epoch : int                    steps per epoch
     model : {"step", "sampled", "event"}
     settings : the model's settings, optional

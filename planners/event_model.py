@@ -9,7 +9,8 @@ kinematic twin). Only the contact *point* is binned (by arc length along the C-s
 boundary); the heading stays exact on the Δ = 360°/K grid (starts are cell-centre headings
 θ_k and every turn φ + δ is a multiple of Δ).
 
-The definition, its approximations and measured accuracy are in ``docs/model_continuous.md``.
+The definition and its approximations are docs/model.md §10; its measured accuracy is in
+``docs/model_continuous.md``.
 
 - :class:`EventSettings`: bin length and sample points per bin.
 - :class:`Boundary`: the rings of the C-space boundary cut into bins, with a vectorised
@@ -248,7 +249,7 @@ def flight_steps(dist, h: float) -> np.ndarray:
     """Forward steps of a flight of free length ``dist`` [m] under the twin's step rule.
 
     A step is a forward step while at least h − STEP_TOL of free distance remains
-    (MODEL §9, :class:`bouncesim.kinematic.KinematicBatch`), so a flight of D gives
+    (docs/model.md §9, :class:`bouncesim.kinematic.KinematicBatch`), so a flight of D gives
     floor((D + STEP_TOL)/h) forward steps and then one bump step at the contact.
 
     >>> flight_steps([0.0, 0.34, 0.3399995, 0.68 - 2e-6, 1.0], 0.34).tolist()
@@ -390,7 +391,7 @@ class EventModel:
 
     def turn_matrix(self, angle_deg: float, eps_deg: float = 0.0, r: float = 1.0
                     ) -> sp.csr_matrix:
-        """Pre-turn (b, k) → post-turn (b, k + (φ+δ)/Δ) with the MODEL §7 probabilities."""
+        """Pre-turn (b, k) → post-turn (b, k + (φ+δ)/Δ) with the docs/model.md §7 probabilities."""
         from .coverage import bump_turns
         K = self.cs.K
         steps, probs = bump_turns(K, angle_deg, eps_deg, r)

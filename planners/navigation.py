@@ -1,4 +1,4 @@
-"""Shortest bouncing plans: single queries and all pairs (MODEL §6; the paper's Alg. 1-2).
+"""Shortest bouncing plans: single queries and all pairs (docs/model.md §6; the paper's Alg. 1-2).
 
 Examples
 --------

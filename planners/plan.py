@@ -1,7 +1,7 @@
 """Plans (observation strings) and policy mixes: what the planners hand to a robot.
 
 A :class:`Plan` is a sequence of labels: 0 for a forward step of one cell, or a bouncing
-angle [deg] for a bump followed by an in-place CCW turn by that angle (MODEL §6). It prints
+angle [deg] for a bump followed by an in-place CCW turn by that angle (docs/model.md §6). It prints
 in the paper's form and parses from both that form and the plain one.
 
 Examples
@@ -124,7 +124,7 @@ class Plan:
 
     @property
     def angles_used(self) -> int:
-        """Number of distinct bouncing angles in the plan (MODEL §6)."""
+        """Number of distinct bouncing angles in the plan (docs/model.md §6)."""
         return len(self.angles)
 
     def segments(self) -> list[tuple[int, int | float | None]]:
@@ -157,7 +157,7 @@ class PolicyMix:
     ----------
     angles : tuple of float   bouncing angles [deg]
     alpha : tuple of float    probabilities (non-negative, sum 1)
-    eps : float               error range ε [deg] (MODEL §7)
+    eps : float               error range ε [deg] (docs/model.md §7)
     r : float                 reliability in [0, 1]
     """
 

@@ -1,7 +1,7 @@
-"""Time-shared policy mixes: the coverage a mix delivers when it runs in epochs (MODEL §8).
+"""Time-shared policy mixes: the coverage a mix delivers when it runs in epochs (docs/model.md §8).
 
-MODEL §7 predicts a mix's coverage as Σ α_i q_i, which holds when every epoch is long enough
-for its angle's chain to reach its limiting distribution. MODEL §8 runs a mix in epochs of E
+docs/model.md §7 predicts a mix's coverage as Σ α_i q_i, which holds when every epoch is long enough
+for its angle's chain to reach its limiting distribution. docs/model.md §8 runs a mix in epochs of E
 steps, each with one angle drawn with probabilities α, and the robot carries its state from one
 epoch into the next. When an angle's chain mixes slowly (in ``fig1`` at 315° the robot leaks
 into a pocket at about 1e-4 per step, so a 1000-step epoch rarely gets there) the executed mix
@@ -29,7 +29,7 @@ when it leaves; over a long run the attribution does not matter). The state at a
 boundary is the last D = max d departures. The angle is drawn independently of the state, so
 the boundary state of the next epoch is the α-mixture of the angles' epoch end states. The
 recursion iterates that epoch map (damped by β = 0.05 like the event model's power iteration)
-from the model's start (the uniform start, MODEL §9) until q settles (estimated TV error
+from the model's start (the uniform start, docs/model.md §9) until q settles (estimated TV error
 below 1e-4); then q = Σ_i α_i (Σ_t v_t^{(i)})ᵀ R normalised over the P cells.
 
 This is exact for the model's own dynamics: with one angle it converges to that angle's q; with

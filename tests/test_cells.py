@@ -1,4 +1,5 @@
-"""The cell model and step table (MODEL §3-5) against hand computation and a per-cell loop."""
+"""The cell model and step table (docs/model.md §3-5) against hand computation and a per-cell
+loop."""
 
 from __future__ import annotations
 
@@ -15,7 +16,7 @@ from .conftest import random_room, room
 
 
 def reference_forward(cs: CellSpace) -> np.ndarray:
-    """MODEL §5 written out cell by cell with plain shapely objects."""
+    """docs/model.md §5 written out cell by cell with plain shapely objects."""
     env = cs.env
     E, walls, r, tol, h = env.free_space, env.free_space.boundary, env.robot_radius, env.tol, \
         env.cell_size

@@ -1,4 +1,4 @@
-"""Executors (MODEL §8-9) on the kinematic twin, interface-only robots and the CLI."""
+"""Executors (docs/model.md §8-9) on the kinematic twin, interface-only robots and the CLI."""
 
 from __future__ import annotations
 
@@ -14,6 +14,7 @@ from bouncesim.kinematic import KinematicBatch, KinematicRobot
 from bouncesim.noise import GaussianNoise, SteppedNoise
 from bouncesim.robot import CREATE2, BumpEvent, Robot, RobotError
 from bouncesim.trace import Trace
+from envs import UserError
 from planners.cells import CellSpace
 from planners.navigation import Navigator
 from planners.plan import Plan, PolicyMix
@@ -101,6 +102,35 @@ def test_trailing_zeros_drive_by_clock_and_stop(lab, lab_cells):
     assert run.elapsed == pytest.approx(3 * 0.34 / 0.2)
 
 
+def test_trailing_diagonal_zeros_drive_the_step_models_distance(lab, lab_cells):
+    # 24 = (p 24, east); one step east, bump, 135° to north-west, two diagonal steps: each
+    # moves to the diagonal neighbour's centre, so the run drives 2·√2·h and ends on 183
+    run = execute_plan("0 135° 00", KinematicRobot(lab), lab, 24, 183, lab_cells)
+    assert run.success and run.deviations == ()
+    assert run.position_error == pytest.approx(0.0, abs=1e-6)
+    assert run.final_pose[:2] == pytest.approx(lab_cells.pose(183)[:2], abs=1e-6)
+    # a start pose fixes the heading of every run as well
+    run = execute_plan("0 135° 00", KinematicRobot(lab), lab, lab_cells.pose(24), 183,
+                       lab_cells)
+    assert run.success
+    with pytest.raises(UserError, match="start"):
+        execute_plan("0 135° 00", KinematicRobot(lab), lab, None, 183, lab_cells)
+
+
+@pytest.mark.parametrize("name,K", [("lab", 8), ("fig1", 8), ("complex", 16),
+                                    ("complex", 360)])
+def test_step_offsets_agree_with_the_step_table(name, K):
+    # run_length rests on one grid offset per orientation: every forward move of the step
+    # table must move by exactly that offset, and n moves by n·h·|offset| between centres
+    cs = CellSpace(envs.load(name, orientations=K))
+    z = np.flatnonzero(cs.forward >= 0)
+    p, k = cs.pk(z)
+    p2, _ = cs.pk(cs.forward[z])
+    assert np.array_equal(cs.cells_ij[p2] - cs.cells_ij[p], cs.step_offsets[k])
+    dist = np.hypot(*(cs.centres[p2] - cs.centres[p]).T)
+    assert np.allclose(dist, [cs.run_length(kk, 1) for kk in k], atol=1e-12)
+
+
 def test_deviation_is_logged_and_run_goes_on(lab, lab_cells):
     # from (0, 0) facing east the wall is 8 cells away: a plan expecting 3 is 5 cells late
     run = execute_plan("000 90°", KinematicRobot(lab), lab, 0, None, lab_cells)
@@ -168,7 +198,6 @@ def test_robot_error_ends_the_run(lab):
 
 
 def test_bad_inputs_are_user_errors(lab):
-    from envs import UserError
     with pytest.raises(UserError):
         execute_plan("90°", KinematicRobot(lab), lab, 8, 0, speed=0.0)
     with pytest.raises(UserError):

@@ -103,17 +103,16 @@ def test_zero_noise_twin_succeeds_on_axis_aligned_plans_in_lab():
     assert checked == 12
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "known model mismatch: execute_plan drives a trailing run of n zeros as n·h by the "
-    "clock, but along a diagonal heading a discrete step moves to the diagonal neighbour's "
-    "centre, √2·h away; this plan ends 2h(√2−1) = 0.282 m short of the goal"))
 def test_zero_noise_twin_succeeds_on_a_plan_ending_along_a_diagonal():
+    # a discrete step along a diagonal moves to the diagonal neighbour's centre, √2·h away,
+    # so the trailing "00" must drive 2·√2·h (it drove 2·h once and stopped 0.282 m short)
     cells, ap = _lab_routes()
     route = ap.route(24, 183)
     assert str(route.plan) == "0 135° 00"                  # east 1 cell, bump, 2 steps NW
     res = nm.nav_trial({"env": "lab", "start": 24, "goal": 183, "plan": str(route.plan),
                         "backend": "kinematic", "noise": "gauss:0"}, np.random.default_rng(0))
     assert res["success"], res["reason"]
+    assert res["position_error_m"] < 1e-6 and res["deviations"] == 0
 
 
 def test_wilson_interval_hand_computed():

@@ -1,4 +1,4 @@
-"""Rotation-noise models: distributions, determinism and the CLI parser (MODEL §7-8).
+"""Rotation-noise models: distributions, determinism and the CLI parser (docs/model.md §7-8).
 
 Statistical bounds: with n draws a frequency p̂ of an event of probability p is checked to
 lie within 5 standard errors sqrt(p (1 - p) / n) (two-sided tail below 1e-6 per check; the

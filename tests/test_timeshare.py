@@ -1,8 +1,8 @@
-"""planners.timeshare: the coverage of a policy mix executed in epochs (MODEL §8).
+"""planners.timeshare: the coverage of a policy mix executed in epochs (docs/model.md §8).
 
 Independent evidence: dense brute force (matrix powers of the epoch map, and of an explicit
 step-level expansion of a delay chain) on random small chains, the one-angle and long-epoch
-limits against the models' own q, and the kinematic twin on fig1, where MODEL §7's Σ α_i q_i
+limits against the models' own q, and the kinematic twin on fig1, where docs/model.md §7's Σ α_i q_i
 is far off.
 """
 
@@ -138,7 +138,7 @@ def test_one_angle_is_that_angles_limit(model):
 
 @pytest.mark.parametrize("model", ["step", "event"])
 def test_long_epochs_tend_to_the_sum_rule(model):
-    """E ≫ mixing time: MODEL §7's Σ α_i q_i; E = 1 differs from it."""
+    """E ≫ mixing time: docs/model.md §7's Σ α_i q_i; E = 1 differs from it."""
     cs = CellSpace(envs.load("lab", orientations=24))
     res = coverage_pipeline(cs, (30, 75, 315), 15, 0.8, model=model)
     alpha = [0.3, 0.3, 0.4]

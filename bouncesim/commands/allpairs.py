@@ -18,9 +18,9 @@ __all__ = ["histogram_frame", "register", "run"]
 def register(sub) -> None:
     p = sub.add_parser(
         "allpairs", help="shortest plans for every ordered pair and the angle-use histogram",
-        description="Run Algorithm 2 (MODEL §6): the weight matrix L (-1 where unreachable) "
-        "and the number of distinct angles each shortest plan uses. Writes weights.npy, "
-        "angles_used.csv, summary.json and angles_used.png to --out.")
+        description="Run Algorithm 2 (docs/model.md §6): the weight matrix L (-1 where "
+        "unreachable) and the number of distinct angles each shortest plan uses. Writes "
+        "weights.npy, angles_used.csv, summary.json and angles_used.png to --out.")
     add_env_args(p)
     add_planner_args(p)
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder")

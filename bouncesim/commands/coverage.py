@@ -1,6 +1,6 @@
 """``bouncesim coverage ENV``: persistent groups, limiting distributions and the best policy mix.
 
-The paper's Algorithm 3 (MODEL §7): for every bouncing angle, the Markov chain of the
+The paper's Algorithm 3 (docs/model.md §7): for every bouncing angle, the Markov chain of the
 noisy bouncing robot, its persistent groups, its limiting distribution π and coverage q;
 then the mix α over the angles whose mixed coverage best matches a target.
 """
@@ -39,7 +39,7 @@ heatmap_mix_vs_target.png. With --target-space configurations also
 coverage_configurations.csv (angle,z,p,k,pi).
 
 A x alpha assumes every epoch of the executed mix reaches its angle's limiting distribution.
-With --epoch STEPS the mix is also predicted as MODEL section 8 runs it (epochs of STEPS
+With --epoch STEPS the mix is also predicted as docs/model.md section 8 runs it (epochs of STEPS
 steps, each with one angle drawn with probabilities alpha; the robot carries its state from
 epoch to epoch): alpha.json gains "timeshared" (its TV to the target and to A alpha),
 coverage.csv the series "mix_epochs" and the plots heatmap_mix_epochs_vs_target.png. Where
@@ -90,8 +90,8 @@ def register(sub) -> None:
                    "(m x m points per cell, default 3), theta_samples (default 2)")
     p.add_argument("--epoch", type=int, default=None, metavar="STEPS",
                    help="also predict the mix as it is executed: epochs of STEPS steps, each "
-                   "with one angle drawn with probabilities alpha (MODEL section 8); positions "
-                   "only")
+                   "with one angle drawn with probabilities alpha (docs/model.md section 8); "
+                   "positions only")
     p.add_argument("--out", type=Path, default=None, metavar="DIR",
                    help="output folder (CSV, JSON, PNG); without it only the table is printed")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG heatmaps")

@@ -67,7 +67,7 @@ def register(sub) -> None:
     p = sub.add_parser(
         "plan", help="shortest bouncing plan from a start to a goal configuration",
         description="Find the minimum-weight observation string from START to GOAL on the "
-        "layered roadmap (MODEL §6). START and GOAL are configuration indices z = k*P + p "
+        "layered roadmap (docs/model.md §6). START and GOAL are configuration indices z = k*P + p "
         "(0-based; the paper's id is z + 1) or poses X,Y,DEG [m, m, deg] mapped to their "
         "cell. Exit status 3 when a single query has no path.",
         epilog="examples:\n  bouncesim plan lab --angles 90,135 --start 8 --goal 0\n"
