@@ -4,7 +4,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: run test test-quick lint bench clean
+.PHONY: run test test-quick test-under-load lint bench clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -21,6 +21,9 @@ test: $(STAMP)
 test-quick: $(STAMP)
 	$(PY) -m pytest -q -m "not slow and not physics"
 
+test-under-load: $(STAMP)
+	bash tests/under_load.sh
+
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .
 
@@ -30,6 +33,7 @@ bench: $(STAMP)
 	$(PY) -m benchmarks.bench_twin
 	$(PY) -m benchmarks.bench_pybullet
 	$(PY) -m benchmarks.bench_models
+	$(PY) -m benchmarks.bench_turn_load
 
 clean:
 	rm -rf $(VENV) build *.egg-info

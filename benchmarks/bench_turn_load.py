@@ -135,8 +135,8 @@ def main(argv=None) -> None:
     rows = []
     print(f"{turns} turns of ±90° and {drives} drives of 0.2 m (0.2 m/s for 1 s) per cell; "
           "real time, emulator in its own process")
-    print(f"| hogs | jitter | control | turn error mean / max [deg] | turn time [s] | "
-          f"drive error mean / max [mm] |")
+    print("| hogs | jitter | control | turn error mean / max [deg] | turn time [s] | "
+          "drive error mean / max [mm] |")
     print("|---|---|---|---|---|---|")
     try:
         for hogs, jitter in conditions:

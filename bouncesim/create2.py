@@ -730,7 +730,7 @@ class Create2Robot(Robot):
         """Encoder turn that tolerates a slow host (docs/readme_hardware.md, "Turns on a busy
         host"): legs that slow down near the target and stop where the angle will be when the
         stop lands; then the settled miss is measured and corrected at creep speed."""
-        b, mpc, period = self.spec.wheel_base, self.spec.metres_per_count, self.spec.sensor_period
+        b, mpc = self.spec.wheel_base, self.spec.metres_per_count
         sense = 1.0 if angle > 0 else -1.0
         target = math.radians(abs(angle))
         start = self._fresh(1)
@@ -745,19 +745,19 @@ class Create2Robot(Robot):
             e = miss(st)
             if abs(e) <= math.radians(self.turn_tolerance):
                 return
-            self._turn_leg(sense if e > 0 else -sense, lambda s, d=math.copysign(1.0, e):
-                           d * miss(s), st)
+            way = math.copysign(1.0, e)             # +1: on towards the target, -1: back
+            self._turn_leg(sense * way, miss, way, st)
             st = self._settled()
 
-    def _turn_leg(self, sense: float, remaining, st: SensorState) -> None:
-        """Spin in ``sense`` (+1 CCW) until ``remaining(reading)`` [rad] is used up: full turn
+    def _turn_leg(self, sense: float, miss, way: float, st: SensorState) -> None:
+        """Spin in ``sense`` (+1 CCW) until ``way * miss(reading)`` [rad] is used up: full turn
         speed far from the end, slowing linearly to creep speed within the slow zone, and a
         stop issued early by the rotation expected while it travels (the reading's age plus
         half a sensor period)."""
         b, period = self.spec.wheel_base, self.spec.sensor_period
         v_max, v_min = self.turn_speed, min(self.turn_speed, _CREEP_SPEED)
         zone = math.radians(_SLOW_ZONE_DEG)
-        budget = self.spec.turn_time(math.degrees(remaining(st)), v_max) * 2 + \
+        budget = self.spec.turn_time(math.degrees(way * miss(st)), v_max) * 2 + \
             2 * zone / (2 * v_min / b) + 1.0
         limit = self.clock() + budget
         v_cmd = 0.0
@@ -765,7 +765,7 @@ class Create2Robot(Robot):
             while True:
                 omega = 2 * v_cmd / b
                 lead = omega * (max(self.clock() - st.t, 0.0) + period / 2)
-                left = remaining(st) - lead
+                left = way * miss(st) - lead
                 if left <= omega * period / 2:      # the next reading would come too late
                     return
                 v = v_min + (v_max - v_min) * min(1.0, max(left, 0.0) / zone)
