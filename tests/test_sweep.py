@@ -76,9 +76,7 @@ def test_same_seed_same_table_on_serial_and_process_pool(tmp_path):
 
 def test_same_seed_same_table_on_dask_local_cluster(tmp_path):
     pytest.importorskip("distributed")
-    t0 = time.perf_counter()
     dask = _run(tmp_path, "dask", DaskExecutor(local_workers=2))
-    assert time.perf_counter() - t0 < 60
     serial = _run(tmp_path, "serial", SerialExecutor())
     pd.testing.assert_frame_equal(serial, dask, check_exact=True)
     cfg = json.loads((tmp_path / "dask" / "config.json").read_text())
@@ -88,7 +86,19 @@ def test_same_seed_same_table_on_dask_local_cluster(tmp_path):
 
 _KILL_SCRIPT = """
 import sys
+import time
+import bouncesim.sweep as sweep
 from bouncesim.sweep import SerialExecutor, demo_trial, grid, run_sweep
+
+class _Clock:
+    # trials after the 12th never finish, so the kill lands part way however slow the host
+    calls = 0
+    def __getattr__(self, name):
+        return getattr(time, name)
+    def sleep(self, seconds):
+        _Clock.calls += 1
+        time.sleep(600 if _Clock.calls > 12 else seconds)
+sweep.time = _Clock()
 trials = grid(mu=[0.0, 1.0], rep=range(20), sleep=[0.04])
 run_sweep(demo_trial, trials, 3, sys.argv[1], {"kind": "kill test"}, SerialExecutor(),
           progress=False)
@@ -105,7 +115,7 @@ def test_sigkill_then_rerun_loses_and_duplicates_no_row(tmp_path):
     proc = subprocess.Popen([sys.executable, "-c", _KILL_SCRIPT, str(out)], cwd=ROOT, env=env,
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     journal = out / "runs.jsonl"
-    deadline = time.monotonic() + 60
+    deadline = time.monotonic() + 120
     try:
         while time.monotonic() < deadline:
             if journal.exists() and journal.read_bytes().count(b"\n") >= 8:
@@ -118,7 +128,7 @@ def test_sigkill_then_rerun_loses_and_duplicates_no_row(tmp_path):
         proc.wait(timeout=30)
     assert proc.returncode == -signal.SIGKILL
     before = read_journal(journal, repair=False)
-    assert 8 <= len(before) < 40, "the kill should land part way"
+    assert 8 <= len(before) <= 12, "the kill should land part way"
     assert not (out / "runs.csv").exists()
 
     sweep = Sweep(demo_trial, _kill_trials(), 3, out, {"kind": "kill test"})
