@@ -70,6 +70,7 @@ class Lockstep:
         self._closed = False
         self._wake_r, self._wake_w = os.pipe()
         os.set_blocking(self._wake_r, False)
+        os.set_blocking(self._wake_w, False)
 
     # ------------------------------------------------------------------ views
     def now(self) -> float:
@@ -110,10 +111,10 @@ class Lockstep:
             until = min(max(float(until), self._t), self._frame * self.period)
             self._want = (int(host_bytes), until)
             self._cv.notify_all()
-        try:
-            os.write(self._wake_w, b"!")
-        except OSError:
-            pass
+            try:                                   # (under the lock: the pipe stays open)
+                os.write(self._wake_w, b"!")
+            except OSError:
+                pass
         with self._cv:
             done = self._cv.wait_for(lambda: self._want is None or self._closed,
                                      timeout=self.wall_timeout)
@@ -175,8 +176,8 @@ class Lockstep:
                 return
             self._closed = True
             self._cv.notify_all()
-        for fd in (self._wake_w, self._wake_r):
-            try:
-                os.close(fd)
-            except OSError:
-                pass
+            for fd in (self._wake_w, self._wake_r):
+                try:
+                    os.close(fd)
+                except OSError:
+                    pass
