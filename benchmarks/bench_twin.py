@@ -32,8 +32,8 @@ import numpy as np
 import shapely
 
 import envs
-from bouncesim.execute import execute_mix
-from bouncesim.kinematic import (CONTACT_GAP, STEP_TOL, KinematicBatch, KinematicRobot,
+from bouncesim.runs.execute import execute_mix
+from bouncesim.robots.kinematic import (CONTACT_GAP, STEP_TOL, KinematicBatch, KinematicRobot,
                                  casters, unit)
 from planners.cells import CellSpace
 

@@ -10,7 +10,7 @@ from datetime import UTC, datetime
 from importlib import metadata
 from pathlib import Path
 
-from bouncesim.sweep import git_revision
+from bouncesim.runs.sweep import git_revision
 
 __all__ = ["experiment_parser", "git_revision", "output_dir", "versions", "write_config"]
 

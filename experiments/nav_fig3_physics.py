@@ -31,8 +31,8 @@ def make_robot(backend: str, env, noise, rng):
 def execute_fig3(env, cells, routes, table, args, out):
     """Run every plan on every backend: one noise-free run, then ``n`` noisy seeds per
     noise level. Returns ({(plan, backend): noise-free trace frame}, config additions)."""
-    from bouncesim.execute import execute_plan
-    from bouncesim.noise import GaussianNoise, NoNoise
+    from bouncesim.runs.execute import execute_plan
+    from bouncesim.robots.noise import GaussianNoise, NoNoise
 
     n_noisy = 3 if args.quick else 20
     sigmas = (2.0,) if args.quick else (2.0, 5.0)

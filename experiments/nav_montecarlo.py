@@ -6,9 +6,9 @@
 For a seeded sample of reachable (start, goal) pairs of `lab` and `complex` (shortest plans
 from the all-pairs table at the catalogue discretisation, Φ = {45°, 90°, 135°}, w1 = 1,
 w2 = 100, as in ``experiments.allpairs_fig7``), the planned observation strings are executed
-by :func:`bouncesim.execute.execute_plan` in the kinematic twin (every pair) and in PyBullet (a
+by :func:`bouncesim.runs.execute.execute_plan` in the kinematic twin (every pair) and in PyBullet (a
 subset of the pairs), under Gaussian rotation noise σ and the docs/model.md §7 model (ε = Δ, several
-r). Every execution is one trial of :mod:`bouncesim.sweep` (seeded, resumable, any executor).
+r). Every execution is one trial of :mod:`bouncesim.runs.sweep` (seeded, resumable, any executor).
 
 Outputs in ``--out``: ``runs.csv`` (one row per trial), ``runs.jsonl`` (the resume journal),
 ``summary_noise.csv``, ``summary_length.csv``, ``summary_angles.csv``,
@@ -29,7 +29,7 @@ import numpy as np
 import pandas as pd
 
 import envs
-from bouncesim.sweep import Sweep, add_executor_args, make_executor
+from bouncesim.runs.sweep import Sweep, add_executor_args, make_executor
 from planners.cells import CellSpace
 from planners.navigation import Navigator
 
@@ -66,8 +66,8 @@ def nav_trial(params: dict, rng: np.random.Generator) -> dict:
     ``params``: env, start, goal (configuration indices), plan (observation string), backend
     ('kinematic' or 'pybullet'), noise (``parse_noise`` spec). The rng drives the noise.
     """
-    from bouncesim.execute import execute_plan
-    from bouncesim.noise import parse_noise
+    from bouncesim.runs.execute import execute_plan
+    from bouncesim.robots.noise import parse_noise
     from planners.plan import Plan
 
     env, cells = _world(params["env"])

@@ -96,12 +96,12 @@ def compute_coverage() -> dict:
 
 
 def _execute(env, cells, route, backend: str) -> bool:
-    from bouncesim.execute import execute_plan
+    from bouncesim.runs.execute import execute_plan
     if backend == "twin":
-        from bouncesim.kinematic import KinematicRobot
+        from bouncesim.robots.kinematic import KinematicRobot
         robot = KinematicRobot(env, glance_deg=80)
     else:
-        from bouncesim.pybullet_world import PyBulletRobot
+        from bouncesim.robots.pybullet import PyBulletRobot
         robot = PyBulletRobot(env)
     with robot:
         run = execute_plan(route.plan, robot, env, route.start, route.goal, cells)
@@ -131,8 +131,8 @@ def compute_plans(pybullet: bool = True) -> list[dict]:
 
 
 def twin_histogram(cs: CellSpace, angle: float, seed: int) -> np.ndarray:
-    from bouncesim.kinematic import KinematicBatch
-    from bouncesim.noise import SteppedNoise
+    from bouncesim.robots.kinematic import KinematicBatch
+    from bouncesim.robots.noise import SteppedNoise
     s = TV_SETTING
     res = KinematicBatch(cs.env, s["twin_robots"], np.random.default_rng(seed), cells=cs).run(
         angle, s["twin_steps_per_robot"], noise=SteppedNoise(s["eps"], s["r"], cs.delta_deg),
@@ -141,9 +141,9 @@ def twin_histogram(cs: CellSpace, angle: float, seed: int) -> np.ndarray:
 
 
 def pybullet_histogram(cs: CellSpace, angle: float, seed: int) -> np.ndarray:
-    from bouncesim.execute import execute_mix
-    from bouncesim.noise import SteppedNoise
-    from bouncesim.pybullet_world import PyBulletRobot
+    from bouncesim.runs.execute import execute_mix
+    from bouncesim.robots.noise import SteppedNoise
+    from bouncesim.robots.pybullet import PyBulletRobot
     s = TV_SETTING
     counts = np.zeros(cs.P, dtype=np.int64)
     for rng in np.random.default_rng(seed).spawn(s["pybullet_runs"]):

@@ -1,4 +1,5 @@
-"""The Robot conformance suite (tests/conformance.py) run against every simulated backend."""
+"""The Robot conformance suite (bouncesim.robots.conformance) run against every simulated
+backend."""
 
 from __future__ import annotations
 
@@ -6,9 +7,9 @@ import importlib.util
 
 import pytest
 
-from bouncesim.kinematic import KinematicRobot
+from bouncesim.robots.kinematic import KinematicRobot
 
-from .conformance import CHECKS
+from bouncesim.robots.conformance import CHECKS
 
 
 def _kinematic(env):
@@ -21,9 +22,9 @@ def _kinematic_glance(env):
 
 def _pybullet(env):
     pytest.importorskip("pybullet")
-    if importlib.util.find_spec("bouncesim.pybullet_world") is None:
-        pytest.skip("bouncesim.pybullet_world is not there yet")
-    from bouncesim.pybullet_world import PyBulletRobot
+    if importlib.util.find_spec("bouncesim.robots.pybullet") is None:
+        pytest.skip("bouncesim.robots.pybullet is not there yet")
+    from bouncesim.robots.pybullet import PyBulletRobot
     return PyBulletRobot(env)
 
 

@@ -1,15 +1,16 @@
-"""The Create 2 adapter (bouncesim.create2) against the OI emulator (bouncesim.oi_emulator),
-through real serial transports (a pseudo-terminal and a loopback TCP socket): the Robot
-conformance suite, Fig. 3 plans, every injected fault, and a controller process killed by a
-signal. No hardware needed.
+"""The Create 2 adapter (bouncesim.robots.create2.adapter) against the OI emulator
+(bouncesim.robots.create2.emulator), through real serial transports (a pseudo-terminal and a
+loopback TCP socket): the Robot conformance suite, Fig. 3 plans, every injected fault, and a
+controller process killed by a signal. No hardware needed.
 
-Functional tests run the emulator in lockstep with the adapter (bouncesim.lockstep): the
-emulated clock moves only when the adapter asks for its next reading, so they give the same
-bytes and poses however busy the machine is. Tests of behaviour that needs wall time (the
-watchdog, a controller killed by a signal, the stand-alone emulator process, turns on a real
-clock) are marked ``realtime``: they run faster than real time (``SCALE`` emulated seconds per
-second, the adapter given the same scale), use generous wall-clock bounds, and check what they
-claim (the robot is stopped, the turn is within its tolerance) rather than exact timings.
+Functional tests run the emulator in lockstep with the adapter
+(bouncesim.robots.create2.lockstep): the emulated clock moves only when the adapter asks for its
+next reading, so they give the same bytes and poses however busy the machine is. Tests of
+behaviour that needs wall time (the watchdog, a controller killed by a signal, the stand-alone
+emulator process, turns on a real clock) are marked ``realtime``: they run faster than real time
+(``SCALE`` emulated seconds per second, the adapter given the same scale), use generous
+wall-clock bounds, and check what they claim (the robot is stopped, the turn is within its
+tolerance) rather than exact timings.
 """
 
 from __future__ import annotations
@@ -27,16 +28,16 @@ import numpy as np
 import pytest
 
 import envs
-from bouncesim import oi
-from bouncesim.create2 import Create2Robot
-from bouncesim.execute import execute_plan
-from bouncesim.noise import GaussianNoise
-from bouncesim.oi_emulator import OIEmulator, parse_fault
-from bouncesim.robot import RobotError
+from bouncesim.robots.create2 import oi
+from bouncesim.robots.create2.adapter import Create2Robot
+from bouncesim.runs.execute import execute_plan
+from bouncesim.robots.noise import GaussianNoise
+from bouncesim.robots.create2.emulator import OIEmulator, parse_fault
+from bouncesim.robots.base import RobotError
 from planners.cells import CellSpace
 from planners.navigation import Navigator
 
-from .conformance import CHECKS, room_env
+from bouncesim.robots.conformance import CHECKS, room_env
 
 pytest.importorskip("serial")
 
@@ -514,7 +515,7 @@ def test_standalone_emulator_command_end_to_end():
 def test_docstring_examples():
     import doctest
 
-    from bouncesim import create2, oi_emulator
-    for mod in (create2, oi_emulator):
+    from bouncesim.robots.create2 import adapter, emulator
+    for mod in (adapter, emulator):
         result = doctest.testmod(mod)
         assert result.attempted > 0 and result.failed == 0, mod.__name__

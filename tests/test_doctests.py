@@ -9,8 +9,8 @@ import pytest
 
 MODULES = ["envs", "envs.environment", "planners.cells", "planners.plan", "planners.roadmap",
            "planners.coverage",
-           "planners.navigation", "bouncesim.commands.plan", "bouncesim.pybullet_world",
-           "bouncesim.sweep", "envs.raycast", "planners.event_model",
+           "planners.navigation", "bouncesim.commands.plan", "bouncesim.robots.pybullet",
+           "bouncesim.runs.sweep", "envs.raycast", "planners.event_model",
            "planners.coverage_models"]
 
 

@@ -9,11 +9,11 @@ import pytest
 
 import envs
 from bouncesim.cli import main
-from bouncesim.execute import execute_mix, execute_plan
-from bouncesim.kinematic import KinematicBatch, KinematicRobot
-from bouncesim.noise import GaussianNoise, SteppedNoise
-from bouncesim.robot import CREATE2, BumpEvent, Robot, RobotError
-from bouncesim.trace import Trace
+from bouncesim.runs.execute import execute_mix, execute_plan
+from bouncesim.robots.kinematic import KinematicBatch, KinematicRobot
+from bouncesim.robots.noise import GaussianNoise, SteppedNoise
+from bouncesim.robots.base import CREATE2, BumpEvent, Robot, RobotError
+from bouncesim.runs.trace import Trace
 from envs import UserError
 from planners.cells import CellSpace
 from planners.navigation import Navigator
@@ -341,8 +341,8 @@ def test_cli_user_errors(capsys, extra, msg):
     assert err.startswith("bouncesim: error: ") and msg in err and err.count("\n") == 1
 
 
-@pytest.mark.parametrize("name", ["bouncesim.noise", "bouncesim.kinematic", "bouncesim.execute",
-                                  "bouncesim.trace"])
+@pytest.mark.parametrize("name", ["bouncesim.robots.noise", "bouncesim.robots.kinematic",
+                                  "bouncesim.runs.execute", "bouncesim.runs.trace"])
 def test_docstring_examples(name):
     import doctest
     import importlib

@@ -1,4 +1,4 @@
-"""The PyBullet Create 2 (bouncesim.pybullet_world): wall geometry, bumps, turns, encoders,
+"""The PyBullet Create 2 (bouncesim.robots.pybullet): wall geometry, bumps, turns, encoders,
 determinism, recording and the paper's Fig. 3 plans.
 
 Geometry tests need no physics; the others are marked ``physics``. Independent evidence:
@@ -21,9 +21,9 @@ import shapely
 from shapely.geometry import Polygon
 
 import envs
-from bouncesim import pybullet_world as pbw
-from bouncesim.pybullet_world import convex_pieces, ear_clip, wall_pieces
-from bouncesim.robot import RobotError
+from bouncesim.robots import pybullet as pbw
+from bouncesim.robots.pybullet import convex_pieces, ear_clip, wall_pieces
+from bouncesim.robots.base import RobotError
 from envs import UserError
 
 from .conftest import room
@@ -38,7 +38,7 @@ def hdiff(a: float, b: float) -> float:
 
 
 def make(env, **kw):
-    from bouncesim.pybullet_world import PyBulletRobot
+    from bouncesim.robots.pybullet import PyBulletRobot
     return PyBulletRobot(env, **kw)
 
 
@@ -200,7 +200,7 @@ def test_bump_stops_within_1cm_of_the_wall(heading):
     """From (0.68, 0.51) in the lab: the stop pose is within 1 cm of the exact contact point
     of a disk of the body's radius (the kinematic twin's closed form), and the body's edge is
     within 1 cm of the wall (never more than 2 mm into it), also 0.5 s after the stop."""
-    from bouncesim.kinematic import KinematicRobot
+    from bouncesim.robots.kinematic import KinematicRobot
     env = envs.load("lab")
     with make(env) as bot:
         twin = KinematicRobot(replace(env, robot_radius=bot.body_radius))
@@ -323,7 +323,7 @@ def test_encoders_count_wheel_travel():
 @pytest.mark.physics
 def test_same_seed_same_trajectory_and_robots_coexist():
     try:
-        from bouncesim.noise import GaussianNoise
+        from bouncesim.robots.noise import GaussianNoise
         noise = GaussianNoise(3.0)
     except ImportError:                                   # pragma: no cover
         class GaussianNoise:
@@ -397,9 +397,9 @@ def test_bounce_never_penetrates(name):
 def test_fig3_plans_succeed_in_pybullet(mode, start, goal):
     """The paper's Fig. 3 plans in the lab with angles {90°, 135°}, without rotation noise,
     run by the plan executor on the PyBullet Create 2."""
-    if importlib.util.find_spec("bouncesim.execute") is None:
-        pytest.skip("bouncesim.execute (the plan executor) is not there yet")
-    from bouncesim.execute import execute_plan
+    if importlib.util.find_spec("bouncesim.runs.execute") is None:
+        pytest.skip("bouncesim.runs.execute (the plan executor) is not there yet")
+    from bouncesim.runs.execute import execute_plan
     from planners.cells import CellSpace
     env = envs.load("lab")
     cells = CellSpace(env)

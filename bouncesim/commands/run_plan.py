@@ -113,8 +113,8 @@ def make_robot(kind: str, env, noise, rng, *, gui: bool = False, record=None,
                             "pip install -e '.[hardware]'.") from None
         from dataclasses import replace
 
-        from bouncesim.create2 import Create2Robot
-        from bouncesim.robot import CREATE2
+        from bouncesim.robots.create2.adapter import Create2Robot
+        from bouncesim.robots.base import CREATE2
         mode = "full" if full else "safe"
         spec = None
         if wheel_base is not None:
@@ -125,7 +125,7 @@ def make_robot(kind: str, env, noise, rng, *, gui: bool = False, record=None,
             if not port:
                 raise UserError("--robot create2 needs --port (e.g. /dev/ttyUSB0).")
             return Create2Robot(port, mode=mode, turn=turn, sensing=sensing, spec=spec)
-        from bouncesim.oi_emulator import OIEmulator, parse_fault
+        from bouncesim.robots.create2.emulator import OIEmulator, parse_fault
         transport = port or "pty"
         if transport not in ("pty", "tcp"):
             raise UserError(f"--robot emulator takes --port pty or tcp, got {port!r}.")
@@ -142,14 +142,14 @@ def make_robot(kind: str, env, noise, rng, *, gui: bool = False, record=None,
     if kind == "kinematic":
         if gui or record:
             raise UserError("--gui and --record need --robot pybullet.")
-        from bouncesim.kinematic import KinematicRobot
+        from bouncesim.robots.kinematic import KinematicRobot
         return KinematicRobot(env, noise=noise, rng=rng, glance_deg=glance)
     if kind == "pybullet":
         if glance is not None:
             raise UserError("--glance is for --robot kinematic (the PyBullet bumper has its "
                             "own 80° arc).")
         try:
-            from bouncesim.pybullet_world import PyBulletRobot
+            from bouncesim.robots.pybullet import PyBulletRobot
         except ModuleNotFoundError as exc:
             raise UserError(f"--robot pybullet needs the simulation extra ({exc.name} is "
                             "missing): pip install -e '.[sim]'.") from None
@@ -158,8 +158,8 @@ def make_robot(kind: str, env, noise, rng, *, gui: bool = False, record=None,
 
 
 def run(args) -> int:
-    from bouncesim.execute import execute_plan
-    from bouncesim.noise import parse_noise
+    from bouncesim.runs.execute import execute_plan
+    from bouncesim.robots.noise import parse_noise
 
     env = load_env(args)
     cells = CellSpace(env)

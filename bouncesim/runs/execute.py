@@ -1,4 +1,5 @@
-"""Executors: run a plan or a policy mix on any :class:`bouncesim.robot.Robot` (docs/model.md §8-9).
+"""The execution loop: run a plan or a policy mix on any :class:`bouncesim.robots.Robot`
+(docs/model.md §8-9).
 
 Both executors control the robot through the bump-and-clock interface only (drive, stop,
 bumper, clock, wait, turn and the composite drive_until_bump / drive_for). Simulators are
@@ -24,7 +25,7 @@ Examples
 --------
 >>> import envs
 >>> from planners.plan import Plan
->>> from bouncesim.kinematic import KinematicRobot
+>>> from bouncesim.robots.kinematic import KinematicRobot
 >>> env = envs.load("lab")
 >>> run = execute_plan(Plan.parse("90° 90° 00000000 90° 90°"), KinematicRobot(env), env,
 ...                    start=8, goal=0)
@@ -45,7 +46,7 @@ from envs import Environment, UserError
 from planners.cells import CellSpace
 from planners.plan import Plan, PolicyMix
 
-from .robot import Robot, RobotError
+from ..robots.base import Robot, RobotError
 from .trace import Trace
 
 __all__ = ["execute_plan", "execute_mix", "PlanRun", "MixRun", "Deviation", "STEP_TOL"]
@@ -394,7 +395,7 @@ def execute_mix(policy_mix, robot: Robot, env: Environment, steps: int, epoch: i
     policy_mix : PolicyMix or float
         Angles [deg] and probabilities α (a single angle is a mix of one). The mix's eps and r
         are *not* applied here: the robot's own noise model perturbs its turns (build it with
-        ``bouncesim.noise.noise_for_mix(mix, delta)`` for the §7 model).
+        ``bouncesim.robots.noise.noise_for_mix(mix, delta)`` for the §7 model).
     robot : Robot
     env : Environment
     steps : int            step budget

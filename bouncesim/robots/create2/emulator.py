@@ -3,9 +3,9 @@
 :class:`OIEmulator` serves the OI on a pseudo-terminal (``os.openpty``; connect to the printed
 ``/dev/pts/N``) or on a local TCP port (connect to ``socket://127.0.0.1:PORT``, pyserial's URL
 for a raw socket), and moves a simulated Create 2 in an environment with the kinematic twin
-(:class:`bouncesim.kinematic.KinematicRobot`). It exists so that the hardware path (the
-adapter :mod:`bouncesim.create2`, pyserial, the OI layer :mod:`bouncesim.oi`) can be run end
-to end, and tested, without a robot.
+(:class:`bouncesim.robots.kinematic.KinematicRobot`). It exists so that the hardware path (the
+adapter :mod:`bouncesim.robots.create2.adapter`, pyserial, the OI layer
+:mod:`bouncesim.robots.create2.oi`) can be run end to end, and tested, without a robot.
 
 What it does
 ------------
@@ -27,7 +27,7 @@ What it does
 
 Faults (for tests and demonstrations)
 -------------------------------------
-- ``noise``: a :class:`bouncesim.noise.NoiseModel` applied once per in-place spin (at its
+- ``noise``: a :class:`bouncesim.robots.noise.NoiseModel` applied once per in-place spin (at its
   end, to the whole spin; a spin ends when the wheels stop, reverse or stop spinning in
   place, not when they slow down): the body slips, the encoders do not see it.
 - ``angle_bug``: packet 20 is scaled by 0.324056 (firmware up to 3.4.0).
@@ -38,20 +38,21 @@ Faults (for tests and demonstrations)
   sent), ``mute`` (the robot stops talking: a lost link; commands are still obeyed, so the
   robot keeps its last drive command, as a real one whose cable is pulled).
 
-Time can run faster than real time (``time_scale``): emulated seconds per wall-clock second.
-The adapter must then be given the same scale (:class:`bouncesim.create2.Create2Robot`
+Time can run faster than real time (``time_scale``): emulated seconds per wall-clock second. The
+adapter must then be given the same scale (:class:`bouncesim.robots.create2.Create2Robot`
 ``time_scale``), so that its clock and the emulator's agree. Real hardware always runs at 1.
 
 Or time can run in lockstep with an adapter in the same process (``lockstep=True``; see
-:mod:`bouncesim.lockstep`): the emulated clock moves only when the adapter has read the sensor
-frame it is owed and asks for the next one, so a run gives the same bytes and the same poses on
-any machine, however busy. ``Create2Robot(emu.url, emulator=emu)`` picks this up by itself.
+:mod:`bouncesim.robots.create2.lockstep`): the emulated clock moves only when the adapter has
+read the sensor frame it is owed and asks for the next one, so a run gives the same bytes and
+the same poses on any machine, however busy. ``Create2Robot(emu.url, emulator=emu)`` picks this
+up by itself.
 
 Examples
 --------
 >>> import envs
 >>> import serial
->>> from bouncesim import oi
+>>> from bouncesim.robots.create2 import oi
 >>> with OIEmulator(envs.load("lab"), transport="tcp") as emu:
 ...     link = serial.serial_for_url(emu.url, timeout=1.0)
 ...     _ = link.write(bytes([oi.START, oi.SAFE]) + oi.encode_query_list([35, 7]))
@@ -78,10 +79,10 @@ import numpy as np
 from envs import Environment, UserError
 
 from . import oi
-from .kinematic import KinematicRobot
+from ..kinematic import KinematicRobot
 from .lockstep import Lockstep
-from .noise import NoiseModel, NoNoise
-from .robot import CREATE2
+from ..noise import NoiseModel, NoNoise
+from ..base import CREATE2
 
 __all__ = ["OIEmulator", "Fault", "FAULT_KINDS", "parse_fault", "BANNER"]
 
@@ -261,7 +262,7 @@ class OIEmulator:
     lockstep : bool
         Run the emulated clock in lockstep with an in-process adapter instead of by the wall
         clock (``time_scale`` is then ignored); :attr:`lockstep` is the shared
-        :class:`bouncesim.lockstep.Lockstep`.
+        :class:`bouncesim.robots.create2.lockstep.Lockstep`.
     log : callable, optional
         Called with one line of text per event (connection, mode change, fault).
 

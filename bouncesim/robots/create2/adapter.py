@@ -1,9 +1,9 @@
-"""A real iRobot Create 2 behind the :class:`bouncesim.robot.Robot` interface, over pyserial.
+"""A real iRobot Create 2 behind the :class:`bouncesim.robots.base.Robot` interface, over pyserial.
 
 The adapter speaks the Create 2 Open Interface through our own byte-level layer
-(:mod:`bouncesim.oi`). It works the same on the robot's USB cable (``/dev/ttyUSB0``), on a
-pseudo-terminal and on a TCP socket (``socket://127.0.0.1:PORT``), which is how it is tested
-against :class:`bouncesim.oi_emulator.OIEmulator`.
+(:mod:`bouncesim.robots.create2.oi`). It works the same on the robot's USB cable
+(``/dev/ttyUSB0``), on a pseudo-terminal and on a TCP socket (``socket://127.0.0.1:PORT``),
+which is how it is tested against :class:`bouncesim.robots.create2.emulator.OIEmulator`.
 
 Protocol use
 ------------
@@ -28,7 +28,7 @@ then exits with status 143 through the normal clean-up), and Ctrl-C (KeyboardInt
 the same ``finally`` blocks). A background thread watches the link while the port is open:
 
 - a wheel drop (packet 7 bits 2-3), or packet 35 reading Passive/Off after it once read the
-  requested mode, stops the robot and raises :class:`bouncesim.robot.RobotError` at the next
+  requested mode, stops the robot and raises :class:`bouncesim.robots.base.RobotError` at the next
   call (packet 35 is unreliable on some units: when it never reads the requested mode the
   adapter warns once and relies on the wheel-drop bits);
 - no valid sensor data for ``link_timeout`` wall-clock seconds, or a serial error: the link
@@ -46,7 +46,7 @@ Examples
 Against the emulator (a real robot: ``Create2Robot("/dev/ttyUSB0")``, placed by hand):
 
 >>> import envs
->>> from bouncesim.oi_emulator import OIEmulator
+>>> from bouncesim.robots.create2.emulator import OIEmulator
 >>> emu = OIEmulator(envs.load("lab"), time_scale=4.0).start()
 >>> with Create2Robot(emu.url, emulator=emu, time_scale=4.0) as bot:
 ...     bot.place(0.51, 0.51, 90.0)
@@ -72,7 +72,7 @@ from envs import UserError
 
 from . import oi
 from .lockstep import LockstepClosed
-from .robot import CREATE2, BumpEvent, Robot, RobotError, RobotSpec
+from ..base import CREATE2, BumpEvent, Robot, RobotError, RobotSpec
 
 __all__ = ["Create2Robot", "SensorState", "SENSOR_IDS"]
 
@@ -143,7 +143,7 @@ class Create2Robot(Robot):
         An in-process emulator behind ``port``: :meth:`place` and :meth:`true_pose` go to it
         (simulation only; on hardware ``place`` raises NotImplementedError). When it runs in
         lockstep (``OIEmulator(..., lockstep=True)``) the adapter's clock is the emulated one
-        and ``time_scale`` is ignored: see :mod:`bouncesim.lockstep`.
+        and ``time_scale`` is ignored: see :mod:`bouncesim.robots.create2.lockstep`.
     max_distance : float
         ``drive_until_bump`` gives up (no bump) after this distance [m].
     watchdog, stall_time : float

@@ -1,6 +1,6 @@
 """The PyBullet Create 2: a wheeled rigid body in a walled world built from an environment.
 
-:class:`PyBulletRobot` implements the :class:`~bouncesim.robot.Robot` interface with a
+:class:`PyBulletRobot` implements the :class:`~bouncesim.robots.base.Robot` interface with a
 physics simulation: a 0.17 m disk body on two driven wheels (velocity-controlled revolute
 joints with friction against the floor), a frictionless front caster and rear skid, walls
 extruded from the environment's polygons, a bumper read from the contact points on the front
@@ -47,7 +47,7 @@ from shapely.geometry.polygon import orient
 
 from envs import Environment, UserError
 
-from .robot import CREATE2, Robot, RobotError, RobotSpec
+from .base import CREATE2, Robot, RobotError, RobotSpec
 
 __all__ = ["PyBulletRobot", "convex_pieces", "wall_pieces", "ear_clip",
            "DEFAULT_SPEED", "DEFAULT_TURN_SPEED", "DEFAULT_TIME_STEP"]
@@ -283,7 +283,7 @@ class PyBulletRobot(Robot):
         The environment (or a catalogue name / env file path).
     noise : object, optional
         Rotation noise: anything with ``sample(rng, commanded_deg) -> actual_deg`` (the models
-        of :mod:`bouncesim.noise`). None: turns are commanded exactly.
+        of :mod:`bouncesim.robots.noise`). None: turns are commanded exactly.
     rng : numpy.random.Generator or int, optional
         Random source for the noise (an int is a seed). Default: ``default_rng(seed)``.
     seed : int, optional

@@ -1,4 +1,4 @@
-"""Backend-agnostic conformance checks for :class:`bouncesim.robot.Robot` implementations.
+"""Backend-agnostic conformance checks for :class:`bouncesim.robots.base.Robot` implementations.
 
 Every check is a function ``check_xxx(make_robot)`` where ``make_robot(env)`` returns a fresh
 robot in that environment (noise-free). The checks use only the Robot interface, plus
@@ -28,7 +28,7 @@ import math
 import numpy as np
 
 from envs import Environment
-from bouncesim.robot import BumpEvent, Robot
+from .base import BumpEvent, Robot
 
 __all__ = ["ROOM", "CHECKS", "room_env"]
 

@@ -1,7 +1,7 @@
 """The one Robot interface: only what a bump-and-clock robot has (ARCHITECTURE "one Robot
 interface, three bodies").
 
-The executors in :mod:`bouncesim.execute` use nothing but these methods, so the same code
+The executors in :mod:`bouncesim.runs.execute` use nothing but these methods, so the same code
 drives the kinematic twin, the PyBullet Create 2 and a real Create 2 over its Open Interface.
 Poses (:meth:`Robot.true_pose`) exist for logging in simulation only and are never used for
 control.

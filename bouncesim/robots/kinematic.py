@@ -10,7 +10,7 @@ corners, unlike ``env.cspace``). :class:`WallCaster` does this vectorised over r
 
 Two bodies use it:
 
-- :class:`KinematicRobot`, a :class:`bouncesim.robot.Robot` for the executors: ``wait(dt)``
+- :class:`KinematicRobot`, a :class:`bouncesim.robots.base.Robot` for the executors: ``wait(dt)``
   advances the pose under the current wheel command, ``drive_until_bump`` jumps straight to
   the contact (or the timeout), ``turn`` is exact plus a seeded noise sample.
 - :class:`KinematicBatch`, thousands of independent robots stepped at once under the
@@ -64,7 +64,7 @@ from planners.cells import CellSpace
 from planners.plan import PolicyMix
 
 from .noise import NoiseModel, NoNoise, noise_for_mix
-from .robot import CREATE2, BumpEvent, Robot, RobotSpec
+from .base import CREATE2, BumpEvent, Robot, RobotSpec
 
 __all__ = ["WallCaster", "LocalCaster", "casters", "KinematicRobot", "KinematicBatch",
            "BatchCoverage", "unit", "CONTACT_GAP", "BUMP_RANGE", "STEP_TOL", "CENTRE_ZONE_DEG"]
@@ -419,7 +419,7 @@ class KinematicBatch:
     the step starts); otherwise move to contact, then rotate in place by the current bouncing
     angle plus noise (one step, counted in the cell of the contact position). A contact within
     ``STEP_TOL`` of h counts as a full forward step (the robot then bumps at the start of the
-    next step), as :func:`bouncesim.execute.execute_mix` counts it on a Robot.
+    next step), as :func:`bouncesim.runs.execute.execute_mix` counts it on a Robot.
 
     Parameters
     ----------
