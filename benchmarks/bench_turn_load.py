@@ -31,7 +31,7 @@ import time
 
 import numpy as np
 
-from bouncesim.robots.create2.adapter import Create2Robot
+from bouncesim.robots.create2 import Create2Robot
 
 ROOM = {"name": "bench-room", "boundary": [[0, 0], [1.7, 0], [1.7, 1.02], [0, 1.02]],
         "robot_radius": 0.17, "discretization": {"cell_size": 0.34, "orientations": 8}}
@@ -40,7 +40,7 @@ ROOM = {"name": "bench-room", "boundary": [[0, 0], [1.7, 0], [1.7, 1.02], [0, 1.
 def _emulator_process(conn) -> None:
     """Serve an OI emulator on TCP; answer 'pose' and 'place' requests on ``conn``."""
     from envs import Environment
-    from bouncesim.robots.create2.emulator import OIEmulator
+    from bouncesim.robots.create2 import OIEmulator
     emu = OIEmulator(Environment.from_dict(ROOM), transport="tcp").start()
     conn.send(emu.url)
     try:

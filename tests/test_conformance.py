@@ -3,12 +3,11 @@ backend."""
 
 from __future__ import annotations
 
-import importlib.util
-
 import pytest
 
 from bouncesim.robots.kinematic import KinematicRobot
 
+from bouncesim.robots import ConformanceError, check_robot
 from bouncesim.robots.conformance import CHECKS
 
 
@@ -22,8 +21,6 @@ def _kinematic_glance(env):
 
 def _pybullet(env):
     pytest.importorskip("pybullet")
-    if importlib.util.find_spec("bouncesim.robots.pybullet") is None:
-        pytest.skip("bouncesim.robots.pybullet is not there yet")
     from bouncesim.robots.pybullet import PyBulletRobot
     return PyBulletRobot(env)
 
@@ -38,7 +35,7 @@ BACKENDS = [
 @pytest.mark.parametrize("make_robot", BACKENDS)
 @pytest.mark.parametrize("check", sorted(CHECKS))
 def test_conformance(check, make_robot):
-    CHECKS[check](make_robot)
+    check_robot(make_robot, checks=[check])
 
 
 def test_suite_is_not_empty():
@@ -77,4 +74,19 @@ class _SlowClock(KinematicRobot):
 ])
 def test_conformance_catches_broken_backends(broken, check):
     with pytest.raises(AssertionError):
-        CHECKS[check](lambda env: broken(env))
+        check_robot(lambda env: broken(env), checks=[check])
+
+
+def test_check_robot_runs_every_check_and_names_each_failure():
+    assert check_robot("kinematic") == sorted(CHECKS)
+    with pytest.raises(ConformanceError) as info:
+        check_robot(_ShortTurns, checks=["turn_90", "drive_straight", "four_quarter_turns"])
+    assert set(info.value.failures) == {"turn_90", "four_quarter_turns"}
+    message = str(info.value)
+    assert message.startswith("2 of 3 conformance checks failed for _ShortTurns:")
+    assert "turn_90: heading" in message
+
+
+def test_check_robot_refuses_unknown_checks():
+    with pytest.raises(ValueError, match="unknown conformance check 'fly'"):
+        check_robot("kinematic", checks=["fly"])
