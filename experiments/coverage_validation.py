@@ -10,7 +10,7 @@ step-sampled visit histogram q̂ of simulated runs:
   after a burn-in (``--twin-burn-in``) so that the histogram estimates the *limiting*
   distribution the models predict;
 - PyBullet (:class:`bouncesim.robots.pybullet.PyBulletRobot` through
-  :func:`bouncesim.runs.execute.execute_mix`): shorter runs (``--pybullet-runs`` runs of
+  :func:`bouncesim.runs.execute.execute`): shorter runs (``--pybullet-runs`` runs of
   ``--pybullet-steps`` steps per estimate), each from its own uniform random start, so one
   run trapped in a small persistent group does not stand for the whole estimate.
 
@@ -54,7 +54,8 @@ import numpy as np
 import pandas as pd
 
 import envs
-from bouncesim.runs.sweep import add_executor_args, make_executor, run_sweep
+from bouncesim.runs.executors import add_executor_args, make_executor
+from bouncesim.runs.sweep import run_sweep
 from experiments.common import experiment_parser, output_dir
 from planners.cells import CellSpace
 from planners.coverage import coverage_pipeline, tv_distance
@@ -119,12 +120,12 @@ def simulate(params: dict, rng: np.random.Generator) -> dict:
             mix, per, epoch=epoch, noise=noise, burn_in=int(params.get("burn_in", 0)))
         counts, dropped, bumps = res.counts, res.dropped, res.bumps
     elif params["backend"] == "pybullet":
-        from bouncesim.runs.execute import execute_mix
+        from bouncesim.runs.execute import execute
         from bouncesim.robots.pybullet import PyBulletRobot
         robot = PyBulletRobot(env, noise=noise, rng=rng)
         with robot:
-            run = execute_mix(mix, robot, env, steps, epoch, rng, cells=cs,
-                              speed=float(params["speed"]), record_trace=False)
+            run = execute(mix, robot, steps=steps, epoch=epoch, rng=rng, cells=cs,
+                          speed=float(params["speed"]), record_trace=False)
         counts, dropped, bumps = run.counts, run.dropped, run.bumps
     else:
         raise ValueError(f"unknown backend {params['backend']!r}")

@@ -96,7 +96,7 @@ def compute_coverage() -> dict:
 
 
 def _execute(env, cells, route, backend: str) -> bool:
-    from bouncesim.runs.execute import execute_plan
+    from bouncesim.runs.execute import execute
     if backend == "twin":
         from bouncesim.robots.kinematic import KinematicRobot
         robot = KinematicRobot(env, glance_deg=80)
@@ -104,7 +104,7 @@ def _execute(env, cells, route, backend: str) -> bool:
         from bouncesim.robots.pybullet import PyBulletRobot
         robot = PyBulletRobot(env)
     with robot:
-        run = execute_plan(route.plan, robot, env, route.start, route.goal, cells)
+        run = execute(route.plan, robot, start=route.start, goal=route.goal, cells=cells)
     return bool(run.success)
 
 
@@ -141,7 +141,7 @@ def twin_histogram(cs: CellSpace, angle: float, seed: int) -> np.ndarray:
 
 
 def pybullet_histogram(cs: CellSpace, angle: float, seed: int) -> np.ndarray:
-    from bouncesim.runs.execute import execute_mix
+    from bouncesim.runs.execute import execute
     from bouncesim.robots.noise import SteppedNoise
     from bouncesim.robots.pybullet import PyBulletRobot
     s = TV_SETTING
@@ -150,8 +150,8 @@ def pybullet_histogram(cs: CellSpace, angle: float, seed: int) -> np.ndarray:
         robot = PyBulletRobot(cs.env, noise=SteppedNoise(s["eps"], s["r"], cs.delta_deg),
                               rng=rng)
         with robot:
-            run = execute_mix(angle, robot, cs.env, s["pybullet_steps"], 1, rng, cells=cs,
-                              speed=0.3, record_trace=False)
+            run = execute(angle, robot, steps=s["pybullet_steps"], epoch=1, rng=rng, cells=cs,
+                          speed=0.3, record_trace=False)
         counts += run.counts
     return counts
 

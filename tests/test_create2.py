@@ -28,16 +28,14 @@ import numpy as np
 import pytest
 
 import envs
-from bouncesim.robots.create2 import oi
-from bouncesim.robots.create2.adapter import Create2Robot
-from bouncesim.runs.execute import execute_plan
-from bouncesim.robots.noise import GaussianNoise
-from bouncesim.robots.create2.emulator import OIEmulator, parse_fault
+from bouncesim.robots import check_robot
 from bouncesim.robots.base import RobotError
+from bouncesim.robots.conformance import CHECKS, room_env
+from bouncesim.robots.create2 import Create2Robot, OIEmulator, oi, parse_fault
+from bouncesim.robots.noise import GaussianNoise
+from bouncesim.runs.execute import execute
 from planners.cells import CellSpace
 from planners.navigation import Navigator
-
-from bouncesim.robots.conformance import CHECKS, room_env
 
 pytest.importorskip("serial")
 
@@ -110,14 +108,14 @@ LONG_CHECKS = {"bounce_sequence", "four_quarter_turns"}
     pytest.param(c, marks=pytest.mark.slow) if c in LONG_CHECKS else c for c in sorted(CHECKS)])
 def test_conformance_stream_encoders_pty(check):
     with deadline(60):
-        CHECKS[check](_emulated())
+        check_robot(_emulated(), checks=[check])
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("check", sorted(CHECKS))
 def test_conformance_query_clock_tcp(check):
     with deadline(60):
-        CHECKS[check](_emulated(transport="tcp", sensing="query", turn="clock"))
+        check_robot(_emulated(transport="tcp", sensing="query", turn="clock"), checks=[check])
 
 
 # ---------------------------------------------------------------- Fig. 3 plans
@@ -131,7 +129,7 @@ def test_fig3_plan_reaches_goal_through_the_serial_path(label, start, goal):
     route = Navigator(cells, (90, 135)).plan(start, goal)
     assert route is not None
     with deadline(60), rig(env, scale=4.0) as (emu, bot):
-        run = execute_plan(route.plan, bot, env, start, goal, cells, speed=0.5)
+        run = execute(route.plan, bot, start=start, goal=goal, cells=cells, speed=0.5)
         assert run.success, run.reason
         assert run.position_error < 0.02 and abs(run.heading_error) < 3.0
         assert run.bumps == route.plan.bumps
@@ -149,7 +147,7 @@ def test_fig3_plan_with_back_off_clock_turns_and_queries_on_tcp():
     # obstacle corner, in the kinematic twin as well)
     with deadline(120), rig(env, transport="tcp", scale=4.0, turn="clock",
                             sensing="query") as (emu, bot):
-        run = execute_plan(route.plan, bot, env, 8, 0, cells, speed=0.5, back_off=0.01)
+        run = execute(route.plan, bot, start=8, goal=0, cells=cells, speed=0.5, back_off=0.01)
         assert run.success, run.reason
         assert len(run.trace.events("back_off")) == run.bumps
         assert_stopped(emu)
@@ -419,7 +417,7 @@ def test_fault_inside_a_plan_ends_the_run_stopped():
                            emu_kw={"faults": [parse_fault("stall-right@0.5")]}) as (emu, bot):
         # the first bump comes at once (the start faces the east wall); the right wheel
         # stalls 0.5 s into the first 90° turn, which then needs 2.7 s more
-        run = execute_plan(route.plan, bot, env, 8, 0, cells, speed=0.5)
+        run = execute(route.plan, bot, start=8, goal=0, cells=cells, speed=0.5)
         assert not run.success and run.reason.startswith("robot error: the right wheel"), \
             run.reason
         assert_stopped(emu)
@@ -499,7 +497,7 @@ def test_standalone_emulator_command_end_to_end():
         cells = CellSpace(env)
         route = Navigator(cells, (90, 135)).plan(8, 0)
         with deadline(120), Create2Robot(url, time_scale=4.0) as bot:
-            run = execute_plan(route.plan, bot, env, 8, 0, cells, speed=0.5)
+            run = execute(route.plan, bot, start=8, goal=0, cells=cells, speed=0.5)
         assert run.completed and run.success is None     # hardware: no pose to check
         proc.send_signal(signal.SIGTERM)
         out, _ = proc.communicate(timeout=10)

@@ -15,9 +15,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from bouncesim.runs.sweep import (DaskExecutor, PoolExecutor, SerialExecutor, Sweep, TrialError,
-                             add_executor_args, demo_trial, grid, make_executor, read_journal,
-                             run_sweep, trial_seed)
+from bouncesim.runs.executors import (DaskExecutor, PoolExecutor, SerialExecutor,
+                                      add_executor_args, make_executor)
+from bouncesim.runs.sweep import (Sweep, TrialError, demo_trial, grid, read_journal, run_sweep,
+                                  trial_seed)
 from envs import UserError
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -88,7 +89,8 @@ def test_same_seed_same_table_on_dask_local_cluster(tmp_path):
 
 _KILL_SCRIPT = """
 import sys
-from bouncesim.runs.sweep import SerialExecutor, demo_trial, grid, run_sweep
+from bouncesim.runs.executors import SerialExecutor
+from bouncesim.runs.sweep import demo_trial, grid, run_sweep
 trials = grid(mu=[0.0, 1.0], rep=range(20), sleep=[0.04])
 run_sweep(demo_trial, trials, 3, sys.argv[1], {"kind": "kill test"}, SerialExecutor(),
           progress=False)
