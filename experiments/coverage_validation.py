@@ -54,6 +54,10 @@ import numpy as np
 import pandas as pd
 
 import envs
+from bouncesim.robots import make_robot
+from bouncesim.robots.kinematic import KinematicBatch
+from bouncesim.robots.noise import noise_for_mix
+from bouncesim.runs.execute import execute
 from bouncesim.runs.executors import add_executor_args, make_executor
 from bouncesim.runs.sweep import run_sweep
 from experiments.common import experiment_parser, output_dir
@@ -102,8 +106,6 @@ def simulate(params: dict, rng: np.random.Generator) -> dict:
     Returns the run's row; ``counts`` is the histogram over position cells as a
     space-separated string.
     """
-    from bouncesim.robots.noise import noise_for_mix
-
     env = envs.load(params["env"], cell_size=params.get("cell_size"),
                     orientations=int(params["orientations"]))
     cs = CellSpace(env)
@@ -113,17 +115,13 @@ def simulate(params: dict, rng: np.random.Generator) -> dict:
     steps = int(params["steps"])
     t0 = time.perf_counter()
     if params["backend"] == "twin":
-        from bouncesim.robots.kinematic import KinematicBatch
         n = int(params["robots"])
         per = math.ceil(steps / n)
         res = KinematicBatch(env, n, rng, cells=cs).run(
             mix, per, epoch=epoch, noise=noise, burn_in=int(params.get("burn_in", 0)))
         counts, dropped, bumps = res.counts, res.dropped, res.bumps
     elif params["backend"] == "pybullet":
-        from bouncesim.runs.execute import execute
-        from bouncesim.robots.pybullet import PyBulletRobot
-        robot = PyBulletRobot(env, noise=noise, rng=rng)
-        with robot:
+        with make_robot("pybullet", env, noise=noise, rng=rng) as robot:
             run = execute(mix, robot, steps=steps, epoch=epoch, rng=rng, cells=cs,
                           speed=float(params["speed"]), record_trace=False)
         counts, dropped, bumps = run.counts, run.dropped, run.bumps

@@ -29,10 +29,13 @@ import numpy as np
 import pandas as pd
 
 import envs
+from bouncesim.robots.noise import parse_noise
+from bouncesim.runs.execute import execute
 from bouncesim.runs.executors import add_executor_args, make_executor
 from bouncesim.runs.sweep import Sweep
 from planners.cells import CellSpace
 from planners.navigation import Navigator
+from planners.plan import Plan
 
 from .common import experiment_parser, output_dir
 from .nav_fig3_physics import TWIN_GLANCE_DEG, make_robot
@@ -67,10 +70,6 @@ def nav_trial(params: dict, rng: np.random.Generator) -> dict:
     ``params``: env, start, goal (configuration indices), plan (observation string), backend
     ('kinematic' or 'pybullet'), noise (``parse_noise`` spec). The rng drives the noise.
     """
-    from bouncesim.runs.execute import execute
-    from bouncesim.robots.noise import parse_noise
-    from planners.plan import Plan
-
     env, cells = _world(params["env"])
     noise = parse_noise(params["noise"], cells.delta_deg)
     t0 = time.perf_counter()
