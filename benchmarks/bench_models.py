@@ -31,8 +31,8 @@ EPS, R = 5.0, 0.8
 
 
 def twin_counts(cs: CellSpace, angle: float, steps: int, seed: int) -> np.ndarray:
-    from bouncesim.kinematic import KinematicBatch
-    from bouncesim.noise import SteppedNoise
+    from bouncesim.robots.kinematic import KinematicBatch
+    from bouncesim.robots.noise import SteppedNoise
     n = 200
     res = KinematicBatch(cs.env, n, np.random.default_rng(seed), cells=cs).run(
         angle, max(1, steps // n), noise=SteppedNoise(EPS, R, cs.delta_deg))

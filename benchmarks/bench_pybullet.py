@@ -38,7 +38,7 @@ import numpy as np
 import shapely
 
 import envs
-from bouncesim.pybullet_world import PyBulletRobot
+from bouncesim.robots.pybullet import PyBulletRobot
 
 ROWS = [  # (label, time step [s], solver, solver iterations, poll every step?)
     ("reference (PyBullet defaults)", 1 / 240, "si", 50, True),

@@ -1,7 +1,7 @@
 """Benchmark: Create 2 adapter turns and timed drives on a busy host, in real time.
 
-The adapter (:class:`bouncesim.create2.Create2Robot`, this process) drives the OI emulator
-over loopback TCP in real time (scale 1). The emulator runs in a process of its own, as the
+The adapter (:class:`bouncesim.robots.create2.Create2Robot`, this process) drives the OI
+emulator over loopback TCP in real time (scale 1). The emulator runs in a process of its own, as the
 robot's firmware does on its own processor, and reports the true pose over a pipe. Load:
 
 - ``hogs``: 0, 1 or 2 processes spinning on the CPU (the machine has 2 cores);
@@ -31,7 +31,7 @@ import time
 
 import numpy as np
 
-from bouncesim.create2 import Create2Robot
+from bouncesim.robots.create2 import Create2Robot
 
 ROOM = {"name": "bench-room", "boundary": [[0, 0], [1.7, 0], [1.7, 1.02], [0, 1.02]],
         "robot_radius": 0.17, "discretization": {"cell_size": 0.34, "orientations": 8}}
@@ -40,7 +40,7 @@ ROOM = {"name": "bench-room", "boundary": [[0, 0], [1.7, 0], [1.7, 1.02], [0, 1.
 def _emulator_process(conn) -> None:
     """Serve an OI emulator on TCP; answer 'pose' and 'place' requests on ``conn``."""
     from envs import Environment
-    from bouncesim.oi_emulator import OIEmulator
+    from bouncesim.robots.create2 import OIEmulator
     emu = OIEmulator(Environment.from_dict(ROOM), transport="tcp").start()
     conn.send(emu.url)
     try:

@@ -6,7 +6,7 @@ in-place rotation. Rows, per environment:
 - ``shapely reference``: a straightforward per-robot stepper: ``env.segments_free`` decides
   whether the step of length h is free; if not, the contact is found by bisection on the
   shapely distance from the swept segment to the walls (45 halvings, 1e-14 m).
-- ``KinematicRobot + execute_mix``: one twin driven through the Robot interface by the
+- ``KinematicRobot + execute``: one twin driven through the Robot interface by the
   coverage executor (what a Monte-Carlo run over the Robot interface costs).
 - ``KinematicBatch``: the vectorised batch (capsule ray casts, numpy over robots x nearby
   walls), at several batch sizes.
@@ -32,8 +32,8 @@ import numpy as np
 import shapely
 
 import envs
-from bouncesim.execute import execute_mix
-from bouncesim.kinematic import (CONTACT_GAP, STEP_TOL, KinematicBatch, KinematicRobot,
+from bouncesim.runs.execute import execute
+from bouncesim.robots.kinematic import (CONTACT_GAP, STEP_TOL, KinematicBatch, KinematicRobot,
                                  casters, unit)
 from planners.cells import CellSpace
 
@@ -119,10 +119,10 @@ def bench_env(name: str, sizes, budget: int, ref_steps: int, seed: int,
     # one twin through the Robot interface
     steps_robot = max(200, budget // 50)
     bot = KinematicRobot(env)
-    _, dt = _timed(lambda: execute_mix(ANGLE, bot, env, steps_robot, steps_robot,
-                                       np.random.default_rng(seed), cells=cells,
-                                       record_trace=False))
-    rows.append(dict(env=name, method="KinematicRobot + execute_mix", robots=1,
+    _, dt = _timed(lambda: execute(ANGLE, bot, steps=steps_robot, epoch=steps_robot,
+                                   rng=np.random.default_rng(seed),
+                                   cells=cells, record_trace=False))
+    rows.append(dict(env=name, method="KinematicRobot + execute", robots=1,
                      steps=steps_robot, seconds=dt, rate=steps_robot / dt, agree=""))
 
     for n in sizes:

@@ -14,7 +14,7 @@ corners, unlike ``env.cspace``).
 - :func:`unit`: the unit heading vectors every user of the casters shares.
 
 The constants are the contact conventions of the kinematic twin
-(:mod:`bouncesim.kinematic`, which re-exports everything here) and of the continuous
+(:mod:`bouncesim.robots.kinematic`, which re-exports everything here) and of the continuous
 coverage models (:mod:`planners.event_model`, :mod:`planners.sampled_model`): one
 implementation, so model and simulation see bitwise the same flights.
 

@@ -13,6 +13,7 @@ import numpy as np
 import pandas as pd
 
 import envs
+from bouncesim.runs.options import parse_angles
 from planners.cells import CellSpace
 from planners.navigation import Navigator
 
@@ -41,7 +42,6 @@ def main(argv=None) -> int:
                    help="bouncing angles [deg] (default 45,90,135)")
     p.add_argument("--envs", default="lab,fig1", help="environments (default lab,fig1)")
     args = p.parse_args(argv)
-    from bouncesim.commands.common import parse_angles
     from bouncesim.plots import angle_use_bars
     out = output_dir(args.out)
     rows, claim_rows = [], []

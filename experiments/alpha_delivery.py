@@ -32,7 +32,8 @@ import numpy as np
 import pandas as pd
 
 import envs
-from bouncesim.sweep import add_executor_args, make_executor, run_sweep
+from bouncesim.runs.executors import add_executor_args, make_executor
+from bouncesim.runs.sweep import run_sweep
 from experiments.common import experiment_parser, output_dir
 from experiments.coverage_validation import ANGLES, EPS, R, policy_label, simulate
 from planners.cells import CellSpace

@@ -4,18 +4,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import platform
-import sys
 from datetime import UTC, datetime
-from importlib import metadata
 from pathlib import Path
 
-from bouncesim.sweep import git_revision
+from bouncesim.runs.metadata import git_revision, versions
 
-__all__ = ["experiment_parser", "git_revision", "output_dir", "versions", "write_config"]
-
-_PACKAGES = ["numpy", "scipy", "shapely", "networkx", "pandas", "matplotlib", "pybullet",
-             "bouncesim"]
+__all__ = ["experiment_parser", "output_dir", "write_config"]
 
 
 def experiment_parser(name: str, description: str, default_seed: int = 0
@@ -34,17 +28,6 @@ def output_dir(path: Path) -> Path:
     path = Path(path)
     path.mkdir(parents=True, exist_ok=True)
     return path
-
-
-def versions() -> dict[str, str | None]:
-    out: dict[str, str | None] = {"python": sys.version.split()[0],
-                                  "platform": platform.platform()}
-    for name in _PACKAGES:
-        try:
-            out[name] = metadata.version(name)
-        except metadata.PackageNotFoundError:
-            out[name] = None
-    return out
 
 
 def write_config(out_dir: Path, config: dict) -> Path:

@@ -5,12 +5,12 @@ For every environment and every bouncing angle of the coverage setting (Table I:
 that each model designs for the uniform target, the predicted coverage q is compared with the
 step-sampled visit histogram q̂ of simulated runs:
 
-- the kinematic twin (:class:`bouncesim.kinematic.KinematicBatch`): long runs, at least 10^6
+- the kinematic twin (:class:`bouncesim.robots.kinematic.KinematicBatch`): long runs, at least 10^6
   counted steps for each estimate, from starts drawn uniformly over the N configurations,
   after a burn-in (``--twin-burn-in``) so that the histogram estimates the *limiting*
   distribution the models predict;
-- PyBullet (:class:`bouncesim.pybullet_world.PyBulletRobot` through
-  :func:`bouncesim.execute.execute_mix`): shorter runs (``--pybullet-runs`` runs of
+- PyBullet (:class:`bouncesim.robots.pybullet.PyBulletRobot` through
+  :func:`bouncesim.runs.execute.execute`): shorter runs (``--pybullet-runs`` runs of
   ``--pybullet-steps`` steps per estimate), each from its own uniform random start, so one
   run trapped in a small persistent group does not stand for the whole estimate.
 
@@ -26,7 +26,7 @@ Outputs (under ``--out``, default results/coverage_validation/):
 
 - ``runs.csv``: one row per simulation (trial index, env, policy, backend, replicate, run,
   steps, counted, dropped, bumps, wall time, and the raw counts), written by the resumable sweep
-  runner (:mod:`bouncesim.sweep`; trial i's seed is spawned from ``--seed`` and i);
+  runner (:mod:`bouncesim.runs.sweep`; trial i's seed is spawned from ``--seed`` and i);
 - ``histograms.csv``: env, policy, backend, replicate, run, p, count (the raw visit counts);
 - ``predictions.csv``: env, model, policy, p, q, q_sum (Σ α_i q_i for a mix, q for an
   angle); the α of each model's mix is in ``alpha.csv``;
@@ -54,7 +54,12 @@ import numpy as np
 import pandas as pd
 
 import envs
-from bouncesim.sweep import add_executor_args, make_executor, run_sweep
+from bouncesim.robots import make_robot
+from bouncesim.robots.kinematic import KinematicBatch
+from bouncesim.robots.noise import noise_for_mix
+from bouncesim.runs.execute import execute
+from bouncesim.runs.executors import add_executor_args, make_executor
+from bouncesim.runs.sweep import run_sweep
 from experiments.common import experiment_parser, output_dir
 from planners.cells import CellSpace
 from planners.coverage import coverage_pipeline, tv_distance
@@ -101,8 +106,6 @@ def simulate(params: dict, rng: np.random.Generator) -> dict:
     Returns the run's row; ``counts`` is the histogram over position cells as a
     space-separated string.
     """
-    from bouncesim.noise import noise_for_mix
-
     env = envs.load(params["env"], cell_size=params.get("cell_size"),
                     orientations=int(params["orientations"]))
     cs = CellSpace(env)
@@ -112,19 +115,15 @@ def simulate(params: dict, rng: np.random.Generator) -> dict:
     steps = int(params["steps"])
     t0 = time.perf_counter()
     if params["backend"] == "twin":
-        from bouncesim.kinematic import KinematicBatch
         n = int(params["robots"])
         per = math.ceil(steps / n)
         res = KinematicBatch(env, n, rng, cells=cs).run(
             mix, per, epoch=epoch, noise=noise, burn_in=int(params.get("burn_in", 0)))
         counts, dropped, bumps = res.counts, res.dropped, res.bumps
     elif params["backend"] == "pybullet":
-        from bouncesim.execute import execute_mix
-        from bouncesim.pybullet_world import PyBulletRobot
-        robot = PyBulletRobot(env, noise=noise, rng=rng)
-        with robot:
-            run = execute_mix(mix, robot, env, steps, epoch, rng, cells=cs,
-                              speed=float(params["speed"]), record_trace=False)
+        with make_robot("pybullet", env, noise=noise, rng=rng) as robot:
+            run = execute(mix, robot, steps=steps, epoch=epoch, rng=rng, cells=cs,
+                          speed=float(params["speed"]), record_trace=False)
         counts, dropped, bumps = run.counts, run.dropped, run.bumps
     else:
         raise ValueError(f"unknown backend {params['backend']!r}")

@@ -13,6 +13,7 @@ import sys
 import pandas as pd
 
 import envs
+from bouncesim.runs.options import parse_angles
 from planners.cells import CellSpace
 from planners.navigation import Navigator
 from planners.plan import Plan
@@ -89,7 +90,6 @@ def main(argv=None) -> int:
                    help="bouncing angles [deg] (default 90,135: the angles of the paper's plans)")
     p.add_argument("--no-physics", action="store_true", help="plan only, skip execution")
     args = p.parse_args(argv)
-    from bouncesim.commands.common import parse_angles
     try:
         angles = parse_angles(args.angles)
         env, cells, nav, routes, table = plan_routes(angles)

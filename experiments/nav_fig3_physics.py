@@ -10,6 +10,10 @@ import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
+from bouncesim import robots
+from bouncesim.robots.noise import GaussianNoise, NoNoise
+from bouncesim.runs.execute import execute
+
 __all__ = ["execute_fig3", "make_robot", "BACKENDS"]
 
 BACKENDS = ("pybullet", "kinematic")
@@ -20,20 +24,16 @@ TWIN_GLANCE_DEG = 80.0
 
 
 def make_robot(backend: str, env, noise, rng):
-    """The CLI's robot builder, with the twin's bumper arc matched to PyBullet's."""
-    from bouncesim.commands.run_plan import make_robot as build
+    """:func:`bouncesim.robots.make_robot`, with the twin's bumper arc matched to PyBullet's."""
     if backend not in BACKENDS:
         raise ValueError(f"unknown backend {backend!r}")
-    glance = TWIN_GLANCE_DEG if backend == "kinematic" else None
-    return build(backend, env, noise, rng, glance=glance)
+    options = {"glance_deg": TWIN_GLANCE_DEG} if backend == "kinematic" else {}
+    return robots.make_robot(backend, env, noise=noise, rng=rng, **options)
 
 
 def execute_fig3(env, cells, routes, table, args, out):
     """Run every plan on every backend: one noise-free run, then ``n`` noisy seeds per
     noise level. Returns ({(plan, backend): noise-free trace frame}, config additions)."""
-    from bouncesim.execute import execute_plan
-    from bouncesim.noise import GaussianNoise, NoNoise
-
     n_noisy = 3 if args.quick else 20
     sigmas = (2.0,) if args.quick else (2.0, 5.0)
     backends = [b for b in BACKENDS if _available(b)]
@@ -56,8 +56,7 @@ def execute_fig3(env, cells, routes, table, args, out):
         rng = np.random.default_rng(ss)
         robot = make_robot(backend, env, noise, rng)
         try:
-            run = execute_plan(route.plan, robot, env, route.start, goal=route.goal,
-                               cells=cells)
+            run = execute(route.plan, robot, start=route.start, goal=route.goal, cells=cells)
         finally:
             robot.close()
         rows.append({"plan": plan_label, "backend": backend, "noise": noise_name,

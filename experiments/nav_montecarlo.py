@@ -6,9 +6,9 @@
 For a seeded sample of reachable (start, goal) pairs of `lab` and `complex` (shortest plans
 from the all-pairs table at the catalogue discretisation, Φ = {45°, 90°, 135°}, w1 = 1,
 w2 = 100, as in ``experiments.allpairs_fig7``), the planned observation strings are executed
-by :func:`bouncesim.execute.execute_plan` in the kinematic twin (every pair) and in PyBullet (a
+by :func:`bouncesim.runs.execute.execute` in the kinematic twin (every pair) and in PyBullet (a
 subset of the pairs), under Gaussian rotation noise σ and the docs/model.md §7 model (ε = Δ, several
-r). Every execution is one trial of :mod:`bouncesim.sweep` (seeded, resumable, any executor).
+r). Every execution is one trial of :mod:`bouncesim.runs.sweep` (seeded, resumable, any executor).
 
 Outputs in ``--out``: ``runs.csv`` (one row per trial), ``runs.jsonl`` (the resume journal),
 ``summary_noise.csv``, ``summary_length.csv``, ``summary_angles.csv``,
@@ -29,9 +29,13 @@ import numpy as np
 import pandas as pd
 
 import envs
-from bouncesim.sweep import Sweep, add_executor_args, make_executor
+from bouncesim.robots.noise import parse_noise
+from bouncesim.runs.execute import execute
+from bouncesim.runs.executors import add_executor_args, make_executor
+from bouncesim.runs.sweep import Sweep
 from planners.cells import CellSpace
 from planners.navigation import Navigator
+from planners.plan import Plan
 
 from .common import experiment_parser, output_dir
 from .nav_fig3_physics import TWIN_GLANCE_DEG, make_robot
@@ -66,17 +70,13 @@ def nav_trial(params: dict, rng: np.random.Generator) -> dict:
     ``params``: env, start, goal (configuration indices), plan (observation string), backend
     ('kinematic' or 'pybullet'), noise (``parse_noise`` spec). The rng drives the noise.
     """
-    from bouncesim.execute import execute_plan
-    from bouncesim.noise import parse_noise
-    from planners.plan import Plan
-
     env, cells = _world(params["env"])
     noise = parse_noise(params["noise"], cells.delta_deg)
     t0 = time.perf_counter()
     robot = make_robot(params["backend"], env, noise, rng)
     try:
-        run = execute_plan(Plan.parse(params["plan"]), robot, env, int(params["start"]),
-                           goal=int(params["goal"]), cells=cells)
+        run = execute(Plan.parse(params["plan"]), robot, start=int(params["start"]),
+                      goal=int(params["goal"]), cells=cells)
     finally:
         robot.close()
     wall = time.perf_counter() - t0

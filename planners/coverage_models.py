@@ -8,7 +8,7 @@
   binned contact points, occupancy by renewal–reward. Recommended (``docs/model_continuous.md``).
 
 All three predict the step-sampled coverage of docs/model.md §9 (what
-:class:`bouncesim.kinematic.KinematicBatch` measures), one probability per position cell.
+:class:`bouncesim.robots.kinematic.KinematicBatch` measures), one probability per position cell.
 
 >>> import envs
 >>> from planners.cells import CellSpace

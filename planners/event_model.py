@@ -249,7 +249,7 @@ def flight_steps(dist, h: float) -> np.ndarray:
     """Forward steps of a flight of free length ``dist`` [m] under the twin's step rule.
 
     A step is a forward step while at least h − STEP_TOL of free distance remains
-    (docs/model.md §9, :class:`bouncesim.kinematic.KinematicBatch`), so a flight of D gives
+    (docs/model.md §9, :class:`bouncesim.robots.kinematic.KinematicBatch`), so a flight of D gives
     floor((D + STEP_TOL)/h) forward steps and then one bump step at the contact.
 
     >>> flight_steps([0.0, 0.34, 0.3399995, 0.68 - 2e-6, 1.0], 0.34).tolist()

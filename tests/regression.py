@@ -96,15 +96,15 @@ def compute_coverage() -> dict:
 
 
 def _execute(env, cells, route, backend: str) -> bool:
-    from bouncesim.execute import execute_plan
+    from bouncesim.runs.execute import execute
     if backend == "twin":
-        from bouncesim.kinematic import KinematicRobot
+        from bouncesim.robots.kinematic import KinematicRobot
         robot = KinematicRobot(env, glance_deg=80)
     else:
-        from bouncesim.pybullet_world import PyBulletRobot
+        from bouncesim.robots.pybullet import PyBulletRobot
         robot = PyBulletRobot(env)
     with robot:
-        run = execute_plan(route.plan, robot, env, route.start, route.goal, cells)
+        run = execute(route.plan, robot, start=route.start, goal=route.goal, cells=cells)
     return bool(run.success)
 
 
@@ -131,8 +131,8 @@ def compute_plans(pybullet: bool = True) -> list[dict]:
 
 
 def twin_histogram(cs: CellSpace, angle: float, seed: int) -> np.ndarray:
-    from bouncesim.kinematic import KinematicBatch
-    from bouncesim.noise import SteppedNoise
+    from bouncesim.robots.kinematic import KinematicBatch
+    from bouncesim.robots.noise import SteppedNoise
     s = TV_SETTING
     res = KinematicBatch(cs.env, s["twin_robots"], np.random.default_rng(seed), cells=cs).run(
         angle, s["twin_steps_per_robot"], noise=SteppedNoise(s["eps"], s["r"], cs.delta_deg),
@@ -141,17 +141,17 @@ def twin_histogram(cs: CellSpace, angle: float, seed: int) -> np.ndarray:
 
 
 def pybullet_histogram(cs: CellSpace, angle: float, seed: int) -> np.ndarray:
-    from bouncesim.execute import execute_mix
-    from bouncesim.noise import SteppedNoise
-    from bouncesim.pybullet_world import PyBulletRobot
+    from bouncesim.runs.execute import execute
+    from bouncesim.robots.noise import SteppedNoise
+    from bouncesim.robots.pybullet import PyBulletRobot
     s = TV_SETTING
     counts = np.zeros(cs.P, dtype=np.int64)
     for rng in np.random.default_rng(seed).spawn(s["pybullet_runs"]):
         robot = PyBulletRobot(cs.env, noise=SteppedNoise(s["eps"], s["r"], cs.delta_deg),
                               rng=rng)
         with robot:
-            run = execute_mix(angle, robot, cs.env, s["pybullet_steps"], 1, rng, cells=cs,
-                              speed=0.3, record_trace=False)
+            run = execute(angle, robot, steps=s["pybullet_steps"], epoch=1, rng=rng, cells=cs,
+                          speed=0.3, record_trace=False)
         counts += run.counts
     return counts
 

@@ -1,14 +1,14 @@
-"""The Robot conformance suite (tests/conformance.py) run against every simulated backend."""
+"""The Robot conformance suite (bouncesim.robots.conformance) run against every simulated
+backend."""
 
 from __future__ import annotations
 
-import importlib.util
-
 import pytest
 
-from bouncesim.kinematic import KinematicRobot
+from bouncesim.robots.kinematic import KinematicRobot
 
-from .conformance import CHECKS
+from bouncesim.robots import ConformanceError, check_robot
+from bouncesim.robots.conformance import CHECKS
 
 
 def _kinematic(env):
@@ -21,9 +21,7 @@ def _kinematic_glance(env):
 
 def _pybullet(env):
     pytest.importorskip("pybullet")
-    if importlib.util.find_spec("bouncesim.pybullet_world") is None:
-        pytest.skip("bouncesim.pybullet_world is not there yet")
-    from bouncesim.pybullet_world import PyBulletRobot
+    from bouncesim.robots.pybullet import PyBulletRobot
     return PyBulletRobot(env)
 
 
@@ -37,7 +35,7 @@ BACKENDS = [
 @pytest.mark.parametrize("make_robot", BACKENDS)
 @pytest.mark.parametrize("check", sorted(CHECKS))
 def test_conformance(check, make_robot):
-    CHECKS[check](make_robot)
+    check_robot(make_robot, checks=[check])
 
 
 def test_suite_is_not_empty():
@@ -76,4 +74,19 @@ class _SlowClock(KinematicRobot):
 ])
 def test_conformance_catches_broken_backends(broken, check):
     with pytest.raises(AssertionError):
-        CHECKS[check](lambda env: broken(env))
+        check_robot(lambda env: broken(env), checks=[check])
+
+
+def test_check_robot_runs_every_check_and_names_each_failure():
+    assert check_robot("kinematic") == sorted(CHECKS)
+    with pytest.raises(ConformanceError) as info:
+        check_robot(_ShortTurns, checks=["turn_90", "drive_straight", "four_quarter_turns"])
+    assert set(info.value.failures) == {"turn_90", "four_quarter_turns"}
+    message = str(info.value)
+    assert message.startswith("2 of 3 conformance checks failed for _ShortTurns:")
+    assert "turn_90: heading" in message
+
+
+def test_check_robot_refuses_unknown_checks():
+    with pytest.raises(ValueError, match="unknown conformance check 'fly'"):
+        check_robot("kinematic", checks=["fly"])

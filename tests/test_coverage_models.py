@@ -1,7 +1,7 @@
 """The coverage models (step, sampled, event): hand-computed cases, entry point, twin agreement.
 
 Twin histograms are docs/model.md §9 step-sampled histograms of
-:class:`bouncesim.kinematic.KinematicBatch` under the §7 rotation noise, with a burn-in so
+:class:`bouncesim.robots.kinematic.KinematicBatch` under the §7 rotation noise, with a burn-in so
 that they estimate the *limiting* coverage the models predict. Next to each bound: the twin's
 counted steps and its seed-to-seed TV (noise floor), both measured with these settings
 (``docs/model_continuous.md``).
@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 import envs
-from bouncesim.kinematic import KinematicBatch
-from bouncesim.noise import SteppedNoise
+from bouncesim.robots.kinematic import KinematicBatch
+from bouncesim.robots.noise import SteppedNoise
 from envs import Environment, UserError
 from planners.cells import CellSpace
 from planners.coverage import analyse_angle, coverage_pipeline

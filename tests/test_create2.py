@@ -1,15 +1,16 @@
-"""The Create 2 adapter (bouncesim.create2) against the OI emulator (bouncesim.oi_emulator),
-through real serial transports (a pseudo-terminal and a loopback TCP socket): the Robot
-conformance suite, Fig. 3 plans, every injected fault, and a controller process killed by a
-signal. No hardware needed.
+"""The Create 2 adapter (bouncesim.robots.create2.adapter) against the OI emulator
+(bouncesim.robots.create2.emulator), through real serial transports (a pseudo-terminal and a
+loopback TCP socket): the Robot conformance suite, Fig. 3 plans, every injected fault, and a
+controller process killed by a signal. No hardware needed.
 
-Functional tests run the emulator in lockstep with the adapter (bouncesim.lockstep): the
-emulated clock moves only when the adapter asks for its next reading, so they give the same
-bytes and poses however busy the machine is. Tests of behaviour that needs wall time (the
-watchdog, a controller killed by a signal, the stand-alone emulator process, turns on a real
-clock) are marked ``realtime``: they run faster than real time (``SCALE`` emulated seconds per
-second, the adapter given the same scale), use generous wall-clock bounds, and check what they
-claim (the robot is stopped, the turn is within its tolerance) rather than exact timings.
+Functional tests run the emulator in lockstep with the adapter
+(bouncesim.robots.create2.lockstep): the emulated clock moves only when the adapter asks for its
+next reading, so they give the same bytes and poses however busy the machine is. Tests of
+behaviour that needs wall time (the watchdog, a controller killed by a signal, the stand-alone
+emulator process, turns on a real clock) are marked ``realtime``: they run faster than real time
+(``SCALE`` emulated seconds per second, the adapter given the same scale), use generous
+wall-clock bounds, and check what they claim (the robot is stopped, the turn is within its
+tolerance) rather than exact timings.
 """
 
 from __future__ import annotations
@@ -27,16 +28,14 @@ import numpy as np
 import pytest
 
 import envs
-from bouncesim import oi
-from bouncesim.create2 import Create2Robot
-from bouncesim.execute import execute_plan
-from bouncesim.noise import GaussianNoise
-from bouncesim.oi_emulator import OIEmulator, parse_fault
-from bouncesim.robot import RobotError
+from bouncesim.robots import check_robot
+from bouncesim.robots.base import RobotError
+from bouncesim.robots.conformance import CHECKS, room_env
+from bouncesim.robots.create2 import Create2Robot, OIEmulator, oi, parse_fault
+from bouncesim.robots.noise import GaussianNoise
+from bouncesim.runs.execute import execute
 from planners.cells import CellSpace
 from planners.navigation import Navigator
-
-from .conformance import CHECKS, room_env
 
 pytest.importorskip("serial")
 
@@ -109,14 +108,14 @@ LONG_CHECKS = {"bounce_sequence", "four_quarter_turns"}
     pytest.param(c, marks=pytest.mark.slow) if c in LONG_CHECKS else c for c in sorted(CHECKS)])
 def test_conformance_stream_encoders_pty(check):
     with deadline(60):
-        CHECKS[check](_emulated())
+        check_robot(_emulated(), checks=[check])
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("check", sorted(CHECKS))
 def test_conformance_query_clock_tcp(check):
     with deadline(60):
-        CHECKS[check](_emulated(transport="tcp", sensing="query", turn="clock"))
+        check_robot(_emulated(transport="tcp", sensing="query", turn="clock"), checks=[check])
 
 
 # ---------------------------------------------------------------- Fig. 3 plans
@@ -130,7 +129,7 @@ def test_fig3_plan_reaches_goal_through_the_serial_path(label, start, goal):
     route = Navigator(cells, (90, 135)).plan(start, goal)
     assert route is not None
     with deadline(60), rig(env, scale=4.0) as (emu, bot):
-        run = execute_plan(route.plan, bot, env, start, goal, cells, speed=0.5)
+        run = execute(route.plan, bot, start=start, goal=goal, cells=cells, speed=0.5)
         assert run.success, run.reason
         assert run.position_error < 0.02 and abs(run.heading_error) < 3.0
         assert run.bumps == route.plan.bumps
@@ -148,7 +147,7 @@ def test_fig3_plan_with_back_off_clock_turns_and_queries_on_tcp():
     # obstacle corner, in the kinematic twin as well)
     with deadline(120), rig(env, transport="tcp", scale=4.0, turn="clock",
                             sensing="query") as (emu, bot):
-        run = execute_plan(route.plan, bot, env, 8, 0, cells, speed=0.5, back_off=0.01)
+        run = execute(route.plan, bot, start=8, goal=0, cells=cells, speed=0.5, back_off=0.01)
         assert run.success, run.reason
         assert len(run.trace.events("back_off")) == run.bumps
         assert_stopped(emu)
@@ -418,7 +417,7 @@ def test_fault_inside_a_plan_ends_the_run_stopped():
                            emu_kw={"faults": [parse_fault("stall-right@0.5")]}) as (emu, bot):
         # the first bump comes at once (the start faces the east wall); the right wheel
         # stalls 0.5 s into the first 90° turn, which then needs 2.7 s more
-        run = execute_plan(route.plan, bot, env, 8, 0, cells, speed=0.5)
+        run = execute(route.plan, bot, start=8, goal=0, cells=cells, speed=0.5)
         assert not run.success and run.reason.startswith("robot error: the right wheel"), \
             run.reason
         assert_stopped(emu)
@@ -498,7 +497,7 @@ def test_standalone_emulator_command_end_to_end():
         cells = CellSpace(env)
         route = Navigator(cells, (90, 135)).plan(8, 0)
         with deadline(120), Create2Robot(url, time_scale=4.0) as bot:
-            run = execute_plan(route.plan, bot, env, 8, 0, cells, speed=0.5)
+            run = execute(route.plan, bot, start=8, goal=0, cells=cells, speed=0.5)
         assert run.completed and run.success is None     # hardware: no pose to check
         proc.send_signal(signal.SIGTERM)
         out, _ = proc.communicate(timeout=10)
@@ -514,8 +513,8 @@ def test_standalone_emulator_command_end_to_end():
 def test_docstring_examples():
     import doctest
 
-    from bouncesim import create2, oi_emulator
-    for mod in (create2, oi_emulator):
+    from bouncesim.robots.create2 import adapter, emulator
+    for mod in (adapter, emulator):
         result = doctest.testmod(mod)
         assert result.attempted > 0 and result.failed == 0, mod.__name__
 

@@ -9,8 +9,11 @@ import pytest
 
 MODULES = ["envs", "envs.environment", "planners.cells", "planners.plan", "planners.roadmap",
            "planners.coverage",
-           "planners.navigation", "bouncesim.commands.plan", "bouncesim.pybullet_world",
-           "bouncesim.sweep", "envs.raycast", "planners.event_model",
+           "planners.navigation", "bouncesim.commands.plan", "bouncesim.robots.pybullet.walls",
+           "bouncesim.robots", "bouncesim.robots.factory", "bouncesim.robots.conformance",
+           "bouncesim.robots.create2.faults",
+           "bouncesim.runs.options", "bouncesim.runs.execute",
+           "bouncesim.runs.sweep", "envs.raycast", "planners.event_model",
            "planners.coverage_models"]
 
 

@@ -9,11 +9,11 @@ import pytest
 
 import envs
 from bouncesim.cli import main
-from bouncesim.execute import execute_mix, execute_plan
-from bouncesim.kinematic import KinematicBatch, KinematicRobot
-from bouncesim.noise import GaussianNoise, SteppedNoise
-from bouncesim.robot import CREATE2, BumpEvent, Robot, RobotError
-from bouncesim.trace import Trace
+from bouncesim.runs.execute import execute
+from bouncesim.robots.kinematic import KinematicBatch, KinematicRobot
+from bouncesim.robots.noise import GaussianNoise, SteppedNoise
+from bouncesim.robots.base import CREATE2, BumpEvent, Robot, RobotError
+from bouncesim.runs.trace import Trace
 from envs import UserError
 from planners.cells import CellSpace
 from planners.navigation import Navigator
@@ -73,7 +73,7 @@ class InterfaceOnly(Robot):
 def test_fig3_plans_succeed_without_noise(lab, lab_cells, start, goal):
     route = Navigator(lab_cells, [90, 135]).plan(start, goal)
     assert route is not None
-    run = execute_plan(route.plan, KinematicRobot(lab), lab, start, goal, lab_cells)
+    run = execute(route.plan, KinematicRobot(lab), start=start, goal=goal, cells=lab_cells)
     assert run.success is True, run.reason
     assert run.completed and run.deviations == ()
     assert run.position_error == pytest.approx(0.0, abs=1e-6)
@@ -85,18 +85,18 @@ def test_fig3_plans_succeed_without_noise(lab, lab_cells, start, goal):
 def test_fig3_hand_written_plans(lab, lab_cells):
     # 8 -> 0: bump east, turn 90 (north, bump under the block), 90 (west), drive 8 cells,
     # bump the west wall, 90 (south, bump), 90 (east)
-    run = execute_plan(Plan.parse("90° 90° 00000000 90° 90°"), KinematicRobot(lab), lab, 8, 0)
+    run = execute(Plan.parse("90° 90° 00000000 90° 90°"), KinematicRobot(lab), start=8, goal=0)
     assert run.success
     times = [r.t for r in run.trace.events("bump")]
     turn = CREATE2.turn_time(90, 0.1)
     assert times[2] == pytest.approx(2 * turn + 8 * 0.34 / 0.2)
     # 103 -> 8: north at (7, 0) bumps, 135 -> 225 bumps, 135 -> 0, one step east, stop
-    run = execute_plan("135° 135° 0", KinematicRobot(lab), lab, 103, 8)
+    run = execute("135° 135° 0", KinematicRobot(lab), start=103, goal=8)
     assert run.success and run.final_pose[:2] == pytest.approx((2.89, 0.17), abs=1e-6)
 
 
 def test_trailing_zeros_drive_by_clock_and_stop(lab, lab_cells):
-    run = execute_plan("000", KinematicRobot(lab), lab, 0, 3, lab_cells)
+    run = execute("000", KinematicRobot(lab), start=0, goal=3, cells=lab_cells)
     assert run.success and run.bumps == 0
     assert run.final_pose[0] == pytest.approx(0.17 + 3 * 0.34)
     assert run.elapsed == pytest.approx(3 * 0.34 / 0.2)
@@ -105,16 +105,16 @@ def test_trailing_zeros_drive_by_clock_and_stop(lab, lab_cells):
 def test_trailing_diagonal_zeros_drive_the_step_models_distance(lab, lab_cells):
     # 24 = (p 24, east); one step east, bump, 135° to north-west, two diagonal steps: each
     # moves to the diagonal neighbour's centre, so the run drives 2·√2·h and ends on 183
-    run = execute_plan("0 135° 00", KinematicRobot(lab), lab, 24, 183, lab_cells)
+    run = execute("0 135° 00", KinematicRobot(lab), start=24, goal=183, cells=lab_cells)
     assert run.success and run.deviations == ()
     assert run.position_error == pytest.approx(0.0, abs=1e-6)
     assert run.final_pose[:2] == pytest.approx(lab_cells.pose(183)[:2], abs=1e-6)
     # a start pose fixes the heading of every run as well
-    run = execute_plan("0 135° 00", KinematicRobot(lab), lab, lab_cells.pose(24), 183,
-                       lab_cells)
+    run = execute("0 135° 00", KinematicRobot(lab), start=lab_cells.pose(24), goal=183,
+                  cells=lab_cells)
     assert run.success
     with pytest.raises(UserError, match="start"):
-        execute_plan("0 135° 00", KinematicRobot(lab), lab, None, 183, lab_cells)
+        execute("0 135° 00", KinematicRobot(lab), start=None, goal=183, cells=lab_cells)
 
 
 @pytest.mark.parametrize("name,K", [("lab", 8), ("fig1", 8), ("complex", 16),
@@ -133,23 +133,23 @@ def test_step_offsets_agree_with_the_step_table(name, K):
 
 def test_deviation_is_logged_and_run_goes_on(lab, lab_cells):
     # from (0, 0) facing east the wall is 8 cells away: a plan expecting 3 is 5 cells late
-    run = execute_plan("000 90°", KinematicRobot(lab), lab, 0, None, lab_cells)
+    run = execute("000 90°", KinematicRobot(lab), start=0, goal=None, cells=lab_cells)
     assert run.completed and run.success is None
     (dev,) = run.deviations
     assert dev.kind == "late" and dev.expected == pytest.approx(1.02)
     assert dev.travelled == pytest.approx(2.72, abs=1e-6)
     assert run.trace.count("deviation") == 1
     # one cell off is tolerated
-    run = execute_plan("0000000 90°", KinematicRobot(lab), lab, 0, None, lab_cells)
+    run = execute("0000000 90°", KinematicRobot(lab), start=0, goal=None, cells=lab_cells)
     assert run.deviations == ()
     # early
-    run = execute_plan("00000000000 90°", KinematicRobot(lab), lab, 0, None, lab_cells,
-                       max_factor=5)
+    run = execute("00000000000 90°", KinematicRobot(lab), start=0, goal=None, cells=lab_cells,
+                  max_factor=5)
     assert [d.kind for d in run.deviations] == ["early"]
 
 
 def test_no_bump_ends_the_run_with_a_reason(lab, lab_cells):
-    run = execute_plan("0 90°", KinematicRobot(lab), lab, 0, 9, lab_cells, max_factor=1.0)
+    run = execute("0 90°", KinematicRobot(lab), start=0, goal=9, cells=lab_cells, max_factor=1.0)
     assert run.success is False and not run.completed
     # a segment of n zeros may drive max_factor * (n + 2) * h = 3 * 0.34 m
     assert run.reason.startswith("no bump within 1.02 m")
@@ -157,19 +157,19 @@ def test_no_bump_ends_the_run_with_a_reason(lab, lab_cells):
 
 
 def test_success_checks_cell_and_heading(lab, lab_cells):
-    run = execute_plan("0", KinematicRobot(lab), lab, 0, 2, lab_cells)
+    run = execute("0", KinematicRobot(lab), start=0, goal=2, cells=lab_cells)
     assert run.success is False and "outside the goal cell" in run.reason
     assert run.position_error == pytest.approx(0.34)
     goal_north = int(lab_cells.z(1, 2))
-    run = execute_plan("0", KinematicRobot(lab), lab, 0, goal_north, lab_cells)
+    run = execute("0", KinematicRobot(lab), start=0, goal=goal_north, cells=lab_cells)
     assert run.success is False and "heading off by -90.0°" in run.reason
     # a start pose off the centre still succeeds inside the goal cell
-    run = execute_plan("0", KinematicRobot(lab), lab, (0.25, 0.2, 10.0), 1, lab_cells)
+    run = execute("0", KinematicRobot(lab), start=(0.25, 0.2, 10.0), goal=1, cells=lab_cells)
     assert run.success and run.heading_error == pytest.approx(10.0)
 
 
 def test_back_off(lab, lab_cells):
-    run = execute_plan("90°", KinematicRobot(lab), lab, 8, None, lab_cells, back_off=0.01)
+    run = execute("90°", KinematicRobot(lab), start=8, goal=None, cells=lab_cells, back_off=0.01)
     x, y, h = run.final_pose
     assert x == pytest.approx(2.88, abs=1e-6) and h == 90.0
     assert run.trace.count("back_off") == 1
@@ -179,7 +179,7 @@ def test_interface_only_robot_runs_plans(lab, lab_cells):
     inner = KinematicRobot(lab)
     inner.place(*lab_cells.pose(8))                  # "the human placed it"
     bot = InterfaceOnly(inner)
-    run = execute_plan("90° 90° 00000000 90° 90°", bot, lab, 8, 0, lab_cells)
+    run = execute("90° 90° 00000000 90° 90°", bot, start=8, goal=0, cells=lab_cells)
     assert run.completed and run.success is None
     assert "unknown" in run.reason
     assert run.final_pose is None and run.position_error is None
@@ -193,32 +193,32 @@ def test_robot_error_ends_the_run(lab):
     class Failing(KinematicRobot):
         def turn(self, angle_deg):
             raise RobotError("lost the serial link")
-    run = execute_plan("90°", Failing(lab), lab, 8, 8)
+    run = execute("90°", Failing(lab), start=8, goal=8)
     assert run.success is False and run.reason == "robot error: lost the serial link"
 
 
 def test_bad_inputs_are_user_errors(lab):
     with pytest.raises(UserError):
-        execute_plan("90°", KinematicRobot(lab), lab, 8, 0, speed=0.0)
+        execute("90°", KinematicRobot(lab), start=8, goal=0, speed=0.0)
     with pytest.raises(UserError):
-        execute_plan("90°", KinematicRobot(lab), lab, 8, 0, speed=1.0)
+        execute("90°", KinematicRobot(lab), start=8, goal=0, speed=1.0)
     with pytest.raises(UserError):
-        execute_plan("90°", KinematicRobot(lab), lab, 8, 0, back_off=-1)
+        execute("90°", KinematicRobot(lab), start=8, goal=0, back_off=-1)
     with pytest.raises(UserError):
-        execute_plan("90°", KinematicRobot(lab), lab, 999, 0)
+        execute("90°", KinematicRobot(lab), start=999, goal=0)
 
 
 def test_noisy_runs_are_deterministic(lab):
     def once(seed):
         bot = KinematicRobot(lab, GaussianNoise(3.0), np.random.default_rng(seed))
-        return execute_plan("135° 135° 0", bot, lab, 103, 8)
+        return execute("135° 135° 0", bot, start=103, goal=8)
     a, b = once(4), once(4)
     assert a.final_pose == b.final_pose and a.reason == b.reason
     assert [r.t for r in a.trace] == [r.t for r in b.trace]
 
 
 def test_trace_csv_round_trip(tmp_path, lab):
-    run = execute_plan("90° 90° 00000000 90° 90°", KinematicRobot(lab), lab, 8, 0)
+    run = execute("90° 90° 00000000 90° 90°", KinematicRobot(lab), start=8, goal=0)
     path = run.trace.to_csv(tmp_path / "t.csv")
     import pandas as pd
     df = pd.read_csv(path)
@@ -237,8 +237,8 @@ def test_mix_run_on_the_twin_matches_the_batch(lab, lab_cells):
     noise = SteppedNoise(45, 0.7, 45)
     for z0 in (5, 100, 250):
         bot = KinematicRobot(lab, noise, np.random.default_rng(z0))
-        run = execute_mix(135.0, bot, lab, 400, 50, np.random.default_rng(0), start=z0,
-                          cells=lab_cells, record_trace=False)
+        run = execute(135.0, bot, steps=400, epoch=50, rng=np.random.default_rng(0), start=z0,
+                      cells=lab_cells, record_trace=False)
         batch = KinematicBatch(lab, 1, np.random.default_rng(z0), starts=[z0])
         res = batch.run(135.0, 400, noise=noise)
         assert run.steps == 400 and run.reason == "finished"
@@ -249,8 +249,8 @@ def test_mix_run_on_the_twin_matches_the_batch(lab, lab_cells):
 
 def test_mix_epochs_follow_alpha(lab):
     mix = PolicyMix((90.0, 135.0, 180.0), (0.2, 0.5, 0.3))
-    run = execute_mix(mix, KinematicRobot(lab), lab, 3000, 3, np.random.default_rng(1),
-                      record_trace=False)
+    run = execute(mix, KinematicRobot(lab), steps=3000, epoch=3, rng=np.random.default_rng(1),
+                  record_trace=False)
     angles = np.array(run.epoch_angles)
     assert len(angles) == 1000
     for a, p in zip(mix.angles, mix.alpha):
@@ -264,8 +264,8 @@ def test_mix_step_counting_by_hand():
     # 3 x 1 corridor at K = 4 facing east from cell 0 with 180° bounces:
     # steps start (or bump) in cells 0, 1, 2 (bump, turn west), 2, 1, 0 (bump), 0, 1, 2 (bump), 2
     env = room(3, 1, K=4)
-    run = execute_mix(180.0, KinematicRobot(env), env, 10, 10, np.random.default_rng(0),
-                      start=0)
+    run = execute(180.0, KinematicRobot(env), steps=10, epoch=10, rng=np.random.default_rng(0),
+                  start=0)
     assert run.counts.tolist() == [3, 3, 4]
     assert run.bumps == 3
     steps = [r.event for r in run.trace if r.event in ("step", "bump")]
@@ -277,17 +277,19 @@ def test_stuck_robot_ends_the_run(lab):
     class Wedged(KinematicRobot):
         def drive_until_bump(self, speed, timeout):
             return BumpEvent(True, True, True, 0.0)
-    run = execute_mix(90.0, Wedged(lab), lab, 1000, 10, np.random.default_rng(0), max_stuck=20)
+    run = execute(90.0, Wedged(lab), steps=1000, epoch=10, rng=np.random.default_rng(0),
+                  max_stuck=20)
     assert run.reason == "stuck: 21 bumps in a row without moving"
     assert run.steps == 21
     # without the limit the budget ends the run
-    run = execute_mix(90.0, Wedged(lab), lab, 100, 10, np.random.default_rng(0))
+    run = execute(90.0, Wedged(lab), steps=100, epoch=10, rng=np.random.default_rng(0))
     assert run.reason == "finished" and run.steps == 100 and run.bumps == 100
 
 
 def test_mix_on_interface_only_robot_has_no_histogram(lab, lab_cells):
     inner = KinematicRobot(lab)
-    run = execute_mix(135.0, InterfaceOnly(inner), lab, 50, 10, np.random.default_rng(0))
+    run = execute(135.0, InterfaceOnly(inner), steps=50, epoch=10, rng=np.random.default_rng(0),
+                  cells=lab_cells)
     assert run.counts is None and run.coverage is None and run.steps == 50
 
 
@@ -341,8 +343,8 @@ def test_cli_user_errors(capsys, extra, msg):
     assert err.startswith("bouncesim: error: ") and msg in err and err.count("\n") == 1
 
 
-@pytest.mark.parametrize("name", ["bouncesim.noise", "bouncesim.kinematic", "bouncesim.execute",
-                                  "bouncesim.trace"])
+@pytest.mark.parametrize("name", ["bouncesim.robots.noise", "bouncesim.robots.kinematic",
+                                  "bouncesim.runs.execute", "bouncesim.runs.trace"])
 def test_docstring_examples(name):
     import doctest
     import importlib

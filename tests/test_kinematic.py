@@ -11,10 +11,10 @@ import shapely
 
 import envs
 from envs import UserError
-from bouncesim.kinematic import (CONTACT_GAP, KinematicBatch, KinematicRobot, LocalCaster,
+from bouncesim.robots.kinematic import (CONTACT_GAP, KinematicBatch, KinematicRobot, LocalCaster,
                                  WallCaster, unit)
-from bouncesim.noise import GaussianNoise, SteppedNoise
-from bouncesim.robot import Robot
+from bouncesim.robots.noise import GaussianNoise, SteppedNoise
+from bouncesim.robots.base import Robot
 from planners.cells import CellSpace
 from planners.plan import PolicyMix
 

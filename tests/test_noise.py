@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from envs import UserError
-from bouncesim.noise import (GaussianNoise, NoNoise, SteppedNoise, noise_for_mix,
+from bouncesim.robots.noise import (GaussianNoise, NoNoise, SteppedNoise, noise_for_mix,
                              parse_noise)
 from planners.plan import PolicyMix
 

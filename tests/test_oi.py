@@ -1,5 +1,6 @@
-"""The byte-level Open Interface layer (bouncesim.oi) against the specification's worked
-examples, hand-computed frames, and property tests of the stream parser's resynchronisation."""
+"""The byte-level Open Interface layer (bouncesim.robots.create2.oi) against the specification's
+worked examples, hand-computed frames, and property tests of the stream parser's
+resynchronisation."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from bouncesim import oi
+from bouncesim.robots.create2 import oi
 
 IDS = [7, 43, 44, 35]
 

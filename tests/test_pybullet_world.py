@@ -1,4 +1,4 @@
-"""The PyBullet Create 2 (bouncesim.pybullet_world): wall geometry, bumps, turns, encoders,
+"""The PyBullet Create 2 (bouncesim.robots.pybullet): wall geometry, bumps, turns, encoders,
 determinism, recording and the paper's Fig. 3 plans.
 
 Geometry tests need no physics; the others are marked ``physics``. Independent evidence:
@@ -21,9 +21,10 @@ import shapely
 from shapely.geometry import Polygon
 
 import envs
-from bouncesim import pybullet_world as pbw
-from bouncesim.pybullet_world import convex_pieces, ear_clip, wall_pieces
-from bouncesim.robot import RobotError
+from bouncesim.robots.pybullet import robot as pbw
+from bouncesim.robots.pybullet import walls as pbwalls
+from bouncesim.robots.pybullet.walls import convex_pieces, ear_clip, wall_pieces
+from bouncesim.robots.base import RobotError
 from envs import UserError
 
 from .conftest import room
@@ -38,7 +39,7 @@ def hdiff(a: float, b: float) -> float:
 
 
 def make(env, **kw):
-    from bouncesim.pybullet_world import PyBulletRobot
+    from bouncesim.robots.pybullet import PyBulletRobot
     return PyBulletRobot(env, **kw)
 
 
@@ -93,7 +94,7 @@ def test_convex_pieces_merge_triangles():
     # the L splits into at best 2 convex parts; triangles merge into at most 3
     assert 2 <= len(convex_pieces(L_BLOCK)) <= 3
     # the same with the fallback triangulation (shapely < 2.1)
-    pieces = pbw._merge_convex(ear_clip(L_BLOCK))
+    pieces = pbwalls._merge_convex(ear_clip(L_BLOCK))
     _check_partition(L_BLOCK, pieces)
     assert len(pieces) == 2
 
@@ -200,7 +201,7 @@ def test_bump_stops_within_1cm_of_the_wall(heading):
     """From (0.68, 0.51) in the lab: the stop pose is within 1 cm of the exact contact point
     of a disk of the body's radius (the kinematic twin's closed form), and the body's edge is
     within 1 cm of the wall (never more than 2 mm into it), also 0.5 s after the stop."""
-    from bouncesim.kinematic import KinematicRobot
+    from bouncesim.robots.kinematic import KinematicRobot
     env = envs.load("lab")
     with make(env) as bot:
         twin = KinematicRobot(replace(env, robot_radius=bot.body_radius))
@@ -285,7 +286,7 @@ def test_turn_applies_the_noise_sample_and_back_off():
             return commanded_deg + 10.0
 
     env = room(6, 4)
-    with make(env, noise=Plus10(), back_off=0.01, start=(1.02, 0.68, 0.0)) as bot:
+    with make(env, noise=Plus10(), rng=0, back_off=0.01, start=(1.02, 0.68, 0.0)) as bot:
         assert bot.drive_until_bump(0.2, 20.0).bumped
         x0, y0, h0 = bot.true_pose()
         bot.turn(90)
@@ -323,7 +324,7 @@ def test_encoders_count_wheel_travel():
 @pytest.mark.physics
 def test_same_seed_same_trajectory_and_robots_coexist():
     try:
-        from bouncesim.noise import GaussianNoise
+        from bouncesim.robots.noise import GaussianNoise
         noise = GaussianNoise(3.0)
     except ImportError:                                   # pragma: no cover
         class GaussianNoise:
@@ -331,9 +332,9 @@ def test_same_seed_same_trajectory_and_robots_coexist():
                 return deg + rng.normal(0, 3.0)
         noise = GaussianNoise()
     env = envs.load("lab")
-    a = make(env, noise=noise, seed=7)
-    b = make(env, noise=noise, seed=7)                    # two worlds at once, interleaved
-    c = make(env, noise=noise, seed=8)
+    a = make(env, noise=noise, rng=7)
+    b = make(env, noise=noise, rng=7)                    # two worlds at once, interleaved
+    c = make(env, noise=noise, rng=8)
     try:
         for _ in range(6):
             for bot in (a, b, c):
@@ -397,9 +398,9 @@ def test_bounce_never_penetrates(name):
 def test_fig3_plans_succeed_in_pybullet(mode, start, goal):
     """The paper's Fig. 3 plans in the lab with angles {90°, 135°}, without rotation noise,
     run by the plan executor on the PyBullet Create 2."""
-    if importlib.util.find_spec("bouncesim.execute") is None:
-        pytest.skip("bouncesim.execute (the plan executor) is not there yet")
-    from bouncesim.execute import execute_plan
+    if importlib.util.find_spec("bouncesim.runs.execute") is None:
+        pytest.skip("bouncesim.runs.execute (the plan executor) is not there yet")
+    from bouncesim.runs.execute import execute
     from planners.cells import CellSpace
     env = envs.load("lab")
     cells = CellSpace(env)
@@ -409,7 +410,7 @@ def test_fig3_plans_succeed_in_pybullet(mode, start, goal):
     except ImportError:                                   # pragma: no cover
         plan = {(8, 0): "90° 90° 00000000 90° 90°", (103, 8): "135° 135° 0"}[(start, goal)]
     with make(env, turn=mode) as bot:
-        run = execute_plan(plan, bot, env, start=start, goal=goal, cells=cells)
+        run = execute(plan, bot, start=start, goal=goal, cells=cells)
     assert run.success, run.reason
     assert not run.deviations
     assert run.position_error <= 0.02 and abs(run.heading_error) <= 2.0
@@ -431,5 +432,5 @@ def test_gif_recording(tmp_path):
 
 
 def test_doctests():
-    result = doctest.testmod(pbw, optionflags=doctest.ELLIPSIS)
+    result = doctest.testmod(pbwalls, optionflags=doctest.ELLIPSIS)
     assert result.attempted > 0 and result.failed == 0

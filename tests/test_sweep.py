@@ -15,9 +15,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from bouncesim.sweep import (DaskExecutor, PoolExecutor, SerialExecutor, Sweep, TrialError,
-                             add_executor_args, demo_trial, grid, make_executor, read_journal,
-                             run_sweep, trial_seed)
+from bouncesim.runs.executors import (DaskExecutor, PoolExecutor, SerialExecutor,
+                                      add_executor_args, make_executor)
+from bouncesim.runs.sweep import (Sweep, TrialError, demo_trial, grid, read_journal, run_sweep,
+                                  trial_seed)
 from envs import UserError
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -87,8 +88,9 @@ def test_same_seed_same_table_on_dask_local_cluster(tmp_path):
 _KILL_SCRIPT = """
 import sys
 import time
-import bouncesim.sweep as sweep
-from bouncesim.sweep import SerialExecutor, demo_trial, grid, run_sweep
+import bouncesim.runs.sweep as sweep
+from bouncesim.runs.executors import SerialExecutor
+from bouncesim.runs.sweep import demo_trial, grid, run_sweep
 
 class _Clock:
     # trials after the 12th never finish, so the kill lands part way however slow the host
@@ -200,7 +202,7 @@ def test_config_json_records_seed_parameters_versions_and_sessions(tmp_path):
     cfg = json.loads((tmp_path / "meta" / "config.json").read_text())
     assert cfg["sigma"] == 1.0 and cfg["envs"] == ["lab"]
     assert cfg["sweep"]["root_seed"] == 11 and cfg["sweep"]["n_trials"] == len(TRIALS)
-    assert cfg["sweep"]["trial_fn"] == "bouncesim.sweep.demo_trial"
+    assert cfg["sweep"]["trial_fn"] == "bouncesim.runs.sweep.demo_trial"
     assert cfg["versions"]["numpy"] == np.__version__
     assert "git_revision" in cfg
     assert cfg["sessions"][0]["trials_run"] == len(TRIALS)
@@ -239,12 +241,12 @@ def test_a_function_of_a_module_run_as_main_is_sent_by_its_module_name(monkeypat
     demo_trial.__module__ = "__main__"
     demo_trial.__qualname__ = "demo_trial"
     fake_main = types.ModuleType("__main__")
-    fake_main.__spec__ = importlib.machinery.ModuleSpec("bouncesim.sweep", None)
+    fake_main.__spec__ = importlib.machinery.ModuleSpec("bouncesim.runs.sweep", None)
     monkeypatch.setitem(sys.modules, "__main__", fake_main)
     sweep = Sweep(demo_trial, [{}], 0, "unused")
-    from bouncesim import sweep as module
+    from bouncesim.runs import sweep as module
     assert sweep.trial_fn is module.demo_trial
-    assert sweep.identity["trial_fn"] == "bouncesim.sweep.demo_trial"
+    assert sweep.identity["trial_fn"] == "bouncesim.runs.sweep.demo_trial"
 
 
 def test_executor_flags():
@@ -266,6 +268,6 @@ def test_executor_flags():
 def test_docstring_examples_run():
     import doctest
 
-    import bouncesim.sweep as module
+    import bouncesim.runs.sweep as module
     result = doctest.testmod(module, optionflags=doctest.ELLIPSIS)
     assert result.attempted >= 3 and result.failed == 0

@@ -157,8 +157,8 @@ def test_fig1_mix_matches_the_twin_where_the_sum_rule_fails():
     × 5000 steps after a 20 000-step burn-in differ by the noise floor (0.016 for seeds 1
     and 2, which many robots sharing few epochs make large), and we require the pooled
     time-shared TV below 0.02 + 1.5 floors."""
-    from bouncesim.kinematic import KinematicBatch
-    from bouncesim.noise import noise_for_mix
+    from bouncesim.robots.kinematic import KinematicBatch
+    from bouncesim.robots.noise import noise_for_mix
     from planners.plan import PolicyMix
 
     cs = CellSpace(envs.load("fig1", orientations=72))

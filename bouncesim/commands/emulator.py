@@ -63,8 +63,8 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from bouncesim.noise import parse_noise
-    from bouncesim.oi_emulator import OIEmulator, parse_fault
+    from bouncesim.robots.noise import parse_noise
+    from bouncesim.robots.create2 import OIEmulator, parse_fault
 
     env = load_env(args)
     cells = CellSpace(env)

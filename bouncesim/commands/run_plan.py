@@ -11,14 +11,18 @@ from envs import UserError
 from planners.cells import CellSpace
 from planners.navigation import Navigator
 
+from bouncesim.robots import KINDS, make_robot
+from bouncesim.robots.noise import parse_noise
+from bouncesim.runs.execute import execute
+
 from .common import add_env_args, load_env, parse_angles, print_json
 from .plan import add_planner_args, parse_config
 
-__all__ = ["register", "run", "make_robot", "EXIT_FAILURE", "EXIT_NO_PATH"]
+__all__ = ["register", "run", "EXIT_FAILURE", "EXIT_NO_PATH"]
 
 EXIT_NO_PATH = 3
 EXIT_FAILURE = 4
-ROBOTS = ("kinematic", "pybullet", "create2", "emulator")
+ROBOTS = KINDS
 
 
 def register(sub) -> None:
@@ -97,70 +101,7 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def make_robot(kind: str, env, noise, rng, *, gui: bool = False, record=None,
-               glance: float | None = None, port: str | None = None, turn: str = "encoders",
-               full: bool = False, sensing: str = "stream", time_scale: float = 1.0,
-               faults=(), wheel_base: float | None = None, lockstep: bool = False):
-    """Build a robot by name (``kinematic``, ``pybullet``, ``create2`` or ``emulator``,
-    imported lazily). ``emulator`` starts an OI emulator in this process (on a pty, or on a
-    loopback TCP port with ``port="tcp"``) and connects the Create 2 adapter to it through
-    pyserial; closing the robot closes the emulator."""
-    if kind in ("create2", "emulator"):
-        try:
-            import serial  # noqa: F401
-        except ModuleNotFoundError:
-            raise UserError(f"--robot {kind} needs the hardware extra (pyserial): "
-                            "pip install -e '.[hardware]'.") from None
-        from dataclasses import replace
-
-        from bouncesim.create2 import Create2Robot
-        from bouncesim.robot import CREATE2
-        mode = "full" if full else "safe"
-        spec = None
-        if wheel_base is not None:
-            if not 0.1 <= wheel_base <= 0.5:
-                raise UserError(f"--wheel-base must lie in [0.1, 0.5] m, got {wheel_base:g}.")
-            spec = replace(CREATE2, wheel_base=float(wheel_base))
-        if kind == "create2":
-            if not port:
-                raise UserError("--robot create2 needs --port (e.g. /dev/ttyUSB0).")
-            return Create2Robot(port, mode=mode, turn=turn, sensing=sensing, spec=spec)
-        from bouncesim.oi_emulator import OIEmulator, parse_fault
-        transport = port or "pty"
-        if transport not in ("pty", "tcp"):
-            raise UserError(f"--robot emulator takes --port pty or tcp, got {port!r}.")
-        emu = OIEmulator(env, transport=transport, time_scale=time_scale, noise=noise,
-                         rng=rng, faults=[parse_fault(f) for f in faults],
-                         lockstep=lockstep).start()
-        try:
-            return Create2Robot(emu.url, mode=mode, turn=turn, sensing=sensing,
-                                time_scale=time_scale, emulator=emu, own_emulator=True,
-                                spec=spec)
-        except BaseException:
-            emu.close()
-            raise
-    if kind == "kinematic":
-        if gui or record:
-            raise UserError("--gui and --record need --robot pybullet.")
-        from bouncesim.kinematic import KinematicRobot
-        return KinematicRobot(env, noise=noise, rng=rng, glance_deg=glance)
-    if kind == "pybullet":
-        if glance is not None:
-            raise UserError("--glance is for --robot kinematic (the PyBullet bumper has its "
-                            "own 80° arc).")
-        try:
-            from bouncesim.pybullet_world import PyBulletRobot
-        except ModuleNotFoundError as exc:
-            raise UserError(f"--robot pybullet needs the simulation extra ({exc.name} is "
-                            "missing): pip install -e '.[sim]'.") from None
-        return PyBulletRobot(env, noise=noise, rng=rng, gui=gui, record=record)
-    raise UserError(f"unknown robot {kind!r}; use {' or '.join(ROBOTS)}.")
-
-
 def run(args) -> int:
-    from bouncesim.execute import execute_plan
-    from bouncesim.noise import parse_noise
-
     env = load_env(args)
     cells = CellSpace(env)
     nav = Navigator(cells, parse_angles(args.angles), args.w1, args.w2)
@@ -192,13 +133,10 @@ def run(args) -> int:
                   f"{', '.join(f'{a:g}°' for a in nav.angles)}")
         return EXIT_NO_PATH
     rng = np.random.default_rng(args.seed)
-    robot = make_robot(args.robot, env, noise, rng, gui=args.gui, record=args.record,
-                       glance=args.glance, port=args.port, turn=args.turn, full=args.full,
-                       sensing=args.sensing, time_scale=args.time_scale, faults=args.fault,
-                       wheel_base=args.wheel_base, lockstep=args.lockstep)
+    robot = make_robot(args.robot, env, noise=noise, rng=rng, **_robot_options(args))
     with robot:
-        result = execute_plan(route.plan, robot, env, start, goal, cells, speed=args.speed,
-                              back_off=args.back_off)
+        result = execute(route.plan, robot, start=start, goal=goal, cells=cells,
+                         speed=args.speed, back_off=args.back_off)
     if args.trace:
         result.trace.to_csv(args.trace)
     # hardware: the plan ran to its end but nothing can tell whether the goal was reached
@@ -223,3 +161,22 @@ def run(args) -> int:
         else:
             print(f"failure: {result.reason}{err}")
     return 0 if result.success or unknown else EXIT_FAILURE
+
+
+def _robot_options(args) -> dict:
+    """The options of :func:`bouncesim.robots.make_robot` for ``--robot``."""
+    if args.robot == "kinematic":
+        return {"glance_deg": args.glance}
+    if args.robot == "pybullet":
+        return {"gui": args.gui, "record": args.record}
+    options = {"mode": "full" if args.full else "safe", "turn": args.turn,
+               "sensing": args.sensing, "wheel_base": args.wheel_base}
+    if args.robot == "create2":
+        if not args.port:
+            raise UserError("--robot create2 needs --port (e.g. /dev/ttyUSB0).")
+        return {**options, "port": args.port}
+    transport = args.port or "pty"
+    if transport not in ("pty", "tcp"):
+        raise UserError(f"--robot emulator takes --port pty or tcp, got {args.port!r}.")
+    return {**options, "transport": transport, "time_scale": args.time_scale,
+            "faults": args.fault, "lockstep": args.lockstep}

@@ -1,9 +1,9 @@
-"""A real iRobot Create 2 behind the :class:`bouncesim.robot.Robot` interface, over pyserial.
+"""A real iRobot Create 2 behind the :class:`bouncesim.robots.base.Robot` interface, over pyserial.
 
 The adapter speaks the Create 2 Open Interface through our own byte-level layer
-(:mod:`bouncesim.oi`). It works the same on the robot's USB cable (``/dev/ttyUSB0``), on a
-pseudo-terminal and on a TCP socket (``socket://127.0.0.1:PORT``), which is how it is tested
-against :class:`bouncesim.oi_emulator.OIEmulator`.
+(:mod:`bouncesim.robots.create2.oi`). It works the same on the robot's USB cable
+(``/dev/ttyUSB0``), on a pseudo-terminal and on a TCP socket (``socket://127.0.0.1:PORT``),
+which is how it is tested against :class:`bouncesim.robots.create2.OIEmulator`.
 
 Protocol use
 ------------
@@ -28,7 +28,7 @@ then exits with status 143 through the normal clean-up), and Ctrl-C (KeyboardInt
 the same ``finally`` blocks). A background thread watches the link while the port is open:
 
 - a wheel drop (packet 7 bits 2-3), or packet 35 reading Passive/Off after it once read the
-  requested mode, stops the robot and raises :class:`bouncesim.robot.RobotError` at the next
+  requested mode, stops the robot and raises :class:`bouncesim.robots.base.RobotError` at the next
   call (packet 35 is unreliable on some units: when it never reads the requested mode the
   adapter warns once and relies on the wheel-drop bits);
 - no valid sensor data for ``link_timeout`` wall-clock seconds, or a serial error: the link
@@ -46,7 +46,7 @@ Examples
 Against the emulator (a real robot: ``Create2Robot("/dev/ttyUSB0")``, placed by hand):
 
 >>> import envs
->>> from bouncesim.oi_emulator import OIEmulator
+>>> from bouncesim.robots.create2 import OIEmulator
 >>> emu = OIEmulator(envs.load("lab"), time_scale=4.0).start()
 >>> with Create2Robot(emu.url, emulator=emu, time_scale=4.0) as bot:
 ...     bot.place(0.51, 0.51, 90.0)
@@ -66,49 +66,17 @@ import socket
 import threading
 import time
 import warnings
-from dataclasses import dataclass
 
 from envs import UserError
 
+from ..base import CREATE2, BumpEvent, Robot, RobotError, RobotSpec
 from . import oi
-from .lockstep import LockstepClosed
-from .robot import CREATE2, BumpEvent, Robot, RobotError, RobotSpec
+from .sensing import SENSOR_IDS, SensingMixin, SensorState
+from .turning import TurningMixin
 
 __all__ = ["Create2Robot", "SensorState", "SENSOR_IDS"]
 
-SENSOR_IDS = (7, 43, 44, 35)
-"""Packets read every sensor period: bumps and wheel drops, encoders, OI mode."""
-_MIN_WHEEL = 0.02          # [m/s] below this a wheel command is not checked for a stall
-_STALL_COUNTS = 2          # encoder counts that prove a wheel turns
-_CREEP_SPEED = 0.015       # [m/s] wheel speed at the end of a predictive turn
-_SLOW_ZONE_DEG = 10.0      # [deg] predictive turns slow down over the last this many degrees
-_TURN_CORRECTIONS = 3      # measured misses a predictive turn corrects at most
-
-
-@dataclass(frozen=True)
-class SensorState:
-    """One reading of :data:`SENSOR_IDS`.
-
-    Attributes
-    ----------
-    seq : int            reading number (increasing)
-    t : float            adapter clock when it arrived [s]
-    bump_left, bump_right, wheel_drop : bool
-    left, right : int    unwrapped cumulative encoder counts
-    mode : int           packet 35 as read (0 Off, 1 Passive, 2 Safe, 3 Full)
-    """
-
-    seq: int
-    t: float
-    bump_left: bool
-    bump_right: bool
-    wheel_drop: bool
-    left: int
-    right: int
-    mode: int
-
-
-class Create2Robot(Robot):
+class Create2Robot(SensingMixin, TurningMixin, Robot):
     """An iRobot Create 2 over its Open Interface.
 
     Parameters
@@ -143,7 +111,7 @@ class Create2Robot(Robot):
         An in-process emulator behind ``port``: :meth:`place` and :meth:`true_pose` go to it
         (simulation only; on hardware ``place`` raises NotImplementedError). When it runs in
         lockstep (``OIEmulator(..., lockstep=True)``) the adapter's clock is the emulated one
-        and ``time_scale`` is ignored: see :mod:`bouncesim.lockstep`.
+        and ``time_scale`` is ignored: see :mod:`bouncesim.robots.create2.lockstep`.
     max_distance : float
         ``drive_until_bump`` gives up (no bump) after this distance [m].
     watchdog, stall_time : float
@@ -395,248 +363,6 @@ class Create2Robot(Robot):
             t = self.clock()
             self._stall_mark = [(self._counts[0], t), (self._counts[1], t)]
 
-    # ------------------------------------------------------------------ sensing
-    def _reader(self) -> None:
-        """Stream mode: read frames, keep the latest state, watch the link and the wheels."""
-        last_wall = time.monotonic()
-        while not self._closing:
-            try:
-                n = self._ser.in_waiting
-                chunk = self._ser.read(max(1, min(n, 4096)))
-            except Exception as exc:               # noqa: BLE001 - any I/O failure
-                if not self._closing:
-                    self._set_fault(RobotError(f"lost the serial link to {self.port}: {exc}"),
-                                    stop=True)
-                return
-            if chunk:
-                for values in self._parser.feed(chunk):
-                    self._update(values)
-                    last_wall = time.monotonic()
-                with self._cv:
-                    self._rx += len(chunk)
-                    self._cv.notify_all()
-            if self._ls is not None:               # lockstep: judged in robot time
-                continue
-            # the link is judged in wall-clock time (a scaled emulator on a busy machine
-            # must not look like a lost link)
-            silent = time.monotonic() - last_wall
-            if silent > self.link_timeout and self._fault is None:
-                self._set_fault(RobotError(
-                    f"no valid sensor data from {self.port} for {silent:.2f} s: "
-                    "lost the link; tried to stop the robot"), stop=True)
-            self._check_watchdog(self.clock())
-
-    def _watchdog_loop(self) -> None:
-        """Query mode: only the watchdog runs in the background."""
-        while not self._closing:
-            time.sleep(0.02)
-            self._check_watchdog(self.clock())
-
-    def _check_watchdog(self, now: float) -> None:
-        if self._ls is not None:                   # lockstep: time stands still unless asked
-            return
-        with self._cv:
-            driving = self._cmd != (0, 0)
-            idle = now - self._last_call
-        if driving and idle > self.watchdog and self._fault is None:
-            self._set_fault(RobotError(
-                f"the wheels were driving while nothing read the sensors for {idle:.2f} s; "
-                "stopped by the watchdog"), stop=True)
-
-    def _update(self, values: dict) -> SensorState:
-        """Take one reading; detect wheel drops, mode drops and stalls (stopping the robot)."""
-        now = self.clock() if self._ls is None else self._ls.reaching()
-        bits = values[7]
-        raw = (values[43], values[44])
-        problem = None
-        with self._cv:
-            if self._raw is None:
-                counts = self._counts
-            else:
-                counts = (self._counts[0] + oi.encoder_delta(raw[0], self._raw[0]),
-                          self._counts[1] + oi.encoder_delta(raw[1], self._raw[1]))
-            self._raw, self._counts = raw, counts
-            self._last_valid = now
-            seq = 0 if self._state is None else self._state.seq + 1
-            st = SensorState(seq, now, bool(bits & oi.BUMP_LEFT), bool(bits & oi.BUMP_RIGHT),
-                             bool(bits & (oi.WHEEL_DROP_LEFT | oi.WHEEL_DROP_RIGHT)),
-                             counts[0], counts[1], values[35])
-            self._state = st
-            if st.wheel_drop:
-                problem = ("a wheel dropped (the robot was lifted or went over an edge); "
-                           "the robot leaves Safe mode for Passive; stopped")
-            elif self._mode_checked and st.mode in (oi.MODE_PASSIVE, oi.MODE_OFF):
-                problem = (f"the robot dropped from {oi.MODE_NAMES[self._expected_mode]} to "
-                           f"{oi.MODE_NAMES[st.mode]} mode (wheel drop, cliff or charger); "
-                           "stopped")
-            else:
-                problem = self._stall_check(st)
-            self._cv.notify_all()
-        if problem is not None and self._fault is None:
-            self._set_fault(RobotError(problem), stop=True)
-        return st
-
-    def _stall_check(self, st: SensorState) -> str | None:
-        cmd_left, cmd_right = self._cmd[1], self._cmd[0]
-        if (st.bump_left or st.bump_right) and cmd_left > 0 and cmd_right > 0:
-            self._stall_mark = [(st.left, st.t), (st.right, st.t)]   # pushing a wall
-            return None
-        for i, (name, cmd, count) in enumerate((("left", cmd_left, st.left),
-                                                ("right", cmd_right, st.right))):
-            mark = self._stall_mark[i]
-            if abs(cmd) < _MIN_WHEEL * 1000 or mark is None:
-                continue
-            if abs(count - mark[0]) >= _STALL_COUNTS:
-                self._stall_mark[i] = (count, st.t)
-            elif st.t - mark[1] > self.stall_time:
-                return (f"the {name} wheel has not turned for {st.t - mark[1]:.2f} s while "
-                        f"commanded at {cmd} mm/s (stalled or blocked); stopped")
-        return None
-
-    def _query(self, deadline: float = math.inf) -> SensorState | None:
-        """Query mode: one Query List exchange, retried after a short or garbled reply; None
-        when the robot clock reaches ``deadline`` before the next query is due."""
-        if self._ls is not None:
-            return self._query_lockstep(deadline)
-        need = oi.reply_size(SENSOR_IDS)
-        request = oi.encode_query_list(SENSOR_IDS)
-        wall_period = self.spec.sensor_period / self.time_scale
-        timeout = max(0.05, 4 * wall_period)
-        for _ in range(3):
-            wait = self._last_query + wall_period - time.monotonic()
-            if wait > 0:                            # never poll faster than the robot
-                left = (deadline - self.clock()) / self.time_scale
-                if left <= wait:
-                    time.sleep(max(left, 0.0))
-                    return None
-                time.sleep(wait)
-            try:
-                with self._wlock:
-                    self._flush_input()
-                    self._ser.write(request)
-                    self._last_query = time.monotonic()
-                    data = bytearray()
-                    end = time.monotonic() + timeout
-                    while len(data) < need and time.monotonic() < end:
-                        data += self._ser.read(need - len(data))
-                    time.sleep(0)
-                    extra = self._ser.in_waiting
-            except Exception as exc:                # noqa: BLE001 - any I/O failure
-                err = RobotError(f"lost the serial link to {self.port}: {exc}")
-                self._set_fault(err, stop=True)
-                raise err from None
-            if len(data) == need and not extra:
-                return self._update(oi.decode_packets(SENSOR_IDS, bytes(data)))
-        err = RobotError(f"no valid reply to a sensor query from {self.port} in 3 tries: "
-                         "lost the link; tried to stop the robot")
-        self._set_fault(err, stop=True)
-        raise err
-
-    def _query_lockstep(self, deadline: float) -> SensorState | None:
-        """:meth:`_query` in lockstep: the clock moves to the next sensor period, then the
-        query is asked and answered with the clock standing still."""
-        need = oi.reply_size(SENSOR_IDS)
-        request = oi.encode_query_list(SENSOR_IDS)
-        for _ in range(3):
-            due = self._last_query + self.spec.sensor_period
-            if due > deadline:
-                self._advance(deadline)
-                return None
-            while self.clock() < due - 1e-12:
-                self._advance(due)
-            self._flush_input()
-            self._write(request)
-            self._last_query = self.clock()
-            data = self._read_until(self._advance(self.clock()))
-            if len(data) == need:
-                return self._update(oi.decode_packets(SENSOR_IDS, data))
-        err = RobotError(f"no valid reply to a sensor query from {self.port} in 3 tries: "
-                         "lost the link; tried to stop the robot")
-        self._set_fault(err, stop=True)
-        raise err
-
-    def _advance(self, until: float) -> int:
-        """Lockstep: move the emulated clock towards ``until`` (at most one sensor period);
-        returns the bytes the emulator has written by then. A gone emulator is a lost link."""
-        try:
-            return self._ls.advance(self._tx, until)
-        except LockstepClosed as exc:
-            err = RobotError(f"lost the link to {self.port}: {exc}")
-            self._set_fault(err)
-            raise err from None
-
-    def _next_state_lockstep(self, after: int | None, deadline: float) -> SensorState | None:
-        """:meth:`_next_state` in stream mode and lockstep: read what the emulator sent, and
-        move its clock to the next frame until a new reading or ``deadline`` comes."""
-        while True:
-            with self._cv:
-                self._cv.wait_for(lambda: self._rx >= self._ls.robot_bytes or
-                                  self._fault is not None, timeout=self._ls.wall_timeout)
-                if self._fault is not None:
-                    raise self._fault
-                if self._rx < self._ls.robot_bytes:
-                    err = RobotError(f"lost the link to {self.port}: the bytes sent did not "
-                                     "arrive")
-                    self._fault = err
-                    raise err
-                st = self._state
-                self._last_call = self.clock()
-                if st is not None and (after is None or st.seq > after):
-                    return st
-            now = self.clock()
-            if now - self._last_valid > self.link_timeout:
-                self._set_fault(RobotError(
-                    f"no valid sensor data from {self.port} for {now - self._last_valid:.2f} s "
-                    "of robot time: lost the link; tried to stop the robot"), stop=True)
-                raise self._fault
-            if now >= deadline:
-                return None
-            self._advance(min(deadline, self._ls.next_frame))
-
-    def _next_state(self, after: int | None, deadline: float, check: bool = True
-                    ) -> SensorState | None:
-        """The next reading newer than ``after`` (None: any), or None once the robot clock
-        passes ``deadline``. Raises the pending RobotError, if any."""
-        with self._cv:
-            self._last_call = self.clock()
-        if self.sensing == "query":
-            if self.clock() >= deadline:
-                return None
-            if check:
-                self._raise_fault()
-            st = self._query(deadline)
-            self._raise_fault()
-            return st
-        if self._ls is not None:
-            return self._next_state_lockstep(after, deadline)
-        with self._cv:
-            while True:
-                if self._fault is not None:
-                    raise self._fault
-                st = self._state
-                if st is not None and (after is None or st.seq > after):
-                    self._last_call = self.clock()
-                    return st
-                left = (deadline - self.clock()) / self.time_scale
-                if left <= 0:
-                    return None
-                self._cv.wait(min(left, 0.05))
-
-    def _fresh(self, n: int = 1) -> SensorState:
-        """A reading taken after this call (the ``n``-th one; the first may have been in
-        flight already)."""
-        st = self._state
-        seq = None if st is None else st.seq
-        limit = self.clock() + max(1.0, self.link_timeout * 2)
-        for _ in range(n):
-            st = self._next_state(seq, limit)
-            if st is None:
-                err = RobotError(f"no sensor data from {self.port}: lost the link")
-                self._set_fault(err, stop=True)
-                raise err
-            seq = st.seq
-        return st
-
     # ------------------------------------------------------------------ Robot interface
     def drive(self, speed: float) -> None:
         speed = float(speed)
@@ -687,107 +413,6 @@ class Create2Robot(Robot):
     def encoders(self) -> tuple[int, int]:
         st = self._fresh(1)
         return st.left, st.right
-
-    def turn(self, angle_deg: float) -> None:
-        angle = float(angle_deg)
-        if not math.isfinite(angle):
-            raise ValueError(f"cannot turn by {angle_deg} degrees.")
-        self._raise_fault()
-        if abs(angle) < 1e-9:
-            return
-        v = self.turn_speed if angle > 0 else -self.turn_speed      # CCW: right wheel ahead
-        duration = self.spec.turn_time(angle, self.turn_speed)
-        try:
-            if self.turn_mode == "clock":
-                self._drive_direct(v, -v)
-                self.wait(duration)
-                return
-            if self.turn_control == "predictive":
-                self._turn_predictive(angle)
-                return
-            start = self._fresh(1)
-            target = math.radians(abs(angle))
-            omega = 2 * self.turn_speed / self.spec.wheel_base
-            lead = omega * self.spec.sensor_period / 2     # stop half a reading early
-            mpc = self.spec.metres_per_count
-            self._drive_direct(v, -v)
-            limit = self.clock() + 2 * duration + 1.0
-            seq = start.seq
-            while True:
-                st = self._next_state(seq, limit)
-                if st is None:
-                    raise RobotError(f"a {angle:g}° turn by encoders did not finish in "
-                                     f"{2 * duration + 1.0:.1f} s; stopped")
-                seq = st.seq
-                turned = ((st.right - start.right) - (st.left - start.left)) * mpc / \
-                    self.spec.wheel_base
-                if turned * math.copysign(1.0, angle) >= target - lead:
-                    return
-        finally:
-            self.stop()
-
-    def _turn_predictive(self, angle: float) -> None:
-        """Encoder turn that tolerates a slow host (docs/readme_hardware.md, "Turns on a busy
-        host"): legs that slow down near the target and stop where the angle will be when the
-        stop lands; then the settled miss is measured and corrected at creep speed."""
-        b, mpc = self.spec.wheel_base, self.spec.metres_per_count
-        sense = 1.0 if angle > 0 else -1.0
-        target = math.radians(abs(angle))
-        start = self._fresh(1)
-
-        def miss(st: SensorState) -> float:
-            """[rad] still to turn in the commanded sense (negative: overshot)."""
-            return target - sense * ((st.right - start.right) - (st.left - start.left)) * \
-                mpc / b
-
-        st = start
-        for _ in range(1 + _TURN_CORRECTIONS):
-            e = miss(st)
-            if abs(e) <= math.radians(self.turn_tolerance):
-                return
-            way = math.copysign(1.0, e)             # +1: on towards the target, -1: back
-            self._turn_leg(sense * way, miss, way, st)
-            st = self._settled()
-
-    def _turn_leg(self, sense: float, miss, way: float, st: SensorState) -> None:
-        """Spin in ``sense`` (+1 CCW) until ``way * miss(reading)`` [rad] is used up: full turn
-        speed far from the end, slowing linearly to creep speed within the slow zone, and a
-        stop issued early by the rotation expected while it travels (the reading's age plus
-        half a sensor period)."""
-        b, period = self.spec.wheel_base, self.spec.sensor_period
-        v_max, v_min = self.turn_speed, min(self.turn_speed, _CREEP_SPEED)
-        zone = math.radians(_SLOW_ZONE_DEG)
-        budget = self.spec.turn_time(math.degrees(way * miss(st)), v_max) * 2 + \
-            2 * zone / (2 * v_min / b) + 1.0
-        limit = self.clock() + budget
-        v_cmd = 0.0
-        try:
-            while True:
-                omega = 2 * v_cmd / b
-                lead = omega * (max(self.clock() - st.t, 0.0) + period / 2)
-                left = way * miss(st) - lead
-                if left <= omega * period / 2:      # the next reading would come too late
-                    return
-                v = v_min + (v_max - v_min) * min(1.0, max(left, 0.0) / zone)
-                if abs(v - v_cmd) >= 0.002:
-                    self._drive_direct(sense * v, -sense * v)
-                    v_cmd = v
-                st = self._next_state(st.seq, limit)
-                if st is None:
-                    raise RobotError(f"a turn by encoders did not finish in {budget:.1f} s; "
-                                     "stopped")
-        finally:
-            self.stop()
-
-    def _settled(self) -> SensorState:
-        """The first reading whose encoders equal the one before (at most 20 readings)."""
-        prev = self._fresh(1)
-        for _ in range(20):
-            st = self._fresh(1)
-            if (st.left, st.right) == (prev.left, prev.right):
-                return st
-            prev = st
-        return prev
 
     def drive_until_bump(self, speed: float, timeout: float) -> BumpEvent:
         speed = float(speed)

@@ -3,9 +3,9 @@
 :class:`OIEmulator` serves the OI on a pseudo-terminal (``os.openpty``; connect to the printed
 ``/dev/pts/N``) or on a local TCP port (connect to ``socket://127.0.0.1:PORT``, pyserial's URL
 for a raw socket), and moves a simulated Create 2 in an environment with the kinematic twin
-(:class:`bouncesim.kinematic.KinematicRobot`). It exists so that the hardware path (the
-adapter :mod:`bouncesim.create2`, pyserial, the OI layer :mod:`bouncesim.oi`) can be run end
-to end, and tested, without a robot.
+(:class:`bouncesim.robots.kinematic.KinematicRobot`). It exists so that the hardware path (the
+adapter :mod:`bouncesim.robots.create2.adapter`, pyserial, the OI layer
+:mod:`bouncesim.robots.create2.oi`) can be run end to end, and tested, without a robot.
 
 What it does
 ------------
@@ -27,7 +27,7 @@ What it does
 
 Faults (for tests and demonstrations)
 -------------------------------------
-- ``noise``: a :class:`bouncesim.noise.NoiseModel` applied once per in-place spin (at its
+- ``noise``: a :class:`bouncesim.robots.noise.NoiseModel` applied once per in-place spin (at its
   end, to the whole spin; a spin ends when the wheels stop, reverse or stop spinning in
   place, not when they slow down): the body slips, the encoders do not see it.
 - ``angle_bug``: packet 20 is scaled by 0.324056 (firmware up to 3.4.0).
@@ -38,20 +38,21 @@ Faults (for tests and demonstrations)
   sent), ``mute`` (the robot stops talking: a lost link; commands are still obeyed, so the
   robot keeps its last drive command, as a real one whose cable is pulled).
 
-Time can run faster than real time (``time_scale``): emulated seconds per wall-clock second.
-The adapter must then be given the same scale (:class:`bouncesim.create2.Create2Robot`
+Time can run faster than real time (``time_scale``): emulated seconds per wall-clock second. The
+adapter must then be given the same scale (:class:`bouncesim.robots.create2.Create2Robot`
 ``time_scale``), so that its clock and the emulator's agree. Real hardware always runs at 1.
 
 Or time can run in lockstep with an adapter in the same process (``lockstep=True``; see
-:mod:`bouncesim.lockstep`): the emulated clock moves only when the adapter has read the sensor
-frame it is owed and asks for the next one, so a run gives the same bytes and the same poses on
-any machine, however busy. ``Create2Robot(emu.url, emulator=emu)`` picks this up by itself.
+:mod:`bouncesim.robots.create2.lockstep`): the emulated clock moves only when the adapter has
+read the sensor frame it is owed and asks for the next one, so a run gives the same bytes and
+the same poses on any machine, however busy. ``Create2Robot(emu.url, emulator=emu)`` picks this
+up by itself.
 
 Examples
 --------
 >>> import envs
 >>> import serial
->>> from bouncesim import oi
+>>> from bouncesim.robots.create2 import oi
 >>> with OIEmulator(envs.load("lab"), transport="tcp") as emu:
 ...     link = serial.serial_for_url(emu.url, timeout=1.0)
 ...     _ = link.write(bytes([oi.START, oi.SAFE]) + oi.encode_query_list([35, 7]))
@@ -64,29 +65,25 @@ Examples
 from __future__ import annotations
 
 import math
-import os
 import select
-import socket
 import threading
 import time
-import tty
 from collections import Counter
-from dataclasses import dataclass
 
 import numpy as np
 
 from envs import Environment, UserError
 
+from ..base import CREATE2
+from ..kinematic import KinematicRobot
+from ..noise import NoiseModel, noise_and_rng
 from . import oi
-from .kinematic import KinematicRobot
+from .faults import Fault
 from .lockstep import Lockstep
-from .noise import NoiseModel, NoNoise
-from .robot import CREATE2
+from .transport import Transport
 
-__all__ = ["OIEmulator", "Fault", "FAULT_KINDS", "parse_fault", "BANNER"]
+__all__ = ["OIEmulator", "BANNER"]
 
-FAULT_KINDS = ("wheel-drop", "charger", "stall-left", "stall-right", "drop-byte", "garbage",
-               "mute")
 BANNER = b"\r\nbouncesim OI emulator\r\nfirmware: emulated 3.4.1\r\n"
 """Sent after a Reset (7), like the robot's boot banner."""
 
@@ -95,153 +92,23 @@ _SUBSTEP = 0.005                       # [s] sub-step of a curved motion
 _EPS_W = 1e-9
 
 
-@dataclass(frozen=True)
-class Fault:
-    """A fault that strikes ``at`` [s] of emulated time after the first non-zero drive
-    command.
-
-    Attributes
-    ----------
-    kind : str      one of :data:`FAULT_KINDS`
-    at : float      [s]
-    """
-
-    kind: str
-    at: float = 0.0
-
-    def __post_init__(self) -> None:
-        if self.kind not in FAULT_KINDS:
-            raise UserError(f"unknown fault {self.kind!r}; use one of {', '.join(FAULT_KINDS)}.")
-        if not (math.isfinite(self.at) and self.at >= 0):
-            raise UserError(f"a fault time must be a non-negative number of seconds, "
-                            f"got {self.at}.")
-
-
-def parse_fault(text: str) -> Fault:
-    """``KIND`` or ``KIND@SECONDS`` -> :class:`Fault`.
-
-    >>> parse_fault("wheel-drop@2.5")
-    Fault(kind='wheel-drop', at=2.5)
-    """
-    kind, _, at = str(text).strip().partition("@")
-    try:
-        return Fault(kind, float(at) if at else 0.0)
-    except ValueError:
-        raise UserError(f"a fault is KIND or KIND@SECONDS, got {text!r}.") from None
-
-
-class _Transport:
-    """The emulator's end of the link: a pty master or a TCP listener with one client."""
-
-    def __init__(self, kind: str, host: str, port: int) -> None:
-        self.kind = kind
-        self.client: socket.socket | None = None
-        self.connections = 0
-        if kind == "pty":
-            self.master, self.slave = os.openpty()
-            tty.setraw(self.slave)          # no echo, no line editing: a plain byte pipe
-            os.set_blocking(self.master, False)
-            self.url = os.ttyname(self.slave)
-            self.listener = None
-        elif kind == "tcp":
-            self.listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-            self.listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-            try:
-                self.listener.bind((host, int(port)))
-            except OSError as exc:
-                self.listener.close()
-                raise UserError(f"cannot listen on {host}:{port}: {exc.strerror}.") from None
-            self.listener.listen(1)
-            self.listener.setblocking(False)
-            h, p = self.listener.getsockname()[:2]
-            self.url = f"socket://{h}:{p}"
-            self.master = self.slave = None
-        else:
-            raise UserError(f"transport must be 'pty' or 'tcp', got {kind!r}.")
-
-    def fds(self) -> list:
-        if self.kind == "pty":
-            return [self.master]
-        return [self.listener] + ([self.client] if self.client is not None else [])
-
-    def read(self, ready) -> bytes:
-        """Bytes that arrived (accepting a new client on the way)."""
-        data = b""
-        if self.kind == "pty":
-            if self.master in ready:
-                try:
-                    data = os.read(self.master, 4096)
-                except (BlockingIOError, OSError):
-                    data = b""
-            return data
-        if self.listener in ready:
-            try:
-                conn, _ = self.listener.accept()
-            except OSError:
-                conn = None
-            if conn is not None:
-                if self.client is not None:
-                    self.client.close()
-                conn.setblocking(False)
-                conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-                self.client = conn
-                self.connections += 1
-        if self.client is not None and self.client in ready:
-            try:
-                data = self.client.recv(4096)
-                if not data:                     # the controller hung up
-                    self.client.close()
-                    self.client = None
-            except BlockingIOError:
-                data = b""
-            except OSError:
-                self.client.close()
-                self.client = None
-                data = b""
-        return data
-
-    def write(self, data: bytes) -> int:
-        """Send without blocking: bytes nobody reads are lost, as on a serial line. Returns
-        the number of bytes sent."""
-        if not data:
-            return 0
-        try:
-            if self.kind == "pty":
-                return os.write(self.master, data)
-            if self.client is not None:
-                return self.client.send(data)
-        except (BlockingIOError, OSError):
-            pass
-        return 0
-
-    def close(self) -> None:
-        for fd in (self.master, self.slave):
-            if fd is not None:
-                try:
-                    os.close(fd)
-                except OSError:
-                    pass
-        for s in (self.client, self.listener):
-            if s is not None:
-                s.close()
-        self.master = self.slave = self.client = self.listener = None
-
-
 class OIEmulator:
     """A Create 2 on a pseudo-terminal or a local TCP port, moving in ``env``.
 
     Parameters
     ----------
     env : Environment
+    noise : NoiseModel, optional
+        Body slip per in-place spin (default exact).
+    rng : numpy.random.Generator or int, optional
+        Draws the noise, the dropped byte's position and the garbage. Required when the noise
+        is not exact (:func:`bouncesim.robots.noise.noise_and_rng`); without one the faults
+        draw from fresh entropy.
     transport : {"pty", "tcp"}
     host, port : str, int
         TCP only: where to listen (port 0 picks a free port; loopback by default).
     time_scale : float
         Emulated seconds per wall-clock second (1: real time).
-    noise : NoiseModel, optional
-        Body slip per in-place spin (default exact).
-    rng : numpy.random.Generator or int, optional
-        Draws the noise, the dropped byte's position and the garbage.
     angle_bug : bool
         Report packet 20 scaled by 0.324056.
     faults : sequence of Fault
@@ -261,7 +128,7 @@ class OIEmulator:
     lockstep : bool
         Run the emulated clock in lockstep with an in-process adapter instead of by the wall
         clock (``time_scale`` is then ignored); :attr:`lockstep` is the shared
-        :class:`bouncesim.lockstep.Lockstep`.
+        :class:`bouncesim.robots.create2.lockstep.Lockstep`.
     log : callable, optional
         Called with one line of text per event (connection, mode change, fault).
 
@@ -272,9 +139,9 @@ class OIEmulator:
     :attr:`opcodes` are thread-safe views for simulations and tests.
     """
 
-    def __init__(self, env: Environment, *, transport: str = "pty", host: str = "127.0.0.1",
-                 port: int = 0, time_scale: float = 1.0, noise: NoiseModel | None = None,
-                 rng=None, angle_bug: bool = False, faults=(),
+    def __init__(self, env: Environment, noise: NoiseModel | None = None, rng=None, *,
+                 transport: str = "pty", host: str = "127.0.0.1", port: int = 0,
+                 time_scale: float = 1.0, angle_bug: bool = False, faults=(),
                  encoder_offset: tuple[int, int] = (0, 0), start=None,
                  glance_deg: float | None = 80.0, mode_offset: int = 0, lockstep: bool = False,
                  log=None) -> None:
@@ -282,8 +149,8 @@ class OIEmulator:
             raise UserError(f"time scale must lie in (0, 20], got {time_scale:g}.")
         self.env = env
         self.time_scale = float(time_scale)
-        self.noise = noise if noise is not None else NoNoise()
-        self.rng = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
+        self.noise, rng = noise_and_rng(noise, rng)
+        self.rng = rng if rng is not None else np.random.default_rng()   # faults' random bytes
         self.angle_bug = bool(angle_bug)
         self.faults = tuple(faults)
         self._log = log
@@ -292,7 +159,7 @@ class OIEmulator:
         if start is not None:
             self._bot.place(*start)
         self._enc_offset = (int(encoder_offset[0]), int(encoder_offset[1]))
-        self._transport = _Transport(transport, host, port)
+        self._transport = Transport(transport, host, port)
         self.url = self._transport.url
         self.lockstep = Lockstep(_PERIOD) if lockstep else None
         self._rx = 0                               # bytes received from the controller
@@ -406,7 +273,7 @@ class OIEmulator:
             once(tr)
         once(tr, final=True)                   # what the controller sent last (e.g. Stop)
 
-    def _receive(self, tr: _Transport, ready) -> None:
+    def _receive(self, tr: Transport, ready) -> None:
         """Read what arrived and obey it (at the current emulated time)."""
         before = tr.connections
         data = tr.read(ready) if ready else b""
@@ -417,7 +284,7 @@ class OIEmulator:
         for op, payload in self._parser.feed(data):
             self._execute(op, payload)
 
-    def _serve_lockstep(self, tr: _Transport, final: bool = False) -> None:
+    def _serve_lockstep(self, tr: Transport, final: bool = False) -> None:
         """Lockstep: obey bytes as they come; move the clock only when the adapter asks and
         every byte it wrote before asking has been read."""
         ls = self.lockstep
@@ -442,7 +309,7 @@ class OIEmulator:
                 self.frames_sent += 1
             ls.complete()
 
-    def _serve_once(self, tr: _Transport, final: bool = False) -> None:
+    def _serve_once(self, tr: Transport, final: bool = False) -> None:
         """Wait for bytes or the next tick; advance the body, obey commands, stream."""
         wait = max(0.0, (self._next_tick - self.clock()) / self.time_scale)
         try:

@@ -1,10 +1,15 @@
-"""Backend-agnostic conformance checks for :class:`bouncesim.robot.Robot` implementations.
+"""Conformance checks for any :class:`~bouncesim.robots.base.Robot`: bring a body, test it.
 
-Every check is a function ``check_xxx(make_robot)`` where ``make_robot(env)`` returns a fresh
-robot in that environment (noise-free). The checks use only the Robot interface, plus
-``place`` / ``true_pose`` to set up and to observe (so they apply to simulators; a hardware
-backend would run the interface-only subset). The tolerances are those a physics simulation
-of the Create 2 must meet; the kinematic twin meets them with room to spare:
+:func:`check_robot` runs every check (or a chosen few) against a factory ``make(env) -> Robot``
+(or a :func:`~bouncesim.robots.make_robot` kind name) and raises :class:`ConformanceError`
+naming each failed check and why. Each check is also a function ``check_xxx(make)`` in
+:data:`CHECKS` (by name without the prefix) that raises AssertionError on its own.
+
+Every check builds a fresh noise-free robot in the test room, places it and uses only the Robot
+interface, plus ``place`` / ``true_pose`` to set up and to observe (so they apply to
+simulators and to the Create 2 adapter driving the emulator; a hardware backend would run the
+interface-only subset). The tolerances are those a physics simulation of the Create 2 must
+meet; the kinematic twin meets them with room to spare:
 
 - clock: ``wait(dt)`` advances the clock by dt within one physics step (10 ms);
 - straight driving: 0.2 m/s for 2 s covers 0.40 m within 2 cm, heading kept within 1°;
@@ -24,13 +29,16 @@ The test environment is a 5 x 3 cell room (1.70 m x 1.02 m, r = 0.17 m, h = 0.34
 from __future__ import annotations
 
 import math
+import traceback
+from collections.abc import Callable, Iterable
 
 import numpy as np
 
 from envs import Environment
-from bouncesim.robot import BumpEvent, Robot
+from .base import BumpEvent, Robot
+from .factory import make_robot
 
-__all__ = ["ROOM", "CHECKS", "room_env"]
+__all__ = ["ROOM", "CHECKS", "ConformanceError", "check_robot", "room_env"]
 
 ROOM = {"name": "conformance-room", "boundary": [[0, 0], [1.7, 0], [1.7, 1.02], [0, 1.02]],
         "robot_radius": 0.17, "discretization": {"cell_size": 0.34, "orientations": 8}}
@@ -234,7 +242,8 @@ def check_bounce_sequence(make_robot) -> None:
         for ex, ey, dist in expect:
             ev = bot.drive_until_bump(0.2, 20.0)
             assert ev.bumped
-            assert abs(0.2 * ev.elapsed - dist) <= 0.03, (0.2 * ev.elapsed, dist)
+            assert abs(0.2 * ev.elapsed - dist) <= 0.03, \
+                f"bumped after {0.2 * ev.elapsed:.3f} m instead of {dist:.2f} m"
             x, y, _ = bot.true_pose()
             if ex is not None:
                 assert abs(x - ex) <= 0.01
@@ -254,3 +263,73 @@ def check_place_and_true_pose(make_robot) -> None:
 
 CHECKS = {name.removeprefix("check_"): fn for name, fn in sorted(globals().items())
           if name.startswith("check_") and callable(fn)}
+
+
+class ConformanceError(AssertionError):
+    """One or more conformance checks failed; :attr:`failures` maps each to its reason."""
+
+    def __init__(self, name: str, failures: dict[str, str], total: int) -> None:
+        self.failures = dict(failures)
+        lines = "\n".join(f"  {check}: {why}" for check, why in self.failures.items())
+        super().__init__(f"{len(failures)} of {total} conformance checks failed for "
+                         f"{name}:\n{lines}")
+
+
+def check_robot(robot: str | Callable[[Environment], Robot], *,
+                checks: Iterable[str] | None = None) -> list[str]:
+    """Run the conformance checks against a body; return the names of the checks run.
+
+    Parameters
+    ----------
+    robot : str or callable
+        A :func:`~bouncesim.robots.make_robot` kind (``"kinematic"``, ``"pybullet"``,
+        ``"emulator"``, ...) or a factory ``make(env) -> Robot`` returning a fresh, noise-free
+        robot in ``env`` (each check builds one and closes it).
+    checks : iterable of str, optional
+        Names from :data:`CHECKS` (default: all of them, in name order).
+
+    Raises
+    ------
+    ConformanceError
+        After running every selected check, when any failed: one line per failed check with
+        its reason (a failed assertion, or any exception the robot raised).
+    ValueError
+        An unknown check name.
+
+    Examples
+    --------
+    >>> from bouncesim.robots.kinematic import KinematicRobot
+    >>> class Lazy(KinematicRobot):
+    ...     def turn(self, angle_deg):
+    ...         super().turn(angle_deg / 2)
+    >>> check_robot(Lazy, checks=["turn_90", "drive_straight"])   # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    bouncesim.robots.conformance.ConformanceError: 1 of 2 conformance checks failed for Lazy:
+      turn_90: ...
+    """
+    if isinstance(robot, str):
+        kind = robot
+
+        def factory(env: Environment) -> Robot:
+            return make_robot(kind, env)
+        name = kind
+    else:
+        factory, name = robot, getattr(robot, "__name__", repr(robot))
+    names = sorted(CHECKS) if checks is None else list(checks)
+    unknown = [n for n in names if n not in CHECKS]
+    if unknown:
+        raise ValueError(f"unknown conformance check {unknown[0]!r}; the checks are "
+                         f"{', '.join(sorted(CHECKS))}.")
+    failures: dict[str, str] = {}
+    for check in names:
+        try:
+            CHECKS[check](factory)
+        except AssertionError as exc:
+            where = traceback.extract_tb(exc.__traceback__)[-1]
+            failures[check] = str(exc) or f"failed: {where.line} (line {where.lineno})"
+        except Exception as exc:  # noqa: BLE001 - a robot that raises fails the check
+            failures[check] = f"{type(exc).__name__}: {exc}"
+    if failures:
+        raise ConformanceError(name, failures, len(names))
+    return names

@@ -41,7 +41,7 @@ import numpy as np
 from envs import UserError
 
 __all__ = ["NoiseModel", "NoNoise", "SteppedNoise", "GaussianNoise", "parse_noise",
-           "noise_for_mix"]
+           "noise_for_mix", "noise_and_rng"]
 
 
 class NoiseModel:
@@ -254,3 +254,30 @@ def noise_for_mix(mix, delta_deg: float) -> NoiseModel:
     if mix.eps == 0 or mix.r == 1:
         return NoNoise()
     return SteppedNoise(mix.eps, mix.r, delta_deg)
+
+
+def noise_and_rng(noise: NoiseModel | None, rng) -> tuple[NoiseModel, np.random.Generator | None]:
+    """The rotation noise and random source of a simulated body: the one constructor contract
+    of :class:`~bouncesim.robots.kinematic.KinematicRobot`,
+    :class:`~bouncesim.robots.pybullet.PyBulletRobot` and
+    :class:`~bouncesim.robots.create2.OIEmulator`.
+
+    ``noise`` None means exact turns; any object with ``sample(rng, commanded_deg)`` will do
+    (its ``exact`` property, when it has one, says it never perturbs a turn). ``rng`` is a numpy
+    Generator, an int seed, or None. A body with rotation noise needs an rng: seeding is never
+    implicit.
+
+    >>> noise_and_rng(None, None)
+    (NoNoise(), None)
+    >>> noise_and_rng(GaussianNoise(2.0), None)          # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    envs.errors.UserError: a robot with rotation noise needs an rng (a numpy Generator or ...
+    """
+    noise = noise if noise is not None else NoNoise()
+    if rng is None:
+        if not getattr(noise, "exact", False):      # any object with sample(rng, deg)
+            raise UserError("a robot with rotation noise needs an rng (a numpy Generator or an "
+                            "int seed).")
+        return noise, None
+    return noise, rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)

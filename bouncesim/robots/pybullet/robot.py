@@ -1,6 +1,6 @@
 """The PyBullet Create 2: a wheeled rigid body in a walled world built from an environment.
 
-:class:`PyBulletRobot` implements the :class:`~bouncesim.robot.Robot` interface with a
+:class:`PyBulletRobot` implements the :class:`~bouncesim.robots.base.Robot` interface with a
 physics simulation: a 0.17 m disk body on two driven wheels (velocity-controlled revolute
 joints with friction against the floor), a frictionless front caster and rear skid, walls
 extruded from the environment's polygons, a bumper read from the contact points on the front
@@ -11,23 +11,9 @@ client), so several robots/worlds coexist in one process. PyBullet in ``DIRECT``
 deterministic; the only randomness is the rotation noise, drawn from the robot's seeded
 ``rng``: the same seed gives the same trajectory.
 
-Geometry (world frame of docs/model.md §1: x east, y north, headings CCW from east):
-
-- the outer boundary becomes one thin convex slab per boundary edge, lying outside the free
-  space (:func:`wall_pieces`), extended past convex corners and mitred at reflex ones;
-- every obstacle becomes extruded convex pieces (:func:`convex_pieces`): convex polygons as
-  they are, non-convex ones triangulated and greedily merged into convex parts;
-- walls are 0.2 m high, the robot body 0.09 m.
-
-Examples
---------
->>> from shapely.geometry import Polygon
->>> L = Polygon([(0, 0), (2, 0), (2, 1), (1, 1), (1, 2), (0, 2)])
->>> parts = convex_pieces(L)
->>> round(sum(p.area for p in parts), 9), all(_is_convex(p) for p in parts)
-(3.0, True)
->>> [round(p.area, 3) for p in wall_pieces(Polygon([(0, 0), (1, 0), (1, 1), (0, 1)]), 0.1)]
-[0.12, 0.12, 0.12, 0.12]
+Geometry (world frame of docs/model.md §1: x east, y north, headings CCW from east): the
+boundary and the obstacles are extruded from the convex pieces of
+:mod:`bouncesim.robots.pybullet.walls`; walls are 0.2 m high, the robot body 0.09 m.
 """
 
 from __future__ import annotations
@@ -47,10 +33,12 @@ from shapely.geometry.polygon import orient
 
 from envs import Environment, UserError
 
-from .robot import CREATE2, Robot, RobotError, RobotSpec
+from ..base import CREATE2, Robot, RobotError, RobotSpec
+from ..noise import NoiseModel, noise_and_rng
+from .video import check_record_format, render_top_down, write_video
+from .walls import WALL_THICKNESS, convex_pieces, wall_pieces
 
-__all__ = ["PyBulletRobot", "convex_pieces", "wall_pieces", "ear_clip",
-           "DEFAULT_SPEED", "DEFAULT_TURN_SPEED", "DEFAULT_TIME_STEP"]
+__all__ = ["PyBulletRobot", "DEFAULT_SPEED", "DEFAULT_TURN_SPEED", "DEFAULT_TIME_STEP"]
 
 DEFAULT_SPEED = 0.2
 """Default forward speed [m/s]: 3 mm of travel per 15 ms bumper poll, so a bump is caught
@@ -63,7 +51,6 @@ DEFAULT_TIME_STEP = 1 / 200
 """Physics step [s]: 5 ms, so the 15 ms sensor period is exactly 3 steps."""
 
 _WALL_HEIGHT = 0.2          # [m]
-_WALL_THICKNESS = 0.1       # [m]
 _BODY_HEIGHT = 0.09         # [m]
 _BODY_CLEARANCE = 0.01      # floor to the underside of the body [m]
 _WHEEL_MASS = 0.1           # each [kg]
@@ -74,172 +61,6 @@ _MESH_MARGIN = 1e-4         # collision margin of the wall prisms [m]
 _CONTACT_TOLERANCE = 1e-3   # a contact point within this distance [m] closes the bumper
 _BUMP_CENTRE_DEG = 10.0     # contacts within ± this of straight ahead close both switches
 _SETTLE_STEPS = 2
-
-
-# ---------------------------------------------------------------------------- geometry
-def _is_convex(poly: Polygon) -> bool:
-    """Whether a polygon is convex (its hull adds no area, up to rounding)."""
-    return poly.convex_hull.area - poly.area <= 1e-9 * max(poly.area, 1.0)
-
-
-def ear_clip(poly: Polygon) -> list[Polygon]:
-    """Triangulate a simple polygon without holes by ear clipping.
-
-    The fallback for shapely < 2.1 (which lacks ``constrained_delaunay_triangles``).
-    Collinear vertices are dropped; the triangles partition the polygon.
-
-    >>> tris = ear_clip(Polygon([(0, 0), (2, 0), (2, 1), (1, 1), (1, 2), (0, 2)]))
-    >>> len(tris), round(sum(t.area for t in tris), 9)
-    (4, 3.0)
-    """
-    if len(poly.interiors):
-        raise ValueError("ear_clip handles polygons without holes only.")
-    pts = np.asarray(orient(poly, 1.0).exterior.coords)[:-1]
-    idx = list(range(len(pts)))
-    scale = max(float(np.ptp(pts, axis=0).max()), 1e-12)
-    eps = 1e-12 * scale * scale
-
-    def cross(i: int, j: int, k: int) -> float:
-        a, b, c = pts[i], pts[j], pts[k]
-        return float((b[0] - a[0]) * (c[1] - b[1]) - (b[1] - a[1]) * (c[0] - b[0]))
-
-    def inside(q: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> bool:
-        d1 = (b[0] - a[0]) * (q[1] - a[1]) - (b[1] - a[1]) * (q[0] - a[0])
-        d2 = (c[0] - b[0]) * (q[1] - b[1]) - (c[1] - b[1]) * (q[0] - b[0])
-        d3 = (a[0] - c[0]) * (q[1] - c[1]) - (a[1] - c[1]) * (q[0] - c[0])
-        return d1 >= -eps and d2 >= -eps and d3 >= -eps
-
-    tris: list[Polygon] = []
-    while len(idx) > 3:
-        n = len(idx)
-        for k in range(n):
-            i0, i1, i2 = idx[k - 1], idx[k], idx[(k + 1) % n]
-            if cross(i0, i1, i2) <= eps:
-                continue
-            a, b, c = pts[i0], pts[i1], pts[i2]
-            if any(inside(pts[m], a, b, c) for m in idx
-                   if m not in (i0, i1, i2) and not (np.allclose(pts[m], a)
-                                                    or np.allclose(pts[m], b)
-                                                    or np.allclose(pts[m], c))):
-                continue
-            tris.append(Polygon([a, b, c]))
-            idx.pop(k)
-            break
-        else:  # no ear: drop a collinear vertex, which does not change the shape
-            for k in range(n):
-                if abs(cross(idx[k - 1], idx[k], idx[(k + 1) % n])) <= eps:
-                    idx.pop(k)
-                    break
-            else:
-                raise ValueError("ear_clip found no ear (is the polygon simple?).")
-    if abs(cross(*idx)) > eps:
-        tris.append(Polygon(pts[idx]))
-    return tris
-
-
-def _triangulate(poly: Polygon) -> list[Polygon]:
-    if hasattr(shapely, "constrained_delaunay_triangles"):
-        tris = shapely.get_parts(shapely.constrained_delaunay_triangles(poly))
-        return [t for t in tris if t.area > 0]
-    return ear_clip(poly)
-
-
-def convex_pieces(poly: Polygon) -> list[Polygon]:
-    """Split a polygon into convex pieces whose union is the polygon.
-
-    A convex polygon is returned as it is; a non-convex one is triangulated (shapely's
-    constrained Delaunay triangulation, or :func:`ear_clip`) and neighbouring pieces are
-    merged greedily while their union stays convex.
-
-    Parameters
-    ----------
-    poly : Polygon
-        A simple polygon [m] (holes are triangulated around when shapely ≥ 2.1).
-
-    Returns
-    -------
-    list of Polygon
-    """
-    if _is_convex(poly):
-        return [poly]
-    return _merge_convex(_triangulate(poly), 1e-9 * max(math.sqrt(poly.area), 1.0))
-
-
-def _merge_convex(pieces: list[Polygon], tol: float = 1e-9) -> list[Polygon]:
-    """Greedily merge pieces that share an edge while their union stays convex."""
-    pieces = list(pieces)
-    merged = True
-    while merged:
-        merged = False
-        for i in range(len(pieces)):
-            for j in range(i + 1, len(pieces)):
-                a, b = pieces[i], pieces[j]
-                if a.boundary.intersection(b.boundary).length <= tol:
-                    continue
-                u = shapely.union(a, b)
-                if isinstance(u, Polygon) and not len(u.interiors) and _is_convex(u):
-                    pieces[i] = u.simplify(0.0)
-                    pieces.pop(j)
-                    merged = True
-                    break
-            if merged:
-                break
-    return pieces
-
-
-def wall_pieces(boundary: Polygon, thickness: float = _WALL_THICKNESS) -> list[Polygon]:
-    """Convex wall slabs along every edge of the outer boundary, on its outer side.
-
-    Each slab's inner side is its edge and it is ``thickness`` deep. At a convex corner both
-    slabs run on by ``thickness`` past the corner (that extension lies outside the room), so
-    the corner is sealed; at a reflex corner (non-convex rooms) both end on the corner's
-    bisector (a mitre), since a square end would cut into the room across the other edge.
-    Works for either winding.
-
-    Parameters
-    ----------
-    boundary : Polygon   the outer wall polygon W [m]
-    thickness : float    wall thickness [m]
-
-    Returns
-    -------
-    list of Polygon, one convex quadrilateral per edge [m]
-    """
-    pts = np.asarray(orient(boundary, 1.0).exterior.coords)[:-1]   # CCW: inside on the left
-    n = len(pts)
-    t = float(thickness)
-    units, normals = [], []
-    for i in range(n):
-        e = pts[(i + 1) % n] - pts[i]
-        u = e / np.hypot(*e)
-        units.append(u)
-        normals.append(np.array([u[1], -u[0]]))                 # right of the edge = outside
-
-    def convex_at(k: int) -> bool:
-        u0, u1 = units[k - 1], units[k]
-        return float(u0[0] * u1[1] - u0[1] * u1[0]) > 0
-
-    def mitre(k: int) -> np.ndarray:
-        """Outward offset of vertex k [m] where the two offset edges meet."""
-        n1, n2 = normals[k - 1], normals[k]
-        return pts[k] + t * (n1 + n2) / (1.0 + float(n1 @ n2))
-
-    pieces = []
-    for i in range(n):
-        j = (i + 1) % n
-        a, b, u, nn = pts[i], pts[j], units[i], normals[i]
-        if convex_at(i):
-            a0 = a - t * u
-            ring = [a0, a0 + t * nn]
-        else:
-            ring = [a, mitre(i)]
-        if convex_at(j):
-            b0 = b + t * u
-            ring = [ring[0], b0, b0 + t * nn, ring[1]]
-        else:
-            ring = [ring[0], b, mitre(j), ring[1]]
-        pieces.append(Polygon(ring))
-    return pieces
 
 
 def _wrap_deg(a: float) -> float:
@@ -281,13 +102,12 @@ class PyBulletRobot(Robot):
     ----------
     env : Environment or str
         The environment (or a catalogue name / env file path).
-    noise : object, optional
+    noise : NoiseModel, optional
         Rotation noise: anything with ``sample(rng, commanded_deg) -> actual_deg`` (the models
-        of :mod:`bouncesim.noise`). None: turns are commanded exactly.
+        of :mod:`bouncesim.robots.noise`). None: turns are commanded exactly.
     rng : numpy.random.Generator or int, optional
-        Random source for the noise (an int is a seed). Default: ``default_rng(seed)``.
-    seed : int, optional
-        Seed for the default ``rng`` (default 0: runs are reproducible unless asked not to be).
+        Random source for the noise (an int is a seed). Required when the noise is not exact
+        (:func:`bouncesim.robots.noise.noise_and_rng`, the contract of every simulated body).
     gui : bool
         Open the PyBullet GUI (needs a display) and pace the simulation to real time.
     record : str or Path, optional
@@ -348,8 +168,7 @@ class PyBulletRobot(Robot):
     ...     bot.turn(90)
     """
 
-    def __init__(self, env: Environment | str, *, noise=None,
-                 rng: np.random.Generator | None = None, seed: int | None = 0,
+    def __init__(self, env: Environment | str, noise: NoiseModel | None = None, rng=None, *,
                  gui: bool = False, record: str | Path | None = None,
                  turn: str = "clock", back_off: float = 0.0,
                  time_step: float = DEFAULT_TIME_STEP,
@@ -379,10 +198,7 @@ class PyBulletRobot(Robot):
         if not 0 <= back_off < env.cell_size:
             raise UserError(f"back_off must be between 0 and one cell ({env.cell_size} m), "
                             f"got {back_off}.")
-        self.noise = noise
-        if rng is None or isinstance(rng, (int, np.integer)):
-            rng = np.random.default_rng(seed if rng is None else int(rng))
-        self.rng = rng
+        self.noise, self.rng = noise_and_rng(noise, rng)
         self.turn_mode = turn
         self.back_off = float(back_off)
         self.time_step = float(time_step)
@@ -399,7 +215,7 @@ class PyBulletRobot(Robot):
         self._record_width = int(record_width)
         self._frames: list[np.ndarray] = []
         if self._record is not None:
-            self._check_record_format(self._record)
+            check_record_format(self._record)
 
         p = self._p = _import_pybullet()
         if self.gui:
@@ -433,21 +249,6 @@ class PyBulletRobot(Robot):
             raise
 
     # ------------------------------------------------------------------ construction
-    @staticmethod
-    def _check_record_format(path: Path) -> None:
-        ext = path.suffix.lower()
-        if ext == ".gif":
-            return
-        if ext in (".mp4", ".avi", ".mkv", ".mov"):
-            try:
-                import imageio_ffmpeg  # noqa: F401
-            except ImportError:
-                raise UserError(f"recording {ext} video needs imageio-ffmpeg "
-                                f"(pip install imageio-ffmpeg); record to a .gif instead.") \
-                    from None
-            return
-        raise UserError(f"cannot record to {path.name!r}: use a .gif or .mp4 file name.")
-
     def _default_start(self) -> tuple[float, float, float]:
         grid = self.env.grid_centres_free()
         j, i = np.argwhere(grid)[0]
@@ -474,7 +275,7 @@ class PyBulletRobot(Robot):
         p.changeDynamics(self._floor, -1, lateralFriction=1.0, **kw)
         x0, y0, x1, y1 = self.env.bounds
         if self._visual:
-            m = _WALL_THICKNESS
+            m = WALL_THICKNESS
             vis = p.createVisualShape(p.GEOM_BOX, halfExtents=[(x1 - x0) / 2 + m,
                                                                (y1 - y0) / 2 + m, 0.0005],
                                       rgbaColor=[0.93, 0.93, 0.88, 1], **kw)
@@ -482,7 +283,7 @@ class PyBulletRobot(Robot):
                               **kw)
         # walls: the boundary slabs and the obstacles' convex pieces, extruded
         self._walls: list[int] = []
-        self._wall_slabs = wall_pieces(self.env.boundary, _WALL_THICKNESS)
+        self._wall_slabs = wall_pieces(self.env.boundary, WALL_THICKNESS)
         for slab in self._wall_slabs:
             self._add_prism(slab, [0.35, 0.35, 0.38, 1])
         self._pieces = [pc for ob in self.env.obstacles for pc in convex_pieces(ob)]
@@ -587,27 +388,12 @@ class PyBulletRobot(Robot):
             step(**kw)
             self._steps += 1
             if self._record is not None and self._steps % self._record_every == 0:
-                self._frames.append(self._render())
+                self._frames.append(render_top_down(self._p, self._kw, self.env.bounds,
+                                                  self._record_width, _WALL_HEIGHT))
         if self.gui:   # pace to real time
             ahead = self._steps * self.time_step - (_time.perf_counter() - self._wall_t0)
             if ahead > 0:
                 _time.sleep(ahead)
-
-    def _render(self) -> np.ndarray:
-        p, kw = self._p, self._kw
-        x0, y0, x1, y1 = self.env.bounds
-        m = 0.15
-        w, h = (x1 - x0) + 2 * m, (y1 - y0) + 2 * m
-        W = self._record_width
-        H = max(16, int(round(W * h / w)) // 2 * 2)
-        fov = 20.0
-        dist = (h / 2) / math.tan(math.radians(fov / 2)) + _WALL_HEIGHT
-        cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
-        view = p.computeViewMatrix([cx, cy, dist], [cx, cy, 0], [0, 1, 0])
-        proj = p.computeProjectionMatrixFOV(fov, W / H, dist / 4, dist * 2)
-        img = p.getCameraImage(W, H, view, proj, renderer=p.ER_TINY_RENDERER, shadow=0,
-                               flags=p.ER_NO_SEGMENTATION_MASK, **kw)
-        return np.reshape(np.asarray(img[2], dtype=np.uint8), (H, W, 4))[:, :, :3].copy()
 
     def _wheel_angles(self) -> tuple[float, float]:
         st = self._p.getJointStates(self._robot, [0, 1], **self._kw)
@@ -690,7 +476,7 @@ class PyBulletRobot(Robot):
         """
         self._check_open()
         cmd = float(angle_deg)
-        actual = float(self.noise.sample(self.rng, cmd)) if self.noise is not None else cmd
+        actual = float(self.noise.sample(self.rng, cmd))
         if self.back_off > 0:
             v = self.turn_speed
             self.drive(-v)
@@ -778,20 +564,9 @@ class PyBulletRobot(Robot):
         try:
             self.stop()
             if self._record is not None and self._frames:
-                self._write_video()
+                write_video(self._record, self._frames, self._record_period)
         finally:
             self._disconnect()
-
-    def _write_video(self) -> None:
-        import imageio.v3 as iio
-        path = self._record
-        path.parent.mkdir(parents=True, exist_ok=True)
-        if path.suffix.lower() == ".gif":
-            iio.imwrite(path, np.stack(self._frames), duration=1000 * self._record_period,
-                        loop=0)
-        else:
-            iio.imwrite(path, np.stack(self._frames), fps=1 / self._record_period,
-                        plugin="FFMPEG")
 
     def _disconnect(self) -> None:
         if self._cid is not None and not getattr(self, "_closed", True):

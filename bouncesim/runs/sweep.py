@@ -17,9 +17,10 @@ parameter dicts (usually a :func:`grid`: environment x plan x noise x seed x bac
   trials, a SHA-256 of the trial list and the caller's config dict) plus package versions, the
   git revision and one entry per session. A re-run whose identity differs is refused with one
   sentence (:class:`envs.UserError`) instead of mixing two sweeps in one table.
-- **Executors.** :class:`SerialExecutor` (in-process, for debugging), :class:`PoolExecutor`
-  (``concurrent.futures.ProcessPoolExecutor``, all cores by default) and
-  :class:`DaskExecutor` (a new ``dask.distributed.LocalCluster`` or an existing scheduler).
+- **Executors** (:mod:`bouncesim.runs.executors`). :class:`SerialExecutor` (in-process, for
+  debugging), :class:`PoolExecutor` (``concurrent.futures.ProcessPoolExecutor``, all cores by
+  default) and :class:`DaskExecutor` (a new ``dask.distributed.LocalCluster`` or an existing
+  scheduler).
   :func:`add_executor_args` / :func:`make_executor` give every experiment the same flags:
   ``--workers N`` (1 = serial), ``--dask-local N``, ``--dask tcp://HOST:PORT``.
 - **Progress.** A tqdm bar (done, total, ETA) on stderr.
@@ -40,21 +41,17 @@ Examples
 
 from __future__ import annotations
 
-import argparse
 import hashlib
 import itertools
 import json
 import math
 import os
-import platform
-import subprocess
 import sys
 import time
 import traceback
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
-from importlib import metadata
 from pathlib import Path
 
 import numpy as np
@@ -62,12 +59,11 @@ import pandas as pd
 
 from envs import UserError
 
-__all__ = ["grid", "trial_seed", "Sweep", "SweepResult", "run_sweep", "read_journal",
-           "SerialExecutor", "PoolExecutor", "DaskExecutor", "add_executor_args",
-           "make_executor", "run_metadata", "demo_trial", "TrialError"]
+from .executors import PoolExecutor, SerialExecutor
+from .metadata import run_metadata
 
-_META_PACKAGES = ("numpy", "scipy", "pandas", "shapely", "matplotlib", "pybullet", "dask",
-                  "distributed", "bouncesim")
+__all__ = ["grid", "trial_seed", "Sweep", "SweepResult", "run_sweep", "read_journal",
+           "demo_trial", "TrialError"]
 
 
 class TrialError(RuntimeError):
@@ -166,202 +162,6 @@ def _run_chunk(trial_fn: Callable, root_seed: int, items: list[tuple[int, dict]]
                              f"names.")
         rows.append({"trial": index, **params, **_normalise(result, "result")})
     return rows
-
-
-def _exit_with_parent(parent: int) -> None:
-    """Worker initializer: end this worker when the process that started it is gone (so a
-    killed sweep leaves no orphans computing chunks nobody will read)."""
-    import threading
-
-    def watch() -> None:
-        while True:
-            time.sleep(0.5)
-            if os.getppid() != parent:
-                os._exit(1)
-
-    threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
-
-
-def _results_as_completed(futures: list, as_completed: Callable) -> Iterator:
-    """Results of ``futures`` as they complete; the rest are cancelled when the consumer
-    stops early (an error, or a closed generator)."""
-    try:
-        for fut in as_completed(futures):
-            yield fut.result()
-    finally:
-        for fut in futures:
-            fut.cancel()
-
-
-class SerialExecutor:
-    """Run chunks one after the other in this process (debugging, ``--workers 1``)."""
-
-    workers = 1
-    name = "serial"
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        return False
-
-    def map_unordered(self, fn: Callable, args: Sequence[tuple]) -> Iterator:
-        for a in args:
-            yield fn(*a)
-
-    def describe(self) -> dict:
-        return {"kind": self.name, "workers": 1}
-
-
-class PoolExecutor:
-    """A local ``concurrent.futures.ProcessPoolExecutor``.
-
-    Parameters
-    ----------
-    workers : int, optional   worker processes (default: every core, ``os.cpu_count()``)
-    """
-
-    name = "process-pool"
-
-    def __init__(self, workers: int | None = None) -> None:
-        self.workers = int(workers or os.cpu_count() or 1)
-        self._pool = None
-
-    def __enter__(self):
-        from concurrent.futures import ProcessPoolExecutor
-        self._pool = ProcessPoolExecutor(max_workers=self.workers,
-                                         initializer=_exit_with_parent,
-                                         initargs=(os.getpid(),))
-        return self
-
-    def __exit__(self, *exc):
-        if self._pool is not None:
-            self._pool.shutdown(wait=True, cancel_futures=True)
-            self._pool = None
-        return False
-
-    def map_unordered(self, fn: Callable, args: Sequence[tuple]) -> Iterator:
-        from concurrent.futures import as_completed
-        return _results_as_completed([self._pool.submit(fn, *a) for a in args], as_completed)
-
-    def describe(self) -> dict:
-        return {"kind": self.name, "workers": self.workers}
-
-
-class DaskExecutor:
-    """Dask: a new ``LocalCluster`` of single-threaded worker processes, or a scheduler.
-
-    Parameters
-    ----------
-    local_workers : int, optional   start a LocalCluster with this many worker processes
-    address : str, optional         connect to an existing scheduler (``tcp://HOST:PORT``)
-    """
-
-    name = "dask"
-
-    def __init__(self, local_workers: int | None = None, address: str | None = None) -> None:
-        if (local_workers is None) == (address is None):
-            raise UserError("give exactly one of a local worker count and a scheduler address.")
-        self.local_workers = local_workers
-        self.address = address
-        self._client = self._cluster = None
-        self.workers = local_workers or 0
-
-    def __enter__(self):
-        try:
-            from distributed import Client, LocalCluster
-        except ImportError:
-            raise UserError("Dask is not installed; install it with "
-                            "pip install 'bouncesim[dist]'.") from None
-        if self.address is None:
-            self._cluster = LocalCluster(n_workers=int(self.local_workers),
-                                         threads_per_worker=1, processes=True,
-                                         dashboard_address=":0")
-            self._client = Client(self._cluster)
-        else:
-            try:
-                self._client = Client(self.address, timeout=30)
-            except OSError as exc:
-                raise UserError(f"cannot reach the Dask scheduler at {self.address}: "
-                                f"{exc}.") from None
-            self.workers = len(self._client.scheduler_info().get("workers", {}))
-        return self
-
-    def __exit__(self, *exc):
-        if self._client is not None:
-            self._client.close()
-        if self._cluster is not None:
-            self._cluster.close()
-        self._client = self._cluster = None
-        return False
-
-    def map_unordered(self, fn: Callable, args: Sequence[tuple]) -> Iterator:
-        from distributed import as_completed
-        return _results_as_completed(
-            [self._client.submit(fn, *a, pure=False) for a in args], as_completed)
-
-    def describe(self) -> dict:
-        return {"kind": self.name, "workers": self.workers,
-                "cluster": "LocalCluster" if self.address is None else self.address}
-
-
-def add_executor_args(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    """Add ``--workers``, ``--dask-local`` and ``--dask`` (mutually exclusive)."""
-    g = parser.add_argument_group("execution (the same seed gives the same table on each)")
-    ex = g.add_mutually_exclusive_group()
-    ex.add_argument("--workers", type=int, default=None, metavar="N",
-                    help="local worker processes (default: every core; 1 runs serially "
-                    "in this process)")
-    ex.add_argument("--dask-local", type=int, default=None, metavar="N",
-                    help="start a dask.distributed LocalCluster with N single-threaded "
-                    "worker processes")
-    ex.add_argument("--dask", default=None, metavar="ADDRESS",
-                    help="use an existing Dask scheduler, e.g. tcp://HOST:8786")
-    g.add_argument("--no-progress", action="store_true", help="no progress bar")
-    return parser
-
-
-def make_executor(args: argparse.Namespace):
-    """The executor that :func:`add_executor_args` flags ask for."""
-    if getattr(args, "dask", None):
-        return DaskExecutor(address=args.dask)
-    if getattr(args, "dask_local", None) is not None:
-        if args.dask_local < 1:
-            raise UserError(f"--dask-local needs at least one worker, got {args.dask_local}.")
-        return DaskExecutor(local_workers=args.dask_local)
-    workers = getattr(args, "workers", None)
-    if workers is not None and workers < 1:
-        raise UserError(f"--workers needs at least one worker, got {workers}.")
-    if workers == 1:
-        return SerialExecutor()
-    return PoolExecutor(workers)
-
-
-# ============================================================================ metadata
-def git_revision() -> str | None:
-    """The current git commit (with '-dirty' when tracked files have changes), or None."""
-    root = Path(__file__).resolve().parent.parent
-    try:
-        rev = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True,
-                             text=True, timeout=10)
-        if rev.returncode != 0:
-            return None
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"],
-                               cwd=root, capture_output=True, text=True, timeout=10)
-        return rev.stdout.strip() + ("-dirty" if dirty.stdout.strip() else "")
-    except (OSError, subprocess.SubprocessError):
-        return None
-
-
-def run_metadata() -> dict:
-    """Python, platform and package versions and the git revision (None outside git)."""
-    vers: dict = {"python": sys.version.split()[0], "platform": platform.platform()}
-    for name in _META_PACKAGES:
-        try:
-            vers[name] = metadata.version(name)
-        except metadata.PackageNotFoundError:
-            vers[name] = None
-    return {"versions": vers, "git_revision": git_revision()}
 
 
 # ============================================================================ journal

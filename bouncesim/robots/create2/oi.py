@@ -1,10 +1,10 @@
 """The iRobot Create 2 Open Interface (OI) at the byte level: no I/O, no clocks.
 
 Everything here is a pure function of bytes (or a small state machine fed with bytes), so the
-hardware adapter (:mod:`bouncesim.create2`) and the emulator (:mod:`bouncesim.oi_emulator`)
-share one implementation of the protocol, and the tests check it against the worked examples of
-iRobot's "Create 2 Open Interface Specification" (the facts are collected in the project's
-CREATE2_OI notes).
+hardware adapter (:mod:`bouncesim.robots.create2.adapter`) and the emulator
+(:mod:`bouncesim.robots.create2.emulator`) share one implementation of the protocol, and the
+tests check it against the worked examples of iRobot's "Create 2 Open Interface Specification"
+(the facts are collected in the project's CREATE2_OI notes).
 
 - Commands: :func:`encode_drive`, :func:`encode_drive_direct`, :func:`encode_sensors`,
   :func:`encode_query_list`, :func:`encode_stream`, :func:`encode_pause_resume` and the

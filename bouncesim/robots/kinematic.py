@@ -10,7 +10,7 @@ corners, unlike ``env.cspace``). :class:`WallCaster` does this vectorised over r
 
 Two bodies use it:
 
-- :class:`KinematicRobot`, a :class:`bouncesim.robot.Robot` for the executors: ``wait(dt)``
+- :class:`KinematicRobot`, a :class:`bouncesim.robots.base.Robot` for the executors: ``wait(dt)``
   advances the pose under the current wheel command, ``drive_until_bump`` jumps straight to
   the contact (or the timeout), ``turn`` is exact plus a seeded noise sample.
 - :class:`KinematicBatch`, thousands of independent robots stepped at once under the
@@ -63,8 +63,8 @@ from envs.raycast import (BUMP_RANGE, CONTACT_GAP, STEP_TOL, LocalCaster,  # noq
 from planners.cells import CellSpace
 from planners.plan import PolicyMix
 
-from .noise import NoiseModel, NoNoise, noise_for_mix
-from .robot import CREATE2, BumpEvent, Robot, RobotSpec
+from .noise import NoiseModel, NoNoise, noise_and_rng, noise_for_mix
+from .base import CREATE2, BumpEvent, Robot, RobotSpec
 
 __all__ = ["WallCaster", "LocalCaster", "casters", "KinematicRobot", "KinematicBatch",
            "BatchCoverage", "unit", "CONTACT_GAP", "BUMP_RANGE", "STEP_TOL", "CENTRE_ZONE_DEG"]
@@ -87,7 +87,8 @@ class KinematicRobot(Robot):
     noise : NoiseModel, optional
         Rotation noise applied to every :meth:`turn` (default None: exact).
     rng : numpy.random.Generator or int, optional
-        Source of the noise draws (an int is a seed). Required when the noise is not exact.
+        Source of the noise draws (an int is a seed). Required when the noise is not exact
+        (:func:`bouncesim.robots.noise.noise_and_rng`, the contract of every simulated body).
     turn_speed : float
         Wheel speed used for in-place turns [m/s]; a turn by φ takes
         ``spec.turn_time(φ, turn_speed)`` of simulated time.
@@ -117,11 +118,7 @@ class KinematicRobot(Robot):
                  turn_speed: float = 0.1, turn: str = "clock",
                  spec: RobotSpec | None = None, glance_deg: float | None = None) -> None:
         self.env = env
-        self.noise = noise if noise is not None else NoNoise()
-        if rng is None and not self.noise.exact:
-            raise ValueError("a KinematicRobot with rotation noise needs an rng (or a seed).")
-        self.rng = rng if isinstance(rng, np.random.Generator) or rng is None else \
-            np.random.default_rng(rng)
+        self.noise, self.rng = noise_and_rng(noise, rng)
         self.spec = spec if spec is not None else replace(CREATE2, radius=env.robot_radius)
         if not 0 < turn_speed <= self.spec.max_wheel_speed:
             raise UserError(f"turn speed must lie in (0, {self.spec.max_wheel_speed:g}] m/s, "
@@ -419,7 +416,7 @@ class KinematicBatch:
     the step starts); otherwise move to contact, then rotate in place by the current bouncing
     angle plus noise (one step, counted in the cell of the contact position). A contact within
     ``STEP_TOL`` of h counts as a full forward step (the robot then bumps at the start of the
-    next step), as :func:`bouncesim.execute.execute_mix` counts it on a Robot.
+    next step), as :func:`bouncesim.runs.execute.execute` counts it on a Robot.
 
     Parameters
     ----------

@@ -1,10 +1,10 @@
 """The one Robot interface: only what a bump-and-clock robot has (ARCHITECTURE "one Robot
 interface, three bodies").
 
-The executors in :mod:`bouncesim.execute` use nothing but these methods, so the same code
-drives the kinematic twin, the PyBullet Create 2 and a real Create 2 over its Open Interface.
-Poses (:meth:`Robot.true_pose`) exist for logging in simulation only and are never used for
-control.
+The execution loop (:func:`bouncesim.runs.execute.execute`) uses nothing but these methods, so
+the same code drives the kinematic twin, the PyBullet Create 2 and a real Create 2 over its Open
+Interface. Poses (:meth:`Robot.true_pose`) exist for logging in simulation only and are never
+used for control.
 
 Units: metres, seconds, degrees (angles at this interface), CCW positive.
 """
@@ -84,6 +84,11 @@ class Robot(ABC):
     """
 
     spec: RobotSpec = CREATE2
+    env = None
+    """The room the robot is in (an :class:`envs.Environment`): simulators move in it, and
+    :func:`bouncesim.runs.execute.execute` builds its cells from it. None when the robot does
+    not know it (pass the cells to ``execute`` then); :func:`bouncesim.robots.make_robot` sets
+    it for the Create 2 to the environment it was given."""
 
     # -------------------------------------------------------------- what the robot has
     @abstractmethod

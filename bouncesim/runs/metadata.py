@@ -1,0 +1,49 @@
+"""Run metadata: what produced a result (the one home of package versions and the git
+revision written to every ``config.json``, by sweeps and experiments alike)."""
+
+from __future__ import annotations
+
+import platform
+import subprocess
+import sys
+from importlib import metadata
+from pathlib import Path
+
+__all__ = ["PACKAGES", "git_revision", "run_metadata", "versions"]
+
+PACKAGES = ("numpy", "scipy", "shapely", "networkx", "pandas", "matplotlib", "pybullet",
+            "dask", "distributed", "bouncesim")
+"""The packages whose versions :func:`versions` reports (None when not installed)."""
+
+_ROOT = Path(__file__).resolve().parents[2]     # the repository (bouncesim/runs/ -> root)
+
+
+def versions() -> dict[str, str | None]:
+    """Python, platform and the version of every package in :data:`PACKAGES`."""
+    out: dict[str, str | None] = {"python": sys.version.split()[0],
+                                  "platform": platform.platform()}
+    for name in PACKAGES:
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = None
+    return out
+
+
+def git_revision() -> str | None:
+    """The current git commit (with '-dirty' when tracked files have changes), or None."""
+    try:
+        rev = subprocess.run(["git", "rev-parse", "HEAD"], cwd=_ROOT, capture_output=True,
+                             text=True, timeout=10)
+        if rev.returncode != 0:
+            return None
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"],
+                               cwd=_ROOT, capture_output=True, text=True, timeout=10)
+        return rev.stdout.strip() + ("-dirty" if dirty.stdout.strip() else "")
+    except (OSError, subprocess.SubprocessError):
+        return None
+
+
+def run_metadata() -> dict:
+    """``{"versions": versions(), "git_revision": git_revision()}``."""
+    return {"versions": versions(), "git_revision": git_revision()}
