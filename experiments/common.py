@@ -11,8 +11,11 @@ from importlib import metadata
 from pathlib import Path
 
 from bouncesim.sweep import git_revision
+from envs import UserError
+from planners.coverage import MODELS, check_model
 
-__all__ = ["experiment_parser", "git_revision", "output_dir", "versions", "write_config"]
+__all__ = ["add_models_arg", "experiment_parser", "git_revision", "output_dir", "versions",
+           "write_config"]
 
 _PACKAGES = ["numpy", "scipy", "shapely", "networkx", "pandas", "matplotlib", "pybullet",
              "bouncesim"]
@@ -28,6 +31,21 @@ def experiment_parser(name: str, description: str, default_seed: int = 0
     p.add_argument("--out", type=Path, default=Path("results") / name,
                    help=f"output folder (default results/{name}/)")
     return p
+
+
+def _model_list(text: str) -> list[str]:
+    names = [m.strip() for m in str(text).split(",") if m.strip()]
+    try:
+        return [check_model(m) for m in names or [""]]
+    except UserError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def add_models_arg(p: argparse.ArgumentParser, default: str, what: str) -> None:
+    """``--models``: comma-separated names from the coverage-model registry (a list)."""
+    p.add_argument("--models", type=_model_list, default=default, metavar="M1,M2,...",
+                   help=f"comma-separated coverage models ({', '.join(MODELS)}): {what} "
+                   f"(default {default})")
 
 
 def output_dir(path: Path) -> Path:

@@ -8,10 +8,11 @@ import importlib
 import pytest
 
 MODULES = ["envs", "envs.environment", "planners.cells", "planners.plan", "planners.roadmap",
-           "planners.coverage",
+           "planners.coverage", "planners.coverage.noise", "planners.coverage.step",
            "planners.navigation", "bouncesim.commands.plan", "bouncesim.pybullet_world",
-           "bouncesim.sweep", "envs.raycast", "planners.event_model",
-           "planners.coverage_models"]
+           "bouncesim.sweep", "envs.raycast", "planners.coverage.event",
+           "planners.coverage.api", "planners.coverage.mix", "planners.metrics",
+           "bouncesim.noise"]
 
 
 @pytest.mark.parametrize("name", MODULES)
