@@ -27,7 +27,7 @@ import numpy as np
 
 import envs
 from planners.cells import CellSpace
-from planners.coverage import analyse_angle, coverage_pipeline, solve_mix
+from planners.coverage import StepModel, StepSettings, TurnNoise, design_mix, solve_mix
 
 ANGLES = (30.0, 75.0, 315.0)
 R = 0.8
@@ -61,9 +61,8 @@ def reference_algorithm3(cs: CellSpace, angles, eps_deg: float, r: float):
                 G.add_edge(z, fwd[z])
                 Pm[z, fwd[z]] = 1.0
             else:
-                p, k = z % P, z // P
                 for t, pr in turns.items():
-                    z2 = ((k + t) % K) * P + p
+                    z2 = int(cs.turn(z, t))
                     G.add_edge(z, z2)
                     Pm[z, z2] += pr
         sccs = [set(c) for c in nx.strongly_connected_components(G)]
@@ -102,7 +101,7 @@ def reference_algorithm3(cs: CellSpace, angles, eps_deg: float, r: float):
 # ---------------------------------------------------------------------------- runs
 def _pipeline(cs, eps, method="runs"):
     t0 = time.perf_counter()
-    res = coverage_pipeline(cs, ANGLES, eps, R, method=method)
+    res = design_mix(StepModel(cs, StepSettings(method)), ANGLES, TurnNoise(eps, R))
     return res, time.perf_counter() - t0
 
 
@@ -174,7 +173,7 @@ def big(with_matrix: bool = True) -> None:
     t_all = time.perf_counter()
     for a in ANGLES:
         t0 = time.perf_counter()
-        ac = analyse_angle(cs, a, 5.0, R)
+        ac = StepModel(cs).analyse(a, TurnNoise(5.0, R))
         dt = time.perf_counter() - t0
         per.append(ac)
         print(f"| {a:g} | {ac.analysis.n_groups} | {int(ac.group_sizes.max())} | "
@@ -191,7 +190,7 @@ def big(with_matrix: bool = True) -> None:
         print("full-matrix method (planners.markov.analyse_chain on the N x N chain):")
         for a, ac in zip(ANGLES, per):
             t0 = time.perf_counter()
-            am = analyse_angle(cs, a, 5.0, R, method="matrix")
+            am = StepModel(cs, StepSettings("matrix")).analyse(a, TurnNoise(5.0, R))
             dt = time.perf_counter() - t0
             print(f"  {a:g}°: {dt:.2f} s, max |q_matrix - q_runs| = "
                   f"{np.abs(am.q - ac.q).max():.1e}", flush=True)

@@ -23,7 +23,9 @@ import numpy as np
 
 import envs
 from planners.cells import CellSpace
-from planners.coverage import coverage_pipeline, tv_distance
+from planners.coverage import (MODELS, TurnNoise, clear_cache, design_mix, model_for,
+                               timeshared_coverage)
+from planners.metrics import tv_distance
 
 ANGLES = (30.0, 75.0, 315.0)
 EPS, R = 5.0, 0.8
@@ -46,29 +48,29 @@ def main(argv=None) -> int:
     ap.add_argument("--orientations", type=int, default=360)
     ap.add_argument("--twin-steps", type=int, default=2_000_000,
                     help="twin steps per angle for the accuracy column (default 2e6)")
-    ap.add_argument("--models", default="step,sampled,event")
+    ap.add_argument("--models", default=",".join(MODELS),
+                    help=f"comma-separated coverage models (default {','.join(MODELS)})")
     ap.add_argument("--epoch", type=int, default=1000,
                     help="steps per epoch of the time-shared mix column (default 1000; 0 skips)")
     args = ap.parse_args(argv)
-    from planners import coverage_models
     rows = []
     cs0 = CellSpace(envs.load(args.env, orientations=args.orientations))
     _ = cs0.forward
     hist = {a: twin_counts(cs0, a, args.twin_steps, 0) for a in ANGLES}
     floor = max(tv_distance(hist[a], twin_counts(cs0, a, args.twin_steps, 1)) for a in ANGLES)
     for model in args.models.split(","):
-        coverage_models._model_cached.cache_clear()
+        clear_cache()
         cs = CellSpace(envs.load(args.env, orientations=args.orientations))
         w0, c0 = time.perf_counter(), time.process_time()
         _ = cs.forward
-        res = coverage_pipeline(cs, ANGLES, EPS, R, model=model)
+        cm = model_for(cs, model)
+        res = design_mix(cm, ANGLES, TurnNoise(EPS, R))
         wall, cpu = time.perf_counter() - w0, time.process_time() - c0
         tv = max(tv_distance(ac.q, hist[a]) for a, ac in zip(ANGLES, res.per_angle))
         mix_wall = float("nan")
         if args.epoch > 0:
             w1 = time.perf_counter()
-            coverage_models.timeshared_coverage(cs, ANGLES, res.alpha, EPS, R,
-                                                epoch=args.epoch, model=model)
+            timeshared_coverage(cm, res.mix, epoch=args.epoch)
             mix_wall = time.perf_counter() - w1
         rows.append((model, wall, cpu, tv, res.alpha, mix_wall))
     print(f"{args.env}, K = {args.orientations}, P = {cs0.P}, N = {cs0.N}; angles 30/75/315, "

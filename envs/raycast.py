@@ -15,7 +15,7 @@ corners, unlike ``env.cspace``).
 
 The constants are the contact conventions of the kinematic twin
 (:mod:`bouncesim.robots.kinematic`, which re-exports everything here) and of the continuous
-coverage models (:mod:`planners.event_model`, :mod:`planners.sampled_model`): one
+coverage models (:mod:`planners.coverage.event`, :mod:`planners.coverage.sampled`): one
 implementation, so model and simulation see bitwise the same flights.
 
 - A drive stops ``CONTACT_GAP`` = 1e-9 m (along the ray) before the computed contact.

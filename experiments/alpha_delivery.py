@@ -34,10 +34,11 @@ import pandas as pd
 import envs
 from bouncesim.runs.executors import add_executor_args, make_executor
 from bouncesim.runs.sweep import run_sweep
-from experiments.common import experiment_parser, output_dir
+from experiments.common import add_models_arg, experiment_parser, output_dir
 from experiments.coverage_validation import ANGLES, EPS, R, policy_label, simulate
 from planners.cells import CellSpace
-from planners.coverage import coverage_pipeline, solve_mix, tv_distance, uniform_target
+from planners.coverage import TurnNoise, design_mix, model_for, solve_mix, uniform_target
+from planners.metrics import tv_distance
 
 __all__ = ["main", "draw_figure"]
 
@@ -109,8 +110,7 @@ def draw_figure(out: Path) -> Path:
 
 def main(argv=None) -> int:
     p = experiment_parser(NAME, __doc__.split("\n\n")[0])
-    p.add_argument("--models", default="step,sampled,event",
-                   help="comma-separated coverage models (default step,sampled,event)")
+    add_models_arg(p, "step,sampled,event", "each designs its own mix")
     p.add_argument("--orientations", type=int, default=None, help="K (default 360; quick 72)")
     p.add_argument("--twin-steps", type=int, default=None,
                    help="twin steps per estimate (default 2e6; quick 2e5)")
@@ -132,7 +132,7 @@ def main(argv=None) -> int:
     pb_runs = args.pybullet_runs or (1 if q else 4)
     if args.twin_burn_in is None:
         args.twin_burn_in = 2000 if q else 20_000
-    models = args.models.split(",")
+    models = args.models
     out = output_dir(args.out)
     cs = CellSpace(envs.load(ENV, orientations=K))
     b = uniform_target(cs)
@@ -140,7 +140,7 @@ def main(argv=None) -> int:
     alpha_rows, promised, trials, mixes = [], {}, [], {}
     for m in models:
         t0 = time.perf_counter()
-        res = coverage_pipeline(cs, ANGLES, EPS, R, **({} if m == "step" else {"model": m}))
+        res = design_mix(model_for(cs, m), ANGLES, TurnNoise(EPS, R))
         secs = time.perf_counter() - t0
         mixes[m] = res.mixed_q()
         promised[m] = tv_distance(mixes[m], b)

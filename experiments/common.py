@@ -8,8 +8,10 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from bouncesim.runs.metadata import git_revision, versions
+from envs import UserError
+from planners.coverage import MODELS, check_model
 
-__all__ = ["experiment_parser", "output_dir", "write_config"]
+__all__ = ["add_models_arg", "experiment_parser", "output_dir", "write_config"]
 
 
 def experiment_parser(name: str, description: str, default_seed: int = 0
@@ -22,6 +24,21 @@ def experiment_parser(name: str, description: str, default_seed: int = 0
     p.add_argument("--out", type=Path, default=Path("results") / name,
                    help=f"output folder (default results/{name}/)")
     return p
+
+
+def _model_list(text: str) -> list[str]:
+    names = [m.strip() for m in str(text).split(",") if m.strip()]
+    try:
+        return [check_model(m) for m in names or [""]]
+    except UserError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def add_models_arg(p: argparse.ArgumentParser, default: str, what: str) -> None:
+    """``--models``: comma-separated names from the coverage-model registry (a list)."""
+    p.add_argument("--models", type=_model_list, default=default, metavar="M1,M2,...",
+                   help=f"comma-separated coverage models ({', '.join(MODELS)}): {what} "
+                   f"(default {default})")
 
 
 def output_dir(path: Path) -> Path:

@@ -32,10 +32,9 @@ import numpy as np
 import pandas as pd
 
 import envs
-from experiments.common import experiment_parser, output_dir, write_config
+from experiments.common import add_models_arg, experiment_parser, output_dir, write_config
 from planners.cells import CellSpace
-from planners.coverage import coverage_pipeline, solve_mix, uniform_target
-from planners.coverage_models import check_model
+from planners.coverage import TurnNoise, design_mix, model_for, solve_mix, uniform_target
 
 __all__ = ["main", "PAPER_ALPHA", "draw_figures"]
 
@@ -52,8 +51,8 @@ def _num(x):
 
 
 def write_csvs(out: Path, cs: CellSpace, res, conf_mix) -> None:
-    """table1.csv, coverage.csv and groups.csv from a CoverageResult (positions target) and
-    the MixResult of the same chains against the uniform target over configurations."""
+    """table1.csv, coverage.csv and groups.csv from a MixDesign (positions target) and the
+    MixFit of the same chains against the uniform target over configurations."""
     rows = []
     for a, al, alc, pa in zip(res.angles, res.alpha, conf_mix.alpha, PAPER_ALPHA):
         ac = res.per_angle[res.angles.index(a)]
@@ -150,13 +149,11 @@ def compare(table: pd.DataFrame, column: str = "alpha") -> list[str]:
 def main(argv=None) -> int:
     ap = experiment_parser(NAME, "Policy mix over 30°, 75°, 315° on the complex environment "
                            "(the paper's Table I) with Figs. 9-11 analogues.")
-    ap.add_argument("--models", default="step",
-                    help="comma-separated coverage models; each model after the paper's step "
-                    "model adds a column alpha_<model> to table1.csv (e.g. step,event)")
+    add_models_arg(ap, "step", "each model after the paper's step model adds a column "
+                   "alpha_<model> to table1.csv (e.g. step,event)")
     args = ap.parse_args(argv)
-    models = [m.strip() for m in args.models.split(",") if m.strip()]
-    for m in models:
-        check_model(m)
+    models = args.models
+    noise = TurnNoise(EPS, R)
     K = 72 if args.quick else 360
     out = output_dir(args.out)
     env = envs.load(ENV, orientations=K)
@@ -165,7 +162,7 @@ def main(argv=None) -> int:
     _ = cs.forward
     t_fwd = time.perf_counter() - t0
     t0 = time.perf_counter()
-    res = coverage_pipeline(cs, ANGLES, EPS, R)
+    res = design_mix(model_for(cs), ANGLES, noise)
     t_pipe = time.perf_counter() - t0
     # The same chains against the uniform target over the N configurations (the paper's n = N).
     conf_mix = solve_mix(np.column_stack([ac.pi for ac in res.per_angle]),
@@ -177,9 +174,9 @@ def main(argv=None) -> int:
         if m == "step":
             continue
         t0 = time.perf_counter()
-        mres = coverage_pipeline(cs, ANGLES, EPS, R, model=m)
-        extra[m] = {"alpha": mres.alpha.tolist(), "tv": mres.mix.tv,
-                    "residual_2norm": mres.mix.residual, "seconds": time.perf_counter() - t0}
+        mres = design_mix(model_for(cs, m), ANGLES, noise)
+        extra[m] = {"alpha": mres.alpha.tolist(), "tv": mres.tv,
+                    "residual_2norm": mres.residual, "seconds": time.perf_counter() - t0}
         table[f"alpha_{m}"] = mres.alpha
     table.to_csv(out / "table1.csv", index=False)
     sentences = compare(table)
@@ -190,7 +187,7 @@ def main(argv=None) -> int:
         "params": {"env": ENV, "K": K, "P": cs.P, "N": cs.N, "angles": list(ANGLES),
                    "eps_deg": EPS, "r": R, "target": "uniform over position cells"},
         "results": {"alpha": res.alpha.tolist(), "alpha_paper": list(PAPER_ALPHA),
-                    "residual_2norm": res.mix.residual, "tv": res.mix.tv,
+                    "residual_2norm": res.residual, "tv": res.tv,
                     "comparison": sentences,
                     "configurations_target": {
                         "alpha": conf_mix.alpha.tolist(), "residual_2norm": conf_mix.residual,
@@ -210,8 +207,8 @@ def main(argv=None) -> int:
               + "".join(f" {r['alpha_' + m]:13.8f}" for m in extra))
     print("alpha: target uniform over the P position cells (docs/model.md §7 default); "
           "alpha conf.: target uniform over the N configurations (the paper's n = N)")
-    print(f"positions: residual ||A alpha - b||_2 = {res.mix.residual:.6g}, "
-          f"TV = {res.mix.tv:.4f}")
+    print(f"positions: residual ||A alpha - b||_2 = {res.residual:.6g}, "
+          f"TV = {res.tv:.4f}")
     for s in sentences:
         print("  " + s)
     print(f"configurations: residual = {conf_mix.residual:.6g}, TV = {conf_mix.tv:.4f}")

@@ -60,10 +60,10 @@ from bouncesim.robots.noise import noise_for_mix
 from bouncesim.runs.execute import execute
 from bouncesim.runs.executors import add_executor_args, make_executor
 from bouncesim.runs.sweep import run_sweep
-from experiments.common import experiment_parser, output_dir
+from experiments.common import add_models_arg, experiment_parser, output_dir
 from planners.cells import CellSpace
-from planners.coverage import coverage_pipeline, tv_distance
-from planners.coverage_models import timeshared_coverage
+from planners.coverage import TurnNoise, design_mix, model_for, timeshared_coverage
+from planners.metrics import tv_distance
 from planners.plan import PolicyMix
 
 __all__ = ["main", "simulate", "predict", "tv_table", "draw_figures", "ANGLES", "EPS", "R"]
@@ -137,20 +137,19 @@ def predict(cs: CellSpace, model: str = "step", epoch: int | None = None) -> dic
     """Predicted coverage of each angle and of the model's own α mix (uniform target).
 
     The mix's prediction is the model's time-shared coverage with epochs of ``epoch`` steps
-    (:func:`planners.coverage_models.timeshared_coverage`, docs/model.md §8), or
-    docs/model.md §7's Σ α_i q_i when ``epoch`` is None.
+    (:func:`planners.coverage.timeshared_coverage`, docs/model.md §12), or docs/model.md §7's
+    Σ α_i q_i when ``epoch`` is None.
 
     Returns {"q": {label: (P,) array}, "q_sum": {label: Σ α_i q_i for the mix, q for an
     angle}, "alpha": (m,) array, "mix": label, "seconds": float}.
     """
     t0 = time.perf_counter()
-    kw = {} if model == "step" else {"model": model}
-    res = coverage_pipeline(cs, ANGLES, EPS, R, **kw)
+    cm = model_for(cs, model)
+    res = design_mix(cm, ANGLES, TurnNoise(EPS, R))
     q = {f"{_num(a)}": ac.q for a, ac in zip(ANGLES, res.per_angle)}
     mix = policy_label(ANGLES, res.alpha)
     q_sum = {**q, mix: res.mixed_q()}
-    q[mix] = q_sum[mix] if epoch is None else timeshared_coverage(
-        cs, ANGLES, res.alpha, EPS, R, epoch=epoch, model=model).q
+    q[mix] = q_sum[mix] if epoch is None else timeshared_coverage(cm, res.mix, epoch=epoch).q
     return {"q": q, "q_sum": q_sum, "alpha": np.asarray(res.alpha), "mix": mix,
             "seconds": time.perf_counter() - t0}
 
@@ -250,8 +249,7 @@ def main(argv=None) -> int:
     p = experiment_parser(NAME, __doc__.split("\n\n")[0])
     p.add_argument("--envs", default=None,
                    help=f"comma-separated environments (default {','.join(ENVS)}; quick: lab,fig1)")
-    p.add_argument("--models", default="step",
-                   help="comma-separated coverage models to predict with (default step)")
+    add_models_arg(p, "step", "the models to predict with")
     p.add_argument("--orientations", type=int, default=None,
                    help="K (default 360; quick 72)")
     p.add_argument("--twin-steps", type=int, default=None,
@@ -278,7 +276,7 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
     q = args.quick
     env_names = (args.envs or ("lab,fig1" if q else ",".join(ENVS))).split(",")
-    models = args.models.split(",")
+    models = args.models
     K = args.orientations or (72 if q else 360)
     twin_steps = args.twin_steps or (100_000 if q else 2_000_000)
     pb_steps = args.pybullet_steps if args.pybullet_steps is not None else (60 if q else 1000)

@@ -37,7 +37,8 @@ from bouncesim.runs.sweep import run_sweep
 from experiments.common import experiment_parser, output_dir, write_config
 from experiments.coverage_validation import ANGLES, EPS, R, simulate
 from planners.cells import CellSpace
-from planners.coverage import tv_distance
+from planners.coverage import TurnNoise, model_for
+from planners.metrics import tv_distance
 
 __all__ = ["main", "LADDER", "QUICK_LADDER", "draw_figure", "predict_q"]
 
@@ -65,9 +66,7 @@ CELL_KNOBS = ("orientations", "cell_size")
 
 def predict_q(cs: CellSpace, angle: float, model: str, settings: dict, rng) -> np.ndarray:
     """Coverage q (P,) of one angle under a model with the given settings."""
-    from planners.coverage_models import predict_coverage
-    return predict_coverage(cs, angle, EPS, R, model=model, settings=settings or None,
-                            rng=rng).q
+    return model_for(cs, model, settings or None).analyse(angle, TurnNoise(EPS, R)).q
 
 
 

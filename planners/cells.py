@@ -18,6 +18,8 @@ Examples
 [1, 2, -1]
 >>> int(cs.rotate(2, 90.0))          # a 90° bump at p=2 facing east turns to face north
 5
+>>> cs.turn([[2], [0]], [1, 2]).tolist()   # turns by 1 and 2 steps of cells 2 and 0
+[[5, 8], [3, 6]]
 """
 
 from __future__ import annotations
@@ -181,9 +183,15 @@ class CellSpace:
 
     def rotate(self, z, angle_deg: float):
         """Configuration after an in-place CCW turn by angle_deg (a multiple of Δ)."""
-        s = angle_steps(angle_deg, self.K, allow_zero=True)
+        return self.turn(z, angle_steps(angle_deg, self.K, allow_zero=True))
+
+    def turn(self, z, steps):
+        """Configuration after an in-place CCW turn by ``steps`` orientation steps (whole
+        numbers; z and steps broadcast, so a column of bump cells against a row of turns
+        gives every bump's destinations).
+        """
         p, k = self.pk(z)
-        return self.z(p, (k + s) % self.K)
+        return self.z(p, (k + np.asarray(steps)) % self.K)
 
     def angle_steps(self, angle_deg: float, what: str = "bouncing angle") -> int:
         return angle_steps(angle_deg, self.K, what)

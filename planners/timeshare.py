@@ -1,4 +1,4 @@
-"""Time-shared policy mixes: the coverage a mix delivers when it runs in epochs (docs/model.md §8).
+"""Time-shared policy mixes: the coverage a mix delivers when it runs in epochs (docs/model.md §12).
 
 docs/model.md §7 predicts a mix's coverage as Σ α_i q_i, which holds when every epoch is long enough
 for its angle's chain to reach its limiting distribution. docs/model.md §8 runs a mix in epochs of E

@@ -38,8 +38,8 @@ import numpy as np
 
 import envs
 from planners.cells import CellSpace
-from planners.coverage import coverage_pipeline, tv_distance
-from planners.coverage_models import timeshared_coverage
+from planners.coverage import TurnNoise, design_mix, model_for, timeshared_coverage
+from planners.metrics import tv_distance
 from planners.navigation import Navigator
 
 __all__ = ["COVERAGE_SETTINGS", "MIX_EPOCH", "PLAN_QUERIES", "TV_SETTING", "TV_SLACK", "GOLDEN_DIR",
@@ -81,15 +81,15 @@ def compute_coverage() -> dict:
     out = {}
     for name, env_name, K, angles, eps, r, model in COVERAGE_SETTINGS:
         cs = CellSpace(envs.load(env_name, orientations=K))
-        kw = {} if model == "step" else {"model": model}
-        pos = coverage_pipeline(cs, angles, eps, r, **kw)
+        noise = TurnNoise(eps, r)
+        pos = design_mix(model_for(cs, model), angles, noise)
         entry = {"env": env_name, "orientations": K, "angles": list(angles), "eps": eps,
                  "r": r, "model": model, "alpha": pos.alpha.tolist(),
                  "q": {f"{a:g}": ac.q.tolist() for a, ac in zip(angles, pos.per_angle)},
-                 "mix_epochs": timeshared_coverage(cs, angles, pos.alpha, eps, r,
-                                                   epoch=MIX_EPOCH, model=model).q.tolist()}
+                 "mix_epochs": timeshared_coverage(model_for(cs, model), pos.mix,
+                                                   epoch=MIX_EPOCH).q.tolist()}
         if model == "step":
-            conf = coverage_pipeline(cs, angles, eps, r, space="configurations")
+            conf = design_mix(model_for(cs), angles, noise, space="configurations")
             entry["alpha_configurations"] = conf.alpha.tolist()
         out[name] = entry
     return out
@@ -162,9 +162,9 @@ def compute_tv(pybullet: bool = True, floors: bool = True) -> dict:
     ``twin_<model>`` for the others), PyBullet against the step model."""
     s = TV_SETTING
     cs = CellSpace(envs.load(s["env"], orientations=s["orientations"]))
-    res = coverage_pipeline(cs, s["angles"], s["eps"], s["r"])
-    preds = {m: (res if m == "step" else
-                 coverage_pipeline(cs, s["angles"], s["eps"], s["r"], model=m))
+    noise = TurnNoise(s["eps"], s["r"])
+    res = design_mix(model_for(cs), s["angles"], noise)
+    preds = {m: (res if m == "step" else design_mix(model_for(cs, m), s["angles"], noise))
              for m in s["models"]}
     out = {"setting": {k: (list(v) if isinstance(v, tuple) else v) for k, v in s.items()},
            "pybullet": {}}

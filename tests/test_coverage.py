@@ -1,4 +1,5 @@
-"""Coverage chains of bouncing robots and the policy mix (planners.coverage)."""
+"""Coverage chains of bouncing robots and the policy mix (planners.coverage: the noise, the
+step model, targets and the mix)."""
 
 from __future__ import annotations
 
@@ -11,10 +12,11 @@ import pytest
 
 import envs
 from envs import Environment, UserError
-from planners import coverage as cov
 from planners.cells import AngleError, CellSpace
-from planners.coverage import (TargetError, analyse_angle, bump_turns, coverage_pipeline,
-                               load_target, solve_mix, transition_matrix, uniform_target)
+from planners.coverage import (StepModel, StepSettings, TargetError, TurnNoise, design_mix,
+                               load_target, model_for, solve_mix, transition_matrix,
+                               uniform_target)
+from planners.coverage import mix as cov_mix
 
 
 def corridor(K=4):
@@ -38,7 +40,7 @@ def complex72():
 
 # ---------------------------------------------------------------------------- bump model
 def test_bump_turns_probabilities():
-    steps, probs = bump_turns(360, 30, 5, 0.8)
+    steps, probs = TurnNoise(5, 0.8).turns(360, 30)
     assert steps.tolist() == list(range(25, 36))
     assert probs[5] == 0.8
     np.testing.assert_allclose(np.delete(probs, 5), 0.2 / 10)
@@ -47,7 +49,7 @@ def test_bump_turns_probabilities():
 
 def test_bump_turns_wraps_and_allows_self_loops():
     # 270° with ε = 90° at K = 4: φ + δ = 180°, 270°, 360° ≡ 0° (keeps its heading).
-    steps, probs = bump_turns(4, 270, 90, 0.5)
+    steps, probs = TurnNoise(90, 0.5).turns(4, 270)
     assert steps.tolist() == [2, 3, 0]
     np.testing.assert_allclose(probs, [0.25, 0.5, 0.25])
 
@@ -62,17 +64,17 @@ def test_bump_turns_wraps_and_allows_self_loops():
 ])
 def test_bad_parameters_are_user_errors(angle, eps, r, match):
     with pytest.raises(UserError, match=match):
-        bump_turns(8, angle, eps, r)
+        TurnNoise(eps, r).turns(8, angle)
 
 
 def test_angle_error_is_the_cells_error():
     with pytest.raises(AngleError):
-        bump_turns(8, 100)
+        TurnNoise().turns(8, 100)
 
 
 # ---------------------------------------------------------------------------- matrices
 def _expected_nnz_per_row(cs, angle, eps, r):
-    steps, probs = bump_turns(cs.K, angle, eps, r)
+    steps, probs = TurnNoise(eps, r).turns(cs.K, angle)
     n_bump = len(set(steps[probs > 0].tolist()))
     return np.where(cs.forward < 0, n_bump, 1)
 
@@ -80,7 +82,7 @@ def _expected_nnz_per_row(cs, angle, eps, r):
 @pytest.mark.parametrize("angle, eps, r", [(30, 5, 0.8), (75, 5, 0.8), (315, 5, 0.8),
                                            (90, 0, 1.0), (30, 5, 1.0), (30, 10, 0.0)])
 def test_rows_sum_to_one_on_complex(complex72, angle, eps, r):
-    M = transition_matrix(complex72, angle, eps, r)
+    M = transition_matrix(complex72, angle, TurnNoise(eps, r))
     assert M.shape == (complex72.N, complex72.N)
     np.testing.assert_allclose(np.asarray(M.sum(axis=1)).ravel(), 1.0, atol=1e-12)
     assert (M.data > 0).all()
@@ -95,7 +97,7 @@ def test_bump_rows_by_hand(lab):
     cs = lab
     zb = int(np.flatnonzero(cs.forward < 0)[0])
     p, k = zb % cs.P, zb // cs.P
-    row = transition_matrix(cs, 135, 45, 0.6)[zb].toarray().ravel()
+    row = transition_matrix(cs, 135, TurnNoise(45, 0.6))[zb].toarray().ravel()
     expected = np.zeros(cs.N)
     for d, pr in [(-1, 0.2), (0, 0.6), (1, 0.2)]:
         expected[((k + 3 + d) % 8) * cs.P + p] += pr
@@ -105,7 +107,7 @@ def test_bump_rows_by_hand(lab):
 def test_overlapping_turns_add_up():
     # ε = 270° at K = 4: seven turns land on four headings; probabilities add up.
     cs = corridor()
-    M = transition_matrix(cs, 90, 270, 0.4)
+    M = transition_matrix(cs, 90, TurnNoise(270, 0.4))
     np.testing.assert_allclose(np.asarray(M.sum(axis=1)).ravel(), 1.0)
     zb = int(np.flatnonzero(cs.forward < 0)[0])
     assert M[zb].nnz == 4
@@ -117,7 +119,7 @@ def test_corridor_90_degrees_by_hand():
     # holds 8 configurations; (0,N), (1,N), (1,S) and (2,S) are transient (each bumps or
     # runs into the cycle). π is uniform 1/8 on the cycle, so q = (3/8, 2/8, 3/8).
     cs = corridor()
-    res = analyse_angle(cs, 90)
+    res = StepModel(cs).analyse(90)
     assert res.group_sizes.tolist() == [8]
     assert res.transient_fraction == pytest.approx(4 / 12)
     np.testing.assert_allclose(res.q, [3 / 8, 2 / 8, 3 / 8], atol=1e-14)
@@ -131,7 +133,7 @@ def test_corridor_90_degrees_by_hand():
 def test_corridor_180_degrees_by_hand():
     # East/west: one periodic group of 6 (a_g = 6/12); north/south: a 2-cycle per cell
     # (a_g = 2/12 each). q = 1/2 * 1/3 + 1/6 = 1/3 in every cell.
-    res = analyse_angle(corridor(), 180)
+    res = StepModel(corridor()).analyse(180)
     assert sorted(res.group_sizes.tolist()) == [2, 2, 2, 6]
     np.testing.assert_allclose(sorted(res.analysis.absorption), [1 / 6] * 3 + [1 / 2])
     np.testing.assert_allclose(res.q, 1 / 3, atol=1e-14)
@@ -146,7 +148,7 @@ def test_self_loop_bump_by_hand():
     # east/west class gets a = 6/12, each north/south pair 2/12, so
     # q = (1/2)(3/8, 1/4, 3/8) + 1/6 = (17/48, 14/48, 17/48).
     cs = corridor()
-    res = analyse_angle(cs, 270, 90, 0.0)
+    res = StepModel(cs).analyse(270, TurnNoise(90, 0.0))
     assert sorted(res.group_sizes.tolist()) == [2, 2, 2, 6]
     st = res.analysis.stationary
     E, W = 0, 2
@@ -161,8 +163,8 @@ def test_self_loop_bump_by_hand():
     ("fig1", 24, 75, 15, 0.8), ("complex", 8, 315, 45, 0.9)])
 def test_runs_method_matches_full_matrix(env_name, K, angle, eps, r):
     cs = CellSpace(envs.load(env_name, orientations=K))
-    a = analyse_angle(cs, angle, eps, r, method="runs")
-    b = analyse_angle(cs, angle, eps, r, method="matrix")
+    a = StepModel(cs, StepSettings(method="runs")).analyse(angle, TurnNoise(eps, r))
+    b = StepModel(cs, StepSettings(method="matrix")).analyse(angle, TurnNoise(eps, r))
     assert [g.tolist() for g in a.groups] == [g.tolist() for g in b.groups]
     np.testing.assert_allclose(a.pi, b.pi, atol=1e-12)
     np.testing.assert_allclose(a.q, b.q, atol=1e-12)
@@ -171,8 +173,8 @@ def test_runs_method_matches_full_matrix(env_name, K, angle, eps, r):
 
 
 def test_limiting_distribution_is_stationary(complex72):
-    res = analyse_angle(complex72, 75, 5, 0.8)
-    M = transition_matrix(complex72, 75, 5, 0.8)
+    res = StepModel(complex72).analyse(75, TurnNoise(5, 0.8))
+    M = transition_matrix(complex72, 75, TurnNoise(5, 0.8))
     np.testing.assert_allclose(M.T @ res.pi, res.pi, atol=1e-12)
     for g in res.groups:                       # closed: no mass leaves a group
         assert np.setdiff1d(M[g].indices, g).size == 0
@@ -180,7 +182,7 @@ def test_limiting_distribution_is_stationary(complex72):
 
 def test_unknown_method_is_rejected():
     with pytest.raises(ValueError, match="method"):
-        analyse_angle(corridor(), 90, method="dense")
+        StepModel(corridor(), StepSettings(method="dense")).analyse(90)
 
 
 # ---------------------------------------------------------------------------- the mix
@@ -237,7 +239,7 @@ def test_slsqp_path_agrees_with_enumeration(monkeypatch):
     b = rng.random(30)
     res = solve_mix(A, b)                       # m = 13 > 12: SLSQP + KKT polish
     assert res.method == "slsqp"
-    monkeypatch.setattr(cov, "_ENUM_MAX", 13)   # 8191 supports: the exact answer
+    monkeypatch.setattr(cov_mix, "_ENUM_MAX", 13)   # 8191 supports: the exact answer
     exact = solve_mix(A, b)
     assert exact.method == "enumeration"
     assert res.residual <= exact.residual + 1e-9
@@ -313,21 +315,22 @@ def test_missing_and_binary_target_files(tmp_path, lab):
 
 # ---------------------------------------------------------------------------- pipeline
 def test_pipeline_on_complex(complex72):
-    res = coverage_pipeline(complex72, (30, 75, 315), 5, 0.8)
+    res = design_mix(model_for(complex72), (30, 75, 315), TurnNoise(5, 0.8))
     assert res.A.shape == (complex72.P, 3)
     np.testing.assert_allclose(res.A.sum(axis=0), 1.0)
     assert res.mixed_q().sum() == pytest.approx(1.0)
     assert res.alpha.sum() == pytest.approx(1.0)
-    conf = coverage_pipeline(complex72, (30, 75, 315), 5, 0.8, space="configurations")
+    conf = design_mix(model_for(complex72), (30, 75, 315), TurnNoise(5, 0.8),
+                      space="configurations")
     assert conf.A.shape == (complex72.N, 3)
     assert conf.target.sum() == pytest.approx(1.0)
 
 
 def test_pipeline_rejects_wrong_target_length(lab):
     with pytest.raises(TargetError, match="entries"):
-        coverage_pipeline(lab, (90,), target=np.ones(3))
+        design_mix(model_for(lab), (90,), target=np.ones(3))
     with pytest.raises(UserError, match="target space"):
-        coverage_pipeline(lab, (90,), space="cells")
+        design_mix(model_for(lab), (90,), space="cells")
 
 
 def test_planners_do_not_import_matplotlib():

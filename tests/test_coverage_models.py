@@ -20,12 +20,11 @@ from bouncesim.robots.kinematic import KinematicBatch
 from bouncesim.robots.noise import SteppedNoise
 from envs import Environment, UserError
 from planners.cells import CellSpace
-from planners.coverage import analyse_angle, coverage_pipeline
-from planners.coverage_models import (MODELS, EventSettings, SampledSettings, model_for,
-                                      predict_coverage, timeshared_coverage)
-from planners.event_model import EventModel, flight_steps
+from planners.coverage import (MODELS, EventModel, EventSettings, SampledModel, SampledSettings,
+                               StepModel, TurnNoise, design_mix, flight_steps, model_for,
+                               timeshared_coverage)
+from planners.metrics import tv_distance as tv
 from planners.plan import PolicyMix
-from planners.sampled_model import SampledModel
 
 
 def _env(boundary, obstacles=(), K=4, h=0.34, name="t"):
@@ -50,13 +49,9 @@ def twin_q(env, angle, eps=5.0, r=0.8, robots=1000, burn=1000, steps=2000, seed=
     return b.run(policy, steps, noise=noise, burn_in=burn, epoch=epoch).coverage
 
 
-def tv(a, b):
-    return 0.5 * float(np.abs(np.asarray(a) - np.asarray(b)).sum())
-
-
 # ---------------------------------------------------------------------------- hand cases
-@pytest.mark.parametrize("name", ["envs.raycast", "planners.event_model",
-                                  "planners.coverage_models", "planners.timeshare"])
+@pytest.mark.parametrize("name", ["envs.raycast", "planners.coverage.event",
+                                  "planners.coverage.api", "planners.timeshare"])
 def test_doctests(name):
     mod = importlib.import_module(name)
     result = doctest.testmod(mod, optionflags=doctest.ELLIPSIS)
@@ -108,7 +103,7 @@ def test_event_empty_room_has_the_rotation_symmetry():
     """CCW turns commute with a 180° rotation of the room: q(cell) = q(rotated cell)."""
     env = _env(_rect(2.72, 2.04), K=360)
     cs = CellSpace(env)
-    res = predict_coverage(cs, 75, 5, 0.8, model="event")
+    res = model_for(cs, "event").analyse(75, TurnNoise(5, 0.8))
     rows, cols = env.grid_shape
     grid = np.zeros((rows, cols))
     grid[cs.cells_ij[:, 1], cs.cells_ij[:, 0]] = res.q
@@ -131,32 +126,32 @@ def test_sampled_chain_is_stochastic_and_corridor_is_symmetric():
 # ---------------------------------------------------------------------------- entry point
 def test_step_model_is_bit_identical_through_the_entry_point():
     cs = CellSpace(envs.load("lab", orientations=72))
+    noise = TurnNoise(5, 0.8)
     for a in (30, 75, 315):
-        ref = analyse_angle(cs, a, 5, 0.8)
-        res = predict_coverage(cs, a, 5, 0.8)
+        ref = StepModel(cs).analyse(a, noise)
+        res = model_for(cs).analyse(a, noise)
         assert res.model == "step"
         assert np.array_equal(res.q, ref.q) and np.array_equal(res.pi, ref.pi)
-    old = coverage_pipeline(cs, [30, 75, 315], 5, 0.8)
-    new = coverage_pipeline(cs, [30, 75, 315], 5, 0.8, model="step")
+    old = design_mix(StepModel(cs), [30, 75, 315], noise)
+    new = design_mix(model_for(cs, "step"), [30, 75, 315], noise)
     assert np.array_equal(old.alpha, new.alpha) and np.array_equal(old.A, new.A)
 
 
 def test_entry_point_errors_and_pipeline_wiring():
     cs = CellSpace(_env(CORRIDOR))
     with pytest.raises(UserError, match="one of step, sampled, event"):
-        predict_coverage(cs, 90, model="exact")
+        model_for(cs, "exact")
     with pytest.raises(UserError, match="position cells only"):
-        coverage_pipeline(cs, [90], model="event", space="configurations")
+        design_mix(model_for(cs, "event"), [90], space="configurations")
     with pytest.raises(UserError, match="bin length"):
         EventSettings(bin_length=0)
     with pytest.raises(UserError, match="bin_length, samples"):
-        predict_coverage(cs, 90, model="event", settings={"bins": 3})
+        model_for(cs, "event", settings={"bins": 3})
     with pytest.raises(UserError, match="EventSettings"):
-        predict_coverage(cs, 90, model="event", settings=SampledSettings())
-    res = coverage_pipeline(cs, [90, 180], model="event",
-                            model_settings=EventSettings(bin_length=0.01))
+        model_for(cs, "event", settings=SampledSettings())
+    res = design_mix(model_for(cs, "event", EventSettings(bin_length=0.01)), [90, 180])
     np.testing.assert_allclose(res.per_angle[0].q, [3 / 8, 2 / 8, 3 / 8], atol=1e-9)
-    assert res.alpha.sum() == pytest.approx(1.0) and res.mix.tv < 0.05
+    assert res.alpha.sum() == pytest.approx(1.0) and res.tv < 0.05
     assert model_for(cs, "event", {"bin_length": 0.01}) is \
         model_for(cs, "event", EventSettings(bin_length=0.01))     # flights built once
     assert set(MODELS) == {"step", "sampled", "event"}
@@ -173,10 +168,10 @@ def test_event_matches_twin_in_the_empty_room():
     env = _env(EMPTY, K=360, name="empty")
     cs = CellSpace(env)
     for a in (30, 75, 315):
-        q = predict_coverage(cs, a, 5, 0.8, model="event").q
+        q = model_for(cs, "event").analyse(a, TurnNoise(5, 0.8)).q
         hat = twin_q(env, a)
         assert tv(q, hat) <= 0.05, a
-        assert tv(analyse_angle(cs, a, 5, 0.8).q, hat) > 0.2       # the step model does not
+        assert tv(StepModel(cs).analyse(a, TurnNoise(5, 0.8)).q, hat) > 0.2   # step does not
 
 
 @pytest.mark.slow
@@ -192,7 +187,7 @@ def test_event_matches_twin_catalogue(name):
     env = envs.load(name, orientations=360, cell_size=0.34)
     cs = CellSpace(env)
     for a in (30, 75, 315):
-        q = predict_coverage(cs, a, 5, 0.8, model="event").q
+        q = model_for(cs, "event").analyse(a, TurnNoise(5, 0.8)).q
         if (name, a) == ("fig1", 315):
             hat = twin_q(env, a, robots=500, burn=40000, steps=4000)
         else:
@@ -241,11 +236,11 @@ def test_event_matches_twin_random_envs(seed):
     angles = (30.0, 75.0, 315.0)
     for env in (_random_rectilinear(rng), _random_polygon(rng)):
         cs = CellSpace(env)
-        res = coverage_pipeline(cs, angles, 5, 0.8, model="event")
+        res = design_mix(model_for(cs, "event"), angles, TurnNoise(5, 0.8))
         for a, pa in zip(angles, res.per_angle):
             hat = twin_q(env, a, robots=1000, burn=2000, steps=3000, seed=seed)
             assert tv(pa.q, hat) <= 0.05, (env.name, seed, a, tv(pa.q, hat))
-        ts = timeshared_coverage(cs, angles, res.alpha, 5, 0.8, epoch=500, model="event")
         mix = PolicyMix(angles, tuple(res.alpha), 5.0, 0.8)
+        ts = timeshared_coverage(model_for(cs, "event"), mix, epoch=500)
         hat = twin_q(env, mix, robots=1000, burn=2000, steps=3000, seed=seed, epoch=500)
         assert tv(ts.q, hat) <= 0.05, (env.name, seed, res.alpha, tv(ts.q, hat))

@@ -8,13 +8,14 @@ import importlib
 import pytest
 
 MODULES = ["envs", "envs.environment", "planners.cells", "planners.plan", "planners.roadmap",
-           "planners.coverage",
+           "planners.coverage", "planners.coverage.noise", "planners.coverage.step",
            "planners.navigation", "bouncesim.commands.plan", "bouncesim.robots.pybullet.walls",
            "bouncesim.robots", "bouncesim.robots.factory", "bouncesim.robots.conformance",
            "bouncesim.robots.create2.faults",
            "bouncesim.runs.options", "bouncesim.runs.execute",
-           "bouncesim.runs.sweep", "envs.raycast", "planners.event_model",
-           "planners.coverage_models"]
+           "bouncesim.runs.sweep", "envs.raycast", "planners.coverage.event",
+           "planners.coverage.api", "planners.coverage.mix", "planners.metrics",
+           "bouncesim.robots.noise"]
 
 
 @pytest.mark.parametrize("name", MODULES)

@@ -1,4 +1,4 @@
-"""planners.timeshare: the coverage of a policy mix executed in epochs (docs/model.md §8).
+"""planners.timeshare: the coverage of a policy mix executed in epochs (docs/model.md §12).
 
 Independent evidence: dense brute force (matrix powers of the epoch map, and of an explicit
 step-level expansion of a delay chain) on random small chains, the one-angle and long-epoch
@@ -15,8 +15,9 @@ import scipy.sparse as sp
 
 import envs
 from planners.cells import CellSpace
-from planners.coverage import coverage_pipeline, tv_distance
-from planners.coverage_models import predict_coverage, timeshared_coverage
+from planners.coverage import TurnNoise, design_mix, model_for, timeshared_coverage
+from planners.metrics import tv_distance
+from planners.plan import PolicyMix
 from planners.timeshare import DelayChain, timeshared
 
 
@@ -130,8 +131,9 @@ def test_bad_input_is_refused_in_one_sentence():
 def test_one_angle_is_that_angles_limit(model):
     """α = (1,): the epochs change nothing, so the recursion converges to the model's q."""
     cs = CellSpace(envs.load("lab", orientations=24))
-    q = predict_coverage(cs, 75, 15, 0.8, model=model).q
-    ts = timeshared_coverage(cs, [75], [1.0], 15, 0.8, epoch=200, model=model, tol=1e-6)
+    q = model_for(cs, model).analyse(75, TurnNoise(15, 0.8)).q
+    ts = timeshared_coverage(model_for(cs, model), PolicyMix([75], [1.0], 15, 0.8), epoch=200,
+                             tol=1e-6)
     assert ts.converged
     assert tv_distance(ts.q, q) < 1e-4
 
@@ -140,11 +142,12 @@ def test_one_angle_is_that_angles_limit(model):
 def test_long_epochs_tend_to_the_sum_rule(model):
     """E ≫ mixing time: docs/model.md §7's Σ α_i q_i; E = 1 differs from it."""
     cs = CellSpace(envs.load("lab", orientations=24))
-    res = coverage_pipeline(cs, (30, 75, 315), 15, 0.8, model=model)
+    res = design_mix(model_for(cs, model), (30, 75, 315), TurnNoise(15, 0.8))
     alpha = [0.3, 0.3, 0.4]
     q_sum = np.column_stack([a.q for a in res.per_angle]) @ alpha
-    long = timeshared_coverage(cs, (30, 75, 315), alpha, 15, 0.8, epoch=20000, model=model)
-    short = timeshared_coverage(cs, (30, 75, 315), alpha, 15, 0.8, epoch=1, model=model)
+    mix = PolicyMix((30, 75, 315), alpha, 15, 0.8)
+    long = timeshared_coverage(model_for(cs, model), mix, epoch=20000)
+    short = timeshared_coverage(model_for(cs, model), mix, epoch=1)
     assert tv_distance(long.q, q_sum) < 0.005
     assert tv_distance(short.q, q_sum) > 2 * tv_distance(long.q, q_sum)
 
@@ -159,13 +162,12 @@ def test_fig1_mix_matches_the_twin_where_the_sum_rule_fails():
     time-shared TV below 0.02 + 1.5 floors."""
     from bouncesim.robots.kinematic import KinematicBatch
     from bouncesim.robots.noise import noise_for_mix
-    from planners.plan import PolicyMix
 
     cs = CellSpace(envs.load("fig1", orientations=72))
     angles = (30.0, 75.0, 315.0)
-    res = coverage_pipeline(cs, angles, 5, 0.8, model="event")
-    ts = timeshared_coverage(cs, angles, res.alpha, 5, 0.8, epoch=1000, model="event")
-    mix = PolicyMix(angles, tuple(res.alpha), 5.0, 0.8)
+    res = design_mix(model_for(cs, "event"), angles, TurnNoise(5, 0.8))
+    ts = timeshared_coverage(model_for(cs, "event"), res.mix, epoch=1000)
+    mix = res.mix
     hist = [KinematicBatch(cs.env, 200, np.random.default_rng(seed), cells=cs).run(
         mix, 5000, epoch=1000, noise=noise_for_mix(mix, cs.delta_deg), burn_in=20000)
         for seed in (1, 2)]

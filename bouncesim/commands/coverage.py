@@ -10,14 +10,17 @@ from __future__ import annotations
 import csv
 import json
 import sys
+from dataclasses import fields
 from pathlib import Path
 
 import numpy as np
 
 from envs import UserError
 from planners.cells import CellSpace
-from planners.coverage import (TARGET_FORMATS, CoverageResult, bump_turns, check_reliability,
-                               coverage_pipeline, load_target)
+from planners.coverage import (MODELS, SPACES, TARGET_FORMATS, MixDesign, TurnNoise,
+                               check_angles, default_settings, design_mix, load_target,
+                               model_for, timeshared_coverage)
+from planners.metrics import tv_distance
 
 from .common import add_env_args, load_env, parse_angles
 
@@ -74,16 +77,14 @@ def register(sub) -> None:
                    "(default 1)")
     p.add_argument("--target", type=Path, default=None, metavar="FILE",
                    help="target distribution file (formats below; default uniform)")
-    p.add_argument("--target-space", choices=("positions", "configurations"),
+    p.add_argument("--target-space", choices=SPACES,
                    default="positions",
                    help="match the target over position cells (coverage q, default) or over "
                    "configuration cells (limiting distribution pi)")
-    p.add_argument("--model", choices=("step", "sampled", "event"), default="step",
-                   help="coverage model: the paper's cell-centre step chain (step, default), "
-                   "generalized cell mapping from exact continuous steps (sampled), or the "
-                   "bump-to-bump model with exact flights between binned contact points "
-                   "(event: the one that matches continuous motion; see "
-                   "docs/model_continuous.md)")
+    p.add_argument("--model", choices=list(MODELS), default="step",
+                   help="coverage model (default step): "
+                   + "; ".join(f"{name}: {cls.summary}" for name, cls in MODELS.items())
+                   + " (see docs/model_continuous.md)")
     p.add_argument("--model-option", action="append", default=[], metavar="KEY=VALUE",
                    help="a setting of the chosen model, repeatable: event: bin_length [m] "
                    "(default 0.03), samples (flight starts per bin, default 2); sampled: grid "
@@ -116,16 +117,14 @@ def _progress(total: int | None, desc: str = "chains", unit: str = "angle"):
 def run(args) -> int:
     env = load_env(args)
     cs = CellSpace(env)
-    angles = parse_angles(args.angles)
-    r = check_reliability(args.r)
-    for a in angles:                          # fail fast, before any heavy work
-        bump_turns(cs.K, a, args.eps, r)
+    noise = TurnNoise(args.eps, args.r)
+    angles = check_angles(cs.K, parse_angles(args.angles), noise)   # before any heavy work
     target, target_desc = None, f"uniform over {args.target_space}"
     if args.target is not None:
         target = load_target(args.target, cs, args.target_space)
         target_desc = str(args.target)
     settings = parse_model_options(args.model, args.model_option)
-    if args.model != "step" and args.target_space != "positions":
+    if args.target_space not in MODELS[args.model].spaces:
         raise UserError(f"the {args.model} model predicts coverage over position cells only; "
                         "use --target-space positions.")
     if args.epoch is not None:
@@ -134,9 +133,9 @@ def run(args) -> int:
         if args.target_space != "positions":
             raise UserError("--epoch predicts coverage over position cells only; use "
                             "--target-space positions.")
-    result = coverage_pipeline(cs, angles, args.eps, r, target=target,
-                               space=args.target_space, progress=_progress(len(angles)),
-                               model=args.model, model_settings=settings)
+    model = model_for(cs, args.model, settings)
+    result = design_mix(model, angles, noise, target=target, space=args.target_space,
+                        progress=_progress(len(angles)))
     summary = summarise(result, cs, env.name, target_desc)
     summary["model"] = args.model
     if settings is not None:
@@ -144,10 +143,7 @@ def run(args) -> int:
                                      for k in settings.__dataclass_fields__}
     timeshared = None
     if args.epoch is not None:
-        from planners.coverage import tv_distance
-        from planners.coverage_models import timeshared_coverage
-        ts = timeshared_coverage(cs, angles, result.alpha, args.eps, r, epoch=args.epoch,
-                                 model=args.model, settings=settings,
+        ts = timeshared_coverage(model, result.mix, epoch=args.epoch,
                                  progress=_progress(None, "epochs", "epoch"))
         timeshared = ts.q
         summary["timeshared"] = {
@@ -172,9 +168,6 @@ def parse_model_options(model: str, options) -> object | None:
     """The model's settings record from ``KEY=VALUE`` strings (None: the defaults)."""
     if not options:
         return None
-    from dataclasses import fields
-
-    from planners.coverage_models import default_settings
     base = default_settings(model)
     known = {f.name: f.type for f in fields(base)}
     values = {}
@@ -193,7 +186,7 @@ def parse_model_options(model: str, options) -> object | None:
     return type(base)(**values)
 
 
-def summarise(result: CoverageResult, cs: CellSpace, env_name: str, target_desc: str) -> dict:
+def summarise(result: MixDesign, cs: CellSpace, env_name: str, target_desc: str) -> dict:
     """The content of alpha.json."""
     return {
         "env": env_name, "K": cs.K, "P": cs.P, "N": cs.N, "cell_size": cs.h,
@@ -201,10 +194,10 @@ def summarise(result: CoverageResult, cs: CellSpace, env_name: str, target_desc:
         "target": target_desc, "target_space": result.space,
         "angles": [_num(a) for a in result.angles],
         "alpha": [float(a) for a in result.alpha],
-        "residual": result.mix.residual,
+        "residual": result.residual,
         "residual_norm": "Euclidean 2-norm ||A alpha - b||_2 (not squared)",
-        "tv": result.mix.tv,
-        "solver": result.mix.method,
+        "tv": result.tv,
+        "solver": result.method,
         "per_angle": [a.summary() for a in result.per_angle],
     }
 
@@ -229,7 +222,7 @@ def format_table(summary: dict) -> str:
     return "\n".join(lines)
 
 
-def write_outputs(result: CoverageResult, cs: CellSpace, out_dir, summary: dict,
+def write_outputs(result: MixDesign, cs: CellSpace, out_dir, summary: dict,
                   plots: bool = True, timeshared=None) -> Path:
     """Write coverage.csv, alpha.json (and the heatmaps) into out_dir; ``timeshared`` is the
     mix's predicted coverage when executed in epochs (series "mix_epochs")."""

@@ -61,6 +61,7 @@ from envs import Environment, UserError
 from envs.raycast import (BUMP_RANGE, CONTACT_GAP, STEP_TOL, LocalCaster,  # noqa: F401
                           WallCaster, casters, unit)
 from planners.cells import CellSpace
+from planners.metrics import tv_distance
 from planners.plan import PolicyMix
 
 from .noise import NoiseModel, NoNoise, noise_and_rng, noise_for_mix
@@ -406,7 +407,7 @@ class BatchCoverage:
     def tv(self, q) -> float:
         """Total-variation distance ½ Σ |q − q̂| to a predicted coverage q (P,)."""
         q = np.asarray(q, dtype=float)
-        return 0.5 * float(np.abs(q / q.sum() - self.coverage).sum())
+        return tv_distance(q / q.sum(), self.coverage, normalise=False)
 
 
 class KinematicBatch:

@@ -14,7 +14,8 @@ Models
 ------
 - :class:`NoNoise`: exact turns.
 - :class:`SteppedNoise`: the docs/model.md §7 model. Exact with probability ``r``; otherwise
-  the turn is off by a uniform non-zero multiple of Δ in [−ε, ε].
+  the turn is off by a uniform non-zero multiple of Δ in [−ε, ε]. It is the coverage models'
+  :class:`planners.coverage.TurnNoise` at a fixed quantum Δ, and samples through it.
 - :class:`GaussianNoise`: commanded + N(0, σ²).
 
 Examples
@@ -34,11 +35,13 @@ GaussianNoise(sigma_deg=2.0)
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from envs import UserError
+from planners.coverage.noise import TurnNoise
+from planners.coverage.noise import as_commands as _commands
 
 __all__ = ["NoiseModel", "NoNoise", "SteppedNoise", "GaussianNoise", "parse_noise",
            "noise_for_mix", "noise_and_rng"]
@@ -60,15 +63,6 @@ class NoiseModel:
     def exact(self) -> bool:
         """True when the model never perturbs a turn."""
         return False
-
-
-def _commands(commanded, n: int | None) -> np.ndarray:
-    c = np.asarray(commanded, dtype=float)
-    if n is not None:
-        c = np.broadcast_to(c, (int(n),) if c.ndim == 0 else c.shape)
-        if c.shape[0] != int(n):
-            raise ValueError(f"n = {n} does not match {c.shape[0]} commands.")
-    return np.array(c, dtype=float)
 
 
 @dataclass(frozen=True)
@@ -107,6 +101,7 @@ class SteppedNoise(NoiseModel):
     eps_deg: float
     r: float
     delta_deg: float
+    turn: TurnNoise = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         for name in ("eps_deg", "r", "delta_deg"):
@@ -121,19 +116,14 @@ class SteppedNoise(NoiseModel):
             object.__setattr__(self, name, v)
         if self.delta_deg <= 0:
             raise UserError(f"the noise quantum delta must be positive, got {self.delta_deg:g}°.")
-        if not 0.0 <= self.r <= 1.0:
-            raise UserError(f"reliability r must lie in [0, 1], got {self.r:g}.")
-        if self.eps_deg < 0:
-            raise UserError(f"error range eps must be non-negative, got {self.eps_deg:g}°.")
-        m = self.eps_deg / self.delta_deg
-        if abs(m - round(m)) > 1e-9 * max(1.0, m):
-            raise UserError(f"error range eps = {self.eps_deg:g}° is not a multiple of the "
-                            f"orientation step {self.delta_deg:g}°.")
+        turn = TurnNoise(self.eps_deg, self.r)          # checks eps >= 0 and 0 <= r <= 1
+        object.__setattr__(self, "turn", turn)
+        object.__setattr__(self, "_m", turn.quanta(delta_deg=self.delta_deg))
 
     @property
     def m(self) -> int:
         """Number of error quanta on each side: ε / Δ."""
-        return int(round(self.eps_deg / self.delta_deg))
+        return self._m
 
     @property
     def exact(self) -> bool:
@@ -141,22 +131,12 @@ class SteppedNoise(NoiseModel):
 
     def offsets(self) -> tuple[np.ndarray, np.ndarray]:
         """The support δ [deg] and its probabilities (δ = 0 first)."""
-        m = self.m
-        if m == 0:
-            return np.zeros(1), np.ones(1)
-        k = np.concatenate([[0], np.arange(-m, 0), np.arange(1, m + 1)])
-        p = np.concatenate([[self.r], np.full(2 * m, (1.0 - self.r) / (2 * m))])
-        return k * self.delta_deg, p
+        d, p = self.turn.support(delta_deg=self.delta_deg)
+        order = np.argsort(d != 0, kind="stable")       # δ = 0 first, then −m … −1, 1 … m
+        return d[order] * self.delta_deg, p[order]
 
     def sample_many(self, rng, commanded, n=None) -> np.ndarray:
-        c = _commands(commanded, n)
-        if self.exact:
-            return c
-        size = c.shape
-        wrong = rng.random(size) >= self.r
-        k = rng.integers(1, self.m + 1, size=size)
-        sign = np.where(rng.random(size) < 0.5, -1, 1)
-        return c + np.where(wrong, sign * k * self.delta_deg, 0.0)
+        return self.turn.sample(rng, commanded, n, delta_deg=self.delta_deg)
 
     def __str__(self) -> str:
         return f"model:eps={self.eps_deg:g},r={self.r:g}"

@@ -1,6 +1,6 @@
 """The event (bump-to-bump) coverage model: exact flights between contacts.
 
-The paper's step model (:mod:`planners.coverage`) snaps the robot to a cell centre after
+The paper's step model (:mod:`planners.coverage.step`) snaps the robot to a cell centre after
 every step, so at fine headings a robot 20° off an axis never drifts across rows. The event
 model keeps the continuous geometry where it matters: the robot's state is observed only at
 its contacts with the walls, and the flight from one contact to the next is an exact straight
@@ -41,6 +41,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numpy as np
 import scipy.sparse as sp
@@ -50,12 +51,16 @@ from shapely.geometry.polygon import orient
 from envs import UserError
 from envs.raycast import CONTACT_GAP, STEP_TOL, casters, unit
 
-from .cells import CellSpace
-from .markov import (ChainAnalysis, _assemble, absorption_probabilities, check_stochastic,
+from ..cells import CellSpace
+from ..markov import (ChainAnalysis, _assemble, absorption_probabilities, check_stochastic,
                      closed_classes, stationary_distributions)
+from ..timeshare import DelayChain
+from .base import AngleCoverage, cached_build
+from .noise import TurnNoise
 
-__all__ = ["EventSettings", "Boundary", "EventModel", "EventCoverage", "flight_steps",
-           "analyse_contact_chain"]
+__all__ = ["EventSettings", "Boundary", "EventModel", "flight_steps", "analyse_contact_chain"]
+
+_EXACT = TurnNoise()
 
 _CHUNK = 8192            # rays per vectorised cast (memory: chunk x walls floats)
 _SNAP = 2e-3             # [m] a landing point must lie this close to the C-space ring
@@ -288,31 +293,6 @@ def _step_cells(cs: CellSpace, start, u, n_fwd, dist, owner, weight):
     return own[ok], cells[ok], w[ok]
 
 
-@dataclass(frozen=True, eq=False)
-class EventCoverage:
-    """One bouncing angle under the event model.
-
-    Attributes
-    ----------
-    angle, eps, r : float        φ [deg], ε [deg], reliability
-    q : (P,) ndarray             predicted step-sampled coverage over position cells
-    pi : (n_bins·K,) ndarray     limiting distribution over contact states
-                                 (state = bin · K + k: contact bin, heading k after the turn)
-    analysis : ChainAnalysis     of the contact-state chain
-    steps_per_flight : float     mean counted + dropped steps per flight under π
-    seconds : float              time of this angle's chain and analysis [s]
-    """
-
-    angle: float
-    eps: float
-    r: float
-    q: np.ndarray
-    pi: np.ndarray
-    analysis: ChainAnalysis
-    steps_per_flight: float
-    seconds: float
-
-
 @dataclass(eq=False)
 class EventModel:
     """The angle-independent part of the event model of one environment.
@@ -339,6 +319,12 @@ class EventModel:
         step, weight 1/samples); ``flight``, ``reward`` and ``length`` are its sums.
     build_seconds : float
     """
+
+    name: ClassVar[str] = "event"
+    Settings: ClassVar[type] = EventSettings
+    spaces: ClassVar[tuple] = ("positions",)
+    summary: ClassVar[str] = ("bump-to-bump model: exact flights between binned contact "
+                              "points (the one that matches continuous motion)")
 
     cs: CellSpace
     settings: EventSettings = field(default_factory=EventSettings)
@@ -389,14 +375,15 @@ class EventModel:
         self.start_pre = np.bincount(lb0 * K + k0, minlength=n) / float(p0.size)
         self.build_seconds = time.perf_counter() - t0
 
-    def turn_matrix(self, angle_deg: float, eps_deg: float = 0.0, r: float = 1.0
-                    ) -> sp.csr_matrix:
+    @classmethod
+    def build(cls, cs: CellSpace, settings: EventSettings) -> "EventModel":
+        """The model of ``cs`` (cached per environment and settings)."""
+        return cached_build(cls, cs, settings)
+
+    def turn_matrix(self, angle_deg: float, noise: TurnNoise = _EXACT) -> sp.csr_matrix:
         """Pre-turn (b, k) → post-turn (b, k + (φ+δ)/Δ) with the docs/model.md §7 probabilities."""
-        from .coverage import bump_turns
         K = self.cs.K
-        steps, probs = bump_turns(K, angle_deg, eps_deg, r)
-        keep = probs > 0
-        steps, probs = steps[keep], probs[keep]
+        steps, probs = noise.turns(K, angle_deg, positive=True)
         i = np.arange(self.n_states)
         b, k = i // K, i % K
         cols = (b[:, None] * K + (k[:, None] + steps[None, :]) % K).ravel()
@@ -405,41 +392,39 @@ class EventModel:
         M.sum_duplicates()
         return M
 
-    def delay_chain(self):
+    def delay_chain(self) -> DelayChain:
         """The model as a :class:`planners.timeshare.DelayChain`: the sampled flights with
         their steps (forward steps + the bump step), the flight rewards and the first landing."""
-        from .timeshare import DelayChain
         src, dst, delay, w = self.flights
         return DelayChain(src=src, dst=dst, delay=delay, weight=w, reward=self.reward,
                           start=self.start_pre)
 
-    def chain(self, angle_deg: float, eps_deg: float = 0.0, r: float = 1.0
+    def chain(self, angle_deg: float, noise: TurnNoise = _EXACT
               ) -> tuple[sp.csr_matrix, np.ndarray]:
         """(transition matrix over contact states, start distribution) of one angle."""
-        W = self.turn_matrix(angle_deg, eps_deg, r)
+        W = self.turn_matrix(angle_deg, noise)
         T = sp.csr_matrix(self.flight @ W)
         mu = np.asarray(W.T @ self.start_pre).ravel()
         return T, mu
 
-    def analyse(self, angle_deg: float, eps_deg: float = 0.0, r: float = 1.0
-                ) -> EventCoverage:
+    def analyse(self, angle_deg: float, noise: TurnNoise = _EXACT) -> AngleCoverage:
         """Limiting distribution over contact states and the coverage q of one angle.
 
         The chain's closed classes are weighted by absorption from the cell-centre start
         (first flight, then the first turn); q = πᵀ R normalised over the P cells, with R the
         expected counted steps per flight in every cell (renewal–reward).
         """
-        t0 = time.perf_counter()
-        T, mu = self.chain(angle_deg, eps_deg, r)
+        t0 = time.process_time()
+        T, mu = self.chain(angle_deg, noise)
         res = analyse_contact_chain(T, mu)
         q = np.asarray(self.reward.T @ res.pi).ravel()
         tot = q.sum()
         if not tot > 0:
             raise UserError("the event model counts no step in a free cell.")
-        return EventCoverage(angle=float(angle_deg), eps=float(eps_deg), r=float(r),
+        return AngleCoverage(model=self.name, angle=float(angle_deg), noise=noise,
                              q=q / tot, pi=res.pi, analysis=res,
-                             steps_per_flight=float(self.length @ res.pi),
-                             seconds=time.perf_counter() - t0)
+                             seconds=time.process_time() - t0, settings=self.settings,
+                             steps_per_flight=float(self.length @ res.pi))
 
 
 def _power_stationary(Tg: sp.csr_matrix) -> tuple[np.ndarray, int]:

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numpy as np
 import scipy.sparse as sp
@@ -27,10 +28,15 @@ import scipy.sparse as sp
 from envs import UserError
 from envs.raycast import CONTACT_GAP, STEP_TOL, casters, unit
 
-from .cells import CellSpace
-from .markov import ChainAnalysis, analyse_chain
+from ..cells import CellSpace
+from ..markov import analyse_chain
+from ..timeshare import DelayChain
+from .base import AngleCoverage, cached_build
+from .noise import TurnNoise
 
-__all__ = ["SampledSettings", "SampledModel", "SampledCoverage"]
+__all__ = ["SampledSettings", "SampledModel"]
+
+_EXACT = TurnNoise()
 
 
 @dataclass(frozen=True)
@@ -53,19 +59,6 @@ class SampledSettings:
                 raise UserError(f"{name} must be a positive integer, got {v}.")
 
 
-@dataclass(frozen=True, eq=False)
-class SampledCoverage:
-    """One bouncing angle under the sampled model: q (P,), π (N,) and the chain analysis."""
-
-    angle: float
-    eps: float
-    r: float
-    q: np.ndarray
-    pi: np.ndarray
-    analysis: ChainAnalysis
-    seconds: float
-
-
 @dataclass(eq=False)
 class SampledModel:
     """The angle-independent part (sample steps) of the sampled model of one environment.
@@ -78,6 +71,12 @@ class SampledModel:
     bump_dest : csr (N, P)  bump samples' contact cells (fractions of all samples)
     reward : csr (N, P)     counted steps per step from each cell (≤ 1 per row)
     """
+
+    name: ClassVar[str] = "sampled"
+    Settings: ClassVar[type] = SampledSettings
+    spaces: ClassVar[tuple] = ("positions",)
+    summary: ClassVar[str] = ("generalized cell mapping: each configuration cell's "
+                              "transitions from a lattice of exact continuous steps")
 
     cs: CellSpace
     settings: SampledSettings = field(default_factory=SampledSettings)
@@ -129,35 +128,41 @@ class SampledModel:
         self.n_samples = len(xy)
         self.build_seconds = time.perf_counter() - t0
 
-    def chain(self, angle_deg: float, eps_deg: float = 0.0, r: float = 1.0) -> sp.csr_matrix:
+    @classmethod
+    def build(cls, cs: CellSpace, settings: SampledSettings) -> "SampledModel":
+        """The model of ``cs`` (cached per environment and settings)."""
+        return cached_build(cls, cs, settings)
+
+    def chain(self, angle_deg: float, noise: TurnNoise = _EXACT) -> sp.csr_matrix:
         """The N × N transition matrix of one angle."""
-        from .coverage import bump_turns
         cs = self.cs
-        P, K = cs.P, cs.K
-        steps, probs = bump_turns(K, angle_deg, eps_deg, r)
-        keep = probs > 0
-        steps, probs = steps[keep], probs[keep]
+        steps, probs = noise.turns(cs.K, angle_deg, positive=True)
         B = self.bump_dest.tocoo()
-        k = B.row // P
         rows = np.repeat(B.row, steps.size)
-        cols = (((k[:, None] + steps[None, :]) % K) * P + B.col[:, None]).ravel()
+        landed = cs.z(B.col, B.row // cs.P)            # (contact cell, heading before the turn)
+        cols = cs.turn(landed[:, None], steps[None, :]).ravel()
         vals = (B.data[:, None] * probs[None, :]).ravel()
         T = self.fwd + sp.csr_matrix((vals, (rows, cols)), shape=(cs.N, cs.N))
         T = sp.csr_matrix(T)
         T.sum_duplicates()
         return T
 
-    def analyse(self, angle_deg: float, eps_deg: float = 0.0, r: float = 1.0
-                ) -> SampledCoverage:
+    turn_matrix = chain          # the delay chain's flights are the identity
+
+    def delay_chain(self) -> DelayChain:
+        """One-step flights; rewards where the twin counts each sample's step; uniform start."""
+        return DelayChain.stepwise(self.reward, np.full(self.cs.N, 1.0 / self.cs.N))
+
+    def analyse(self, angle_deg: float, noise: TurnNoise = _EXACT) -> AngleCoverage:
         """Limiting distribution (uniform start over N) and coverage of one angle."""
-        t0 = time.perf_counter()
-        res = analyse_chain(self.chain(angle_deg, eps_deg, r))
+        t0 = time.process_time()
+        res = analyse_chain(self.chain(angle_deg, noise))
         q = np.asarray(self.reward.T @ res.pi).ravel()
         if not q.sum() > 0:
             raise UserError("the sampled model counts no step in a free cell.")
-        return SampledCoverage(angle=float(angle_deg), eps=float(eps_deg), r=float(r),
-                               q=q / q.sum(), pi=res.pi, analysis=res,
-                               seconds=time.perf_counter() - t0)
+        return AngleCoverage(model=self.name, angle=float(angle_deg), noise=noise,
+                             q=q / q.sum(), pi=res.pi, analysis=res,
+                             seconds=time.process_time() - t0, settings=self.settings)
 
 
 def _nearest_free(cs: CellSpace, pts: np.ndarray) -> np.ndarray:

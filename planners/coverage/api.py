@@ -1,0 +1,160 @@
+"""One entry point for the coverage models: the registry, the mix design and the time-shared
+prediction, written once against the :class:`~planners.coverage.base.CoverageModel` protocol.
+
+- :data:`MODELS`: name → model class (``"step"``: the paper's Algorithm 3 on the
+  configuration-cell chain, docs/model.md §5 and §7; ``"sampled"``: Hsu's generalized cell mapping;
+  ``"event"``: exact flights between binned contact points, recommended,
+  ``docs/model_continuous.md``). All three predict the step-sampled coverage of docs/model.md §9
+  (what :class:`bouncesim.robots.kinematic.KinematicBatch` measures), one probability per cell.
+- :func:`model_for`: a model of a cell space (settings checked; the continuous models' flights
+  are built once per environment and settings and shared).
+- :func:`design_mix`: every angle's coverage, the target and the best mix α, as a
+  :class:`~planners.coverage.mix.MixDesign` carrying the :class:`PolicyMix` to execute.
+- :func:`timeshared_coverage`: the coverage of a mix executed in epochs (docs/model.md §12).
+
+>>> import envs
+>>> from planners.cells import CellSpace
+>>> cs = CellSpace(envs.load("lab"))
+>>> design = design_mix(model_for(cs, "step"), [90, 135], TurnNoise(45, 0.9))
+>>> design.model, design.mix.angles, round(float(design.alpha.sum()), 12)
+('step', (90.0, 135.0), 1.0)
+>>> timeshared_coverage(model_for(cs, "step"), design.mix, epoch=50).converged
+True
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from envs import UserError
+
+from ..cells import CellSpace
+from ..plan import PolicyMix
+from ..timeshare import TimeSharedCoverage, timeshared
+from .base import CoverageModel
+from .event import EventModel
+from .mix import MixDesign, solve_mix
+from .noise import TurnNoise
+from .sampled import SampledModel
+from .step import StepModel
+from .targets import check_target, space_size
+
+__all__ = ["MODELS", "check_model", "default_settings", "model_for", "check_angles",
+           "design_mix", "timeshared_coverage"]
+
+_EXACT = TurnNoise()
+
+MODELS: dict = {cls.name: cls for cls in (StepModel, SampledModel, EventModel)}
+
+
+def check_model(name: str) -> str:
+    """Return ``name`` after checking it is a key of :data:`MODELS` (UserError otherwise)."""
+    if name not in MODELS:
+        raise UserError(f"coverage model must be one of {', '.join(MODELS)}, got {name!r}.")
+    return name
+
+
+def default_settings(name: str):
+    """The recommended settings record of a model."""
+    return MODELS[check_model(name)].Settings()
+
+
+def _settings(name: str, settings):
+    cls = MODELS[name].Settings
+    if settings is None:
+        return cls()
+    if isinstance(settings, dict):
+        try:
+            return cls(**settings)
+        except TypeError:
+            names = ", ".join(cls.__dataclass_fields__)
+            raise UserError(f"the {name} model's settings are {names}; got "
+                            f"{', '.join(settings)}.") from None
+    if not isinstance(settings, cls):
+        raise UserError(f"the {name} model takes {cls.__name__} settings, got "
+                        f"{type(settings).__name__}.")
+    return settings
+
+
+def model_for(cs: CellSpace, name: str = "step", settings=None) -> CoverageModel:
+    """The coverage model ``name`` of ``cs``.
+
+    Parameters
+    ----------
+    cs : CellSpace
+    name : str          a key of :data:`MODELS`
+    settings : the model's settings record or a dict of its fields, optional
+        Default: the recommended settings (:func:`default_settings`). Bad values raise a
+        one-sentence :class:`UserError`.
+    """
+    name = check_model(name)
+    return MODELS[name].build(cs, _settings(name, settings))
+
+
+def check_angles(K: int, angles, noise: TurnNoise) -> tuple:
+    """The angles as floats after checking them and ε against K (before any heavy work)."""
+    angles = tuple(float(a) for a in angles)
+    if not angles:
+        raise UserError("coverage needs at least one bouncing angle.")
+    for a in angles:
+        noise.turns(K, a)
+    return angles
+
+
+def design_mix(model: CoverageModel, angles, noise: TurnNoise = _EXACT, target=None,
+               space: str = "positions", progress=None) -> MixDesign:
+    """Algorithm 3 on any model: every angle's coverage, and the mix that best meets a target.
+
+    Parameters
+    ----------
+    model : CoverageModel        e.g. ``model_for(cs, "event")``
+    angles : sequence of float   bouncing angles [deg], multiples of Δ
+    noise : TurnNoise            rotation noise (ε, r); default exact turns
+    target : array_like, optional
+        b over the space (normalised here); default uniform.
+    space : {"positions", "configurations"}
+        Fit Aα to b over position cells (A's columns are q) or over configurations (π);
+        configurations only for models whose states are the configurations (``step``).
+    progress : callable, optional   wraps the iterable of angles (e.g. ``tqdm``)
+
+    Returns
+    -------
+    MixDesign   (``.alpha``, ``.residual``, ``.tv``, ``.per_angle`` and ``.mix``, the
+                :class:`PolicyMix` for :func:`bouncesim.runs.execute.execute`)
+    """
+    cs = model.cs
+    space_size(cs, space)
+    if space not in model.spaces:
+        raise UserError(f"the {model.name} coverage model predicts coverage over position "
+                        "cells only; use --target-space positions.")
+    angles = check_angles(cs.K, angles, noise)
+    b = check_target(target, cs, space)
+    it = progress(angles) if progress else angles
+    per = tuple(model.analyse(a, noise) for a in it)
+    A = np.column_stack([a.q if space == "positions" else a.pi for a in per])
+    fit = solve_mix(A, b)
+    return MixDesign(model=model.name, angles=angles, noise=noise, space=space,
+                     per_angle=per, target=b, alpha=fit.alpha, residual=fit.residual,
+                     tv=fit.tv, mixed=fit.mixed, method=fit.method)
+
+
+def timeshared_coverage(model: CoverageModel, mix: PolicyMix, epoch: int = 1000, **kw
+                        ) -> TimeSharedCoverage:
+    """Predicted coverage of a policy mix executed in epochs of ``epoch`` steps (docs/model.md §12).
+
+    docs/model.md §7's Σ α_i q_i assumes every epoch reaches its angle's limiting distribution; this
+    follows the model's own chain through the epochs instead (:mod:`planners.timeshare`),
+    through the protocol's :meth:`~CoverageModel.delay_chain` and
+    :meth:`~CoverageModel.turn_matrix`, so it works for every model.
+
+    Parameters
+    ----------
+    model : CoverageModel
+    mix : PolicyMix         angles, α and the rotation noise (ε, r), e.g. ``design.mix``
+    epoch : int             steps per epoch
+    **kw : tol, max_epochs, progress (see :meth:`planners.timeshare.TimeShared.run`)
+    """
+    noise = TurnNoise(mix.eps, mix.r)
+    angles = check_angles(model.cs.K, mix.angles, noise)
+    turns = [model.turn_matrix(a, noise) for a in angles]
+    return timeshared(model.delay_chain(), turns, mix.alpha, epoch, **kw)

@@ -1,0 +1,158 @@
+"""The rotation noise of a bump turn (docs/model.md §7), validated once and shared by every model.
+
+A bump turn commanded as φ is exact with probability r; otherwise it is off by δ, drawn
+uniformly from the non-zero multiples of Δ = 360°/K in [−ε, ε]: each of the 2ε/Δ values has
+probability (1 − r)/(2ε/Δ). ε = 0 means exact turns whatever r is. If φ + δ ≡ 0 (mod 360°)
+the robot keeps its heading and bumps again at once (a valid self-loop); if 2ε ≥ 360° several
+δ reach the same heading and their probabilities add up where the models build matrices.
+
+>>> noise = TurnNoise(eps_deg=45, r=0.5)
+>>> noise.support(8)                       # offsets in orientation steps, probabilities
+(array([-1,  0,  1]), array([0.25, 0.5 , 0.25]))
+>>> noise.turns(8, 90)                     # a 90° bump at K = 8: 1, 2 or 3 steps CCW
+(array([1, 2, 3]), array([0.25, 0.5 , 0.25]))
+>>> TurnNoise(0, 0.8).turns(360, 30)       # ε = 0: r plays no role
+(array([30]), array([1.]))
+>>> sorted(set(TurnNoise(2, 0.0).sample(np.random.default_rng(1), 90.0, 1000,
+...                                     delta_deg=1).tolist()))
+[88.0, 89.0, 91.0, 92.0]
+>>> TurnNoise(-5, 0.8)
+Traceback (most recent call last):
+...
+envs.errors.UserError: error range eps -5° must be non-negative.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from envs import UserError
+
+from ..cells import angle_steps
+
+__all__ = ["TurnNoise", "as_commands"]
+
+
+def as_commands(commanded, n: int | None) -> np.ndarray:
+    """Commanded turns [deg] as a float array: ``n`` copies of a scalar, or the array itself
+    (whose length must then be ``n`` when ``n`` is given)."""
+    c = np.asarray(commanded, dtype=float)
+    if n is not None:
+        c = np.broadcast_to(c, (int(n),) if c.ndim == 0 else c.shape)
+        if c.shape[0] != int(n):
+            raise ValueError(f"n = {n} does not match {c.shape[0]} commands.")
+    return np.array(c, dtype=float)
+
+
+def _fmt(x: float) -> str:
+    return f"{x:g}"
+
+
+@dataclass(frozen=True)
+class TurnNoise:
+    """docs/model.md §7 rotation noise: exact with probability ``r``, else off by a uniform non-zero
+    multiple of Δ within ±``eps_deg``.
+
+    Parameters
+    ----------
+    eps_deg : float   error range ε [deg], non-negative (a multiple of Δ where it is used)
+    r : float         reliability in [0, 1]: probability of turning by exactly φ
+
+    Bad values raise a one-sentence :class:`envs.UserError` here, once; whether ε is a
+    multiple of Δ = 360°/K is checked where K is known (:meth:`quanta`).
+    """
+
+    eps_deg: float = 0.0
+    r: float = 1.0
+
+    def __post_init__(self) -> None:
+        for name, what in (("eps_deg", "error range eps"), ("r", "reliability r")):
+            v = getattr(self, name)
+            try:
+                v = float(v)
+            except (TypeError, ValueError):
+                raise UserError(f"{what} must be a number, got {v!r}.") from None
+            if not math.isfinite(v):
+                raise UserError(f"{what} must be finite, got {v}.")
+            object.__setattr__(self, name, v)
+        if self.eps_deg < 0:
+            raise UserError(f"error range eps {_fmt(self.eps_deg)}° must be non-negative.")
+        if not 0.0 <= self.r <= 1.0:
+            raise UserError(f"reliability r must lie in [0, 1], got {_fmt(self.r)}.")
+
+    @property
+    def exact(self) -> bool:
+        """True when no turn is ever perturbed (ε = 0 or r = 1)."""
+        return self.eps_deg == 0 or self.r == 1.0
+
+    # ------------------------------------------------------------------ support over K
+    def quanta(self, K: int | None = None, *, delta_deg: float | None = None) -> int:
+        """ε / Δ at K orientations (Δ = 360°/K), or for an error quantum ``delta_deg`` [deg]
+        (UserError unless ε is a whole multiple of Δ, below 360° for K)."""
+        if K is not None:
+            return angle_steps(self.eps_deg, K, what="error range eps", allow_zero=True)
+        if delta_deg is None:
+            raise TypeError("quanta() needs K or delta_deg.")
+        return _quanta_of(self.eps_deg, delta_deg)
+
+    def support(self, K: int | None = None, *, delta_deg: float | None = None
+                ) -> tuple[np.ndarray, np.ndarray]:
+        """Offsets δ/Δ = −ε/Δ … ε/Δ [quanta] and their probabilities (sum 1), at K
+        orientations or for the quantum ``delta_deg`` (see :meth:`quanta`).
+
+        Zero-probability offsets (r = 1 with ε > 0, or r = 0) are kept.
+        """
+        return _support(self.quanta(K, delta_deg=delta_deg), self.r)
+
+    def turns(self, K: int, angle_deg: float, positive: bool = False
+              ) -> tuple[np.ndarray, np.ndarray]:
+        """Turns of one bump commanded as ``angle_deg`` (a multiple of Δ in (0°, 360°)):
+        (φ + δ)/Δ mod K [orientation steps] and their probabilities, one per offset of
+        :meth:`support`; with ``positive`` only those with positive probability."""
+        s = angle_steps(angle_deg, K)
+        d, p = self.support(K)
+        steps = (s + d) % K
+        if positive:
+            keep = p > 0
+            return steps[keep], p[keep]
+        return steps, p
+
+    # ------------------------------------------------------------------ sampling
+    def sample(self, rng: np.random.Generator, commanded_deg, n: int | None = None, *,
+               delta_deg: float) -> np.ndarray:
+        """Actual turns [deg] of commanded turns [deg]: ``n`` draws for a scalar command, or
+        one per array element. Randomness comes only from ``rng``.
+
+        ``delta_deg`` is the error quantum Δ [deg] (the environment's 360°/K); ε must be a
+        multiple of it.
+        """
+        c = as_commands(commanded_deg, n)
+        m = self.quanta(delta_deg=delta_deg)
+        if m == 0 or self.r == 1.0:
+            return c
+        size = c.shape
+        wrong = rng.random(size) >= self.r
+        k = rng.integers(1, m + 1, size=size)
+        sign = np.where(rng.random(size) < 0.5, -1, 1)
+        return c + np.where(wrong, sign * k * delta_deg, 0.0)
+
+
+def _support(m: int, r: float) -> tuple[np.ndarray, np.ndarray]:
+    if m == 0:
+        return np.array([0]), np.array([1.0])
+    d = np.arange(-m, m + 1)
+    return d, np.where(d == 0, r, (1.0 - r) / (2 * m))
+
+
+def _quanta_of(eps_deg: float, delta_deg: float) -> int:
+    """ε / Δ for an arbitrary quantum Δ [deg] > 0 (UserError unless a whole number)."""
+    if not (math.isfinite(delta_deg) and delta_deg > 0):
+        raise UserError(f"the noise quantum delta must be positive, got {delta_deg:g}°.")
+    m = eps_deg / delta_deg
+    if abs(m - round(m)) > 1e-9 * max(1.0, m):
+        raise UserError(f"error range eps = {eps_deg:g}° is not a multiple of the "
+                        f"orientation step {delta_deg:g}°.")
+    return int(round(m))

@@ -1,0 +1,172 @@
+"""The import layering: envs ← planners ← bouncesim ← experiments (and benchmarks), no cycles.
+
+Every module's imports are read with ``ast`` — module-level and function-level alike, since a
+function-level import only postpones a cycle to the first call — and resolved to our modules
+(relative imports included; ``from pkg import name`` is the submodule pkg.name when there is
+one, else pkg). The rules (docs: the README's Layout section):
+
+- no import cycle among our modules;
+- ``planners`` imports no ``bouncesim``, ``experiments``, ``matplotlib``, ``pybullet`` or
+  ``serial``;
+- ``bouncesim`` imports no ``experiments``;
+- ``envs`` imports no ``planners``, ``bouncesim`` or ``experiments``;
+- ``benchmarks`` imports no ``experiments``, and neither imports the CLI (``bouncesim.cli``,
+  ``bouncesim.commands``): they call library functions;
+- no module of ``envs``, ``planners`` or ``bouncesim`` exceeds 600 lines.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+PACKAGES = ("envs", "planners", "bouncesim", "experiments", "benchmarks")
+FORBIDDEN = {
+    "planners": {"bouncesim", "experiments", "matplotlib", "pybullet", "serial"},
+    "bouncesim": {"experiments"},
+    "envs": {"planners", "bouncesim", "experiments"},
+    "benchmarks": {"experiments", "bouncesim.cli", "bouncesim.commands"},
+    "experiments": {"bouncesim.cli", "bouncesim.commands"},
+}
+MAX_LINES = 600
+
+
+def _modules(root: Path = ROOT) -> dict[str, Path]:
+    """Dotted name → file of every module of our packages."""
+    out = {}
+    for pkg in PACKAGES:
+        for path in sorted((root / pkg).rglob("*.py")):
+            parts = list(path.relative_to(root).with_suffix("").parts)
+            if parts[-1] == "__init__":
+                parts = parts[:-1]
+            out[".".join(parts)] = path
+    return out
+
+
+def _imports(name: str, path: Path, modules: dict) -> list[tuple[str, int]]:
+    """(imported dotted name, line) of every import in the module, resolved where it is ours."""
+    is_pkg = path.name == "__init__.py"
+    package = name if is_pkg else name.rpartition(".")[0]
+    found = []
+    for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
+        if isinstance(node, ast.Import):
+            found += [(a.name, node.lineno) for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")
+                base = base[:len(base) - (node.level - 1)]
+                mod = ".".join(base + ([node.module] if node.module else []))
+            else:
+                mod = node.module or ""
+            for a in node.names:
+                sub = f"{mod}.{a.name}"
+                found.append((sub if sub in modules else mod, node.lineno))
+    return found
+
+
+def import_graph(root: Path = ROOT):
+    """({module: {our imported module: line}}, {module: [(any imported name, line)]})."""
+    modules = _modules(root)
+    ours, every = {}, {}
+    for name, path in modules.items():
+        imps = _imports(name, path, modules)
+        every[name] = imps
+        ours[name] = {}
+        for mod, line in imps:
+            # an import of a.b.c loads a.b.c; count it as an edge to the deepest module we own
+            parts = mod.split(".")
+            for i in range(len(parts), 0, -1):
+                cand = ".".join(parts[:i])
+                if cand in modules:
+                    if cand != name:
+                        ours[name].setdefault(cand, line)
+                    break
+    return ours, every
+
+
+def find_cycles(graph: dict) -> list[list[str]]:
+    """Strongly connected components with more than one module (Tarjan), each sorted."""
+    index, low, on, stack, out = {}, {}, set(), [], []
+    counter = [0]
+
+    def visit(v):
+        index[v] = low[v] = counter[0]
+        counter[0] += 1
+        stack.append(v)
+        on.add(v)
+        for w in graph.get(v, ()):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def _describe(cycle: list[str], graph: dict) -> str:
+    members = set(cycle)
+    edges = [f"{a} -> {b} (line {graph[a][b]})" for a in cycle for b in sorted(graph[a])
+             if b in members]
+    return "; ".join(edges)
+
+
+def layering_violations(root: Path = ROOT) -> list[str]:
+    """Every broken rule, one readable line each (empty when the layering holds)."""
+    graph, every = import_graph(root)
+    problems = [f"import cycle: {_describe(c, graph)}" for c in find_cycles(graph)]
+    for name, imps in sorted(every.items()):
+        banned = FORBIDDEN.get(name.split(".")[0], set())
+        for mod, line in imps:
+            if any(mod == b or mod.startswith(b + ".") for b in banned):
+                problems.append(f"{name} imports {mod} (line {line})")
+    return problems
+
+
+def test_modules_are_found():
+    mods = _modules()
+    assert {"envs", "planners.cells", "bouncesim.cli", "experiments.common"} <= set(mods)
+
+
+def test_cycle_finder_on_a_small_graph():
+    g = {"a": {"b": 1}, "b": {"c": 1}, "c": {"a": 1, "d": 1}, "d": {}, "e": {"e": 1}}
+    assert find_cycles(g) == [["a", "b", "c"]]
+
+
+def test_relative_and_function_level_imports_are_seen(tmp_path):
+    for pkg in PACKAGES:
+        (tmp_path / pkg).mkdir()
+        (tmp_path / pkg / "__init__.py").write_text("")
+    (tmp_path / "planners" / "a.py").write_text("from . import b\n")
+    (tmp_path / "planners" / "b.py").write_text("def f():\n    from .a import x\n"
+                                                "    import matplotlib.pyplot\n")
+    problems = layering_violations(tmp_path)
+    assert any(p.startswith("import cycle: planners.a -> planners.b") for p in problems)
+    assert "planners.b imports matplotlib.pyplot (line 3)" in problems
+
+
+def test_layering_holds():
+    problems = layering_violations()
+    assert not problems, "\n".join(problems)
+
+
+
+def test_modules_stay_small():
+    long = {name: n for name, path in _modules().items()
+            if name.split(".")[0] in ("envs", "planners", "bouncesim")
+            and (n := path.read_text(encoding="utf-8").count("\n")) > MAX_LINES}
+    assert not long, f"modules over {MAX_LINES} lines: {long}"
