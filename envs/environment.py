@@ -35,11 +35,14 @@ from shapely.validation import explain_validity
 
 from .errors import InvalidEnvironment
 
-__all__ = ["Environment", "InvalidEnvironment"]
+__all__ = ["MAX_GRID_CELLS", "Environment", "InvalidEnvironment", "grid_shape"]
 
 _TOP_KEYS = {"name", "description", "boundary", "obstacles", "robot_radius",
              "discretization", "meta"}
 _DISC_KEYS = {"cell_size", "orientations"}
+# Grids above this many cells are refused outright (at ~370 bytes per cell to validate, tens
+# of GB); callers with a memory budget check it first (planners.resources.check_grid).
+MAX_GRID_CELLS = 2**27
 
 
 def _polygon(coords: Any, what: str) -> Polygon:
@@ -179,6 +182,13 @@ class Environment:
         object.__setattr__(self, "orientations", int(k))
         object.__setattr__(self, "robot_radius", float(self.robot_radius))
         object.__setattr__(self, "cell_size", float(self.cell_size))
+        rows, cols = grid_shape(self.bounds, self.cell_size)
+        if rows * cols > MAX_GRID_CELLS:
+            raise InvalidEnvironment(
+                f"a {self.cell_size:g} m cell size gives a grid of {rows * cols:.3g} cells "
+                f"over a {self.bounds[2] - self.bounds[0]:.3g} x "
+                f"{self.bounds[3] - self.bounds[1]:.3g} m workspace, more than "
+                f"{MAX_GRID_CELLS}; use a larger cell size.")
         if self.free_space.is_empty:
             raise InvalidEnvironment("the obstacles cover the whole workspace.")
         if not self.grid_centres_free().any():
@@ -258,12 +268,8 @@ class Environment:
     @property
     def grid_shape(self) -> tuple[int, int]:
         """(rows, columns) of the grid: ceil(height / h), ceil(width / h)."""
-        x0, y0, x1, y1 = self.bounds
-        h = self.cell_size
-        # Guard against 3.06 / 0.34 = 9.000000000000002 giving 10 columns.
-        ncols = max(1, math.ceil((x1 - x0) / h - 1e-9))
-        nrows = max(1, math.ceil((y1 - y0) / h - 1e-9))
-        return nrows, ncols
+        rows, cols = grid_shape(self.bounds, self.cell_size)
+        return int(rows), int(cols)
 
     def points_free(self, points) -> np.ndarray:
         """Whether the robot disk centred at each point lies inside E (MODEL §3).
@@ -312,6 +318,23 @@ class Environment:
         return (f"Environment(name={self.name!r}, obstacles={len(self.obstacles)}, "
                 f"robot_radius={self.robot_radius}, cell_size={self.cell_size}, "
                 f"orientations={self.orientations})")
+
+
+def grid_shape(bounds, cell_size: float) -> tuple[float, float]:
+    """(rows, columns) of the grid over ``bounds`` (xmin, ymin, xmax, ymax) [m] at cell size
+    [m]: ceil(height / h), ceil(width / h), at least 1; ``inf`` where the count overflows.
+
+    >>> grid_shape((0.0, 0.0, 3.06, 2.72), 0.34)
+    (8, 9)
+    """
+    x0, y0, x1, y1 = bounds
+    h = float(cell_size)
+
+    def count(extent: float):
+        n = extent / h
+        # Guard against 3.06 / 0.34 = 9.000000000000002 giving 10 columns.
+        return max(1, math.ceil(n - 1e-9)) if math.isfinite(n) else math.inf
+    return count(y1 - y0), count(x1 - x0)
 
 
 def _is_num(x: Any) -> bool:

@@ -11,7 +11,7 @@ MODULES = ["envs", "envs.environment", "planners.cells", "planners.plan", "plann
            "planners.coverage",
            "planners.navigation", "bouncesim.commands.plan", "bouncesim.pybullet_world",
            "bouncesim.sweep", "envs.raycast", "planners.event_model",
-           "planners.coverage_models"]
+           "planners.coverage_models", "planners.resources"]
 
 
 @pytest.mark.parametrize("name", MODULES)

@@ -16,10 +16,11 @@ import numpy as np
 
 from envs import UserError
 from planners.cells import CellSpace
+from planners.resources import check_memory
 from planners.coverage import (TARGET_FORMATS, CoverageResult, bump_turns, check_reliability,
                                coverage_pipeline, load_target)
 
-from .common import add_env_args, load_env, parse_angles
+from .common import add_env_args, load_env, make_cells, max_memory, parse_angles, writable_path
 
 __all__ = ["register", "run", "write_outputs", "format_table"]
 
@@ -115,7 +116,7 @@ def _progress(total: int | None, desc: str = "chains", unit: str = "angle"):
 
 def run(args) -> int:
     env = load_env(args)
-    cs = CellSpace(env)
+    cs = make_cells(args, env)
     angles = parse_angles(args.angles)
     r = check_reliability(args.r)
     for a in angles:                          # fail fast, before any heavy work
@@ -134,6 +135,10 @@ def run(args) -> int:
         if args.target_space != "positions":
             raise UserError("--epoch predicts coverage over position cells only; use "
                             "--target-space positions.")
+    check_memory(cs, angles, task="coverage", eps_deg=args.eps, model=args.model,
+                 settings=settings, max_memory=max_memory(args))
+    if args.out is not None:
+        writable_path(args.out, "--out", folder=True)
     result = coverage_pipeline(cs, angles, args.eps, r, target=target,
                                space=args.target_space, progress=_progress(len(angles)),
                                model=args.model, model_settings=settings)
@@ -233,11 +238,7 @@ def write_outputs(result: CoverageResult, cs: CellSpace, out_dir, summary: dict,
                   plots: bool = True, timeshared=None) -> Path:
     """Write coverage.csv, alpha.json (and the heatmaps) into out_dir; ``timeshared`` is the
     mix's predicted coverage when executed in epochs (series "mix_epochs")."""
-    out = Path(out_dir)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise UserError(f"cannot create the output folder {out} ({exc.strerror}).") from None
+    out = writable_path(out_dir, "the output folder", folder=True)
     ij, xy = cs.cells_ij, cs.centres
     mixed = result.mixed_q()
     target_q = result.target if result.space == "positions" else \

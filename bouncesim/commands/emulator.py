@@ -11,9 +11,8 @@ import time
 import numpy as np
 
 from envs import UserError
-from planners.cells import CellSpace
 
-from .common import add_env_args, load_env
+from .common import add_env_args, load_env, make_cells
 from .plan import parse_config
 
 __all__ = ["register", "run"]
@@ -67,7 +66,7 @@ def run(args) -> int:
     from bouncesim.oi_emulator import OIEmulator, parse_fault
 
     env = load_env(args)
-    cells = CellSpace(env)
+    cells = make_cells(args, env)
     start = None
     if args.start is not None:
         start = cells.pose(parse_config(args.start, cells, "start"))

@@ -8,10 +8,10 @@ import argparse
 import numpy as np
 
 from envs import UserError
-from planners.cells import CellSpace
 from planners.navigation import Navigator
 
-from .common import add_env_args, load_env, parse_angles, print_json
+from .common import (add_env_args, load_env, make_cells, max_memory, parse_angles, print_json,
+                     writable_path)
 from .plan import add_planner_args, parse_config
 
 __all__ = ["register", "run", "make_robot", "EXIT_FAILURE", "EXIT_NO_PATH"]
@@ -157,8 +157,9 @@ def run(args) -> int:
     from bouncesim.noise import parse_noise
 
     env = load_env(args)
-    cells = CellSpace(env)
-    nav = Navigator(cells, parse_angles(args.angles), args.w1, args.w2)
+    cells = make_cells(args, env)
+    nav = Navigator(cells, parse_angles(args.angles), args.w1, args.w2,
+                    max_memory=max_memory(args))
     start = parse_config(args.start, cells, "start")
     goal = parse_config(args.goal, cells, "goal")
     noise = parse_noise(args.noise, cells.delta_deg)
@@ -177,6 +178,10 @@ def run(args) -> int:
         raise UserError("--noise is for simulated robots; a real Create 2 brings its own.")
     if args.robot in ("create2", "emulator") and (args.gui or args.record):
         raise UserError("--gui and --record need --robot pybullet.")
+    if args.trace:
+        writable_path(args.trace, "--trace")
+    if args.record:
+        writable_path(args.record, "--record")
     route = nav.plan(start, goal)
     if route is None:
         if args.json:
