@@ -41,7 +41,7 @@ _TOP_KEYS = {"name", "description", "boundary", "obstacles", "robot_radius",
              "discretization", "meta"}
 _DISC_KEYS = {"cell_size", "orientations"}
 # Grids above this many cells are refused outright (at ~370 bytes per cell to validate, tens
-# of GB); callers with a memory budget check it first (planners.resources.check_grid).
+# of GB); a caller with a memory budget passes a smaller max_grid_cells.
 MAX_GRID_CELLS = 2**27
 
 
@@ -85,6 +85,9 @@ class Environment:
         Number of discrete headings K (>= 4).
     meta : dict
         Free-form data carried along from the file.
+    max_grid_cells : int
+        Refuse a cell size whose grid has more cells than this (default
+        :data:`MAX_GRID_CELLS`); a caller with a memory budget passes a smaller bound.
     """
 
     name: str
@@ -96,11 +99,12 @@ class Environment:
     orientations: int
     meta: dict = field(default_factory=dict)
     source: str | None = None
+    max_grid_cells: int = field(default=MAX_GRID_CELLS, repr=False)
 
     # ------------------------------------------------------------------ construction
     @classmethod
-    def from_dict(cls, data: dict, *, name: str | None = None,
-                  source: str | None = None) -> Environment:
+    def from_dict(cls, data: dict, *, name: str | None = None, source: str | None = None,
+                  max_grid_cells: int = MAX_GRID_CELLS) -> Environment:
         """Validate a parsed env file (MODEL §2) and build the environment."""
         if not isinstance(data, dict):
             raise InvalidEnvironment("an environment file must hold a JSON/YAML object.")
@@ -139,11 +143,12 @@ class Environment:
                   robot_radius=radius,
                   cell_size=disc.get("cell_size", 2 * radius if _is_num(radius) else 0.34),
                   orientations=disc.get("orientations", 8),
-                  meta=dict(meta), source=source)
+                  meta=dict(meta), source=source, max_grid_cells=max_grid_cells)
         return env
 
     @classmethod
-    def from_file(cls, path: str | Path) -> Environment:
+    def from_file(cls, path: str | Path, *, max_grid_cells: int = MAX_GRID_CELLS
+                  ) -> Environment:
         """Load a JSON (or YAML) env file."""
         path = Path(path)
         try:
@@ -164,7 +169,8 @@ class Environment:
             except json.JSONDecodeError as exc:
                 raise InvalidEnvironment(
                     f"{path} is not valid JSON (line {exc.lineno}: {exc.msg}).") from None
-        return cls.from_dict(data, name=path.stem, source=str(path))
+        return cls.from_dict(data, name=path.stem, source=str(path),
+                             max_grid_cells=max_grid_cells)
 
     def __post_init__(self) -> None:
         if not _is_num(self.robot_radius) or self.robot_radius <= 0:
@@ -183,12 +189,13 @@ class Environment:
         object.__setattr__(self, "robot_radius", float(self.robot_radius))
         object.__setattr__(self, "cell_size", float(self.cell_size))
         rows, cols = grid_shape(self.bounds, self.cell_size)
-        if rows * cols > MAX_GRID_CELLS:
+        if rows * cols > self.max_grid_cells:
             raise InvalidEnvironment(
                 f"a {self.cell_size:g} m cell size gives a grid of {rows * cols:.3g} cells "
                 f"over a {self.bounds[2] - self.bounds[0]:.3g} x "
-                f"{self.bounds[3] - self.bounds[1]:.3g} m workspace, more than "
-                f"{MAX_GRID_CELLS}; use a larger cell size.")
+                f"{self.bounds[3] - self.bounds[1]:.3g} m workspace, more than the "
+                f"{self.max_grid_cells} allowed; use a larger cell size (or, in the "
+                "command line, a larger --max-memory).")
         if self.free_space.is_empty:
             raise InvalidEnvironment("the obstacles cover the whole workspace.")
         if not self.grid_centres_free().any():

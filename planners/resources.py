@@ -41,11 +41,10 @@ import re
 from dataclasses import dataclass
 
 from envs import UserError
-from envs.environment import grid_shape
 
 __all__ = ["DEFAULT_MAX_MEMORY", "MemoryEstimate", "TASKS", "all_pairs_bytes", "chain_bytes",
-           "check_grid", "check_memory", "estimate", "format_bytes", "grid_bytes",
-           "parse_memory", "roadmap_bytes", "search_bytes", "step_table_bytes"]
+           "check_memory", "estimate", "format_bytes", "grid_bytes",
+           "max_grid_cells", "parse_memory", "roadmap_bytes", "search_bytes", "step_table_bytes"]
 
 DEFAULT_MAX_MEMORY = 4 * 2**30          # 4 GiB
 TASKS = ("cells", "plan", "allpairs", "coverage")
@@ -239,18 +238,11 @@ def check_memory(cells, angles=(), *, task: str = "plan", eps_deg: float = 0.0,
     return est
 
 
-def check_grid(bounds, cell_size: float, max_memory=DEFAULT_MAX_MEMORY) -> MemoryEstimate:
-    """Refuse a cell size whose grid over ``bounds`` [m] would not fit in ``max_memory``
-    (checked before the environment validates the grid)."""
-    try:
-        h = float(cell_size)
-    except (TypeError, ValueError):
-        h = math.nan
-    if not (math.isfinite(h) and h > 0):
-        return MemoryEstimate("the cell grid", 0.0)     # the environment says why
-    est = grid_bytes(*grid_shape(bounds, h))
-    _refuse(est, max_memory, f"a {cell_size:g} m cell grid")
-    return est
+def max_grid_cells(max_memory=DEFAULT_MAX_MEMORY) -> int:
+    """The largest grid (rows x columns) whose validation fits in ``max_memory``: what to
+    pass as ``envs.load(..., max_grid_cells=)``, which refuses larger grids before building
+    them."""
+    return max(1, int(parse_memory(max_memory) // grid_bytes(1, 1).total))
 
 
 _TASK_WORDS = {"cells": "the step table", "plan": "planning", "allpairs": "all pairs",

@@ -177,3 +177,12 @@ def test_grid_guard_in_envs():
     with pytest.raises(envs.InvalidEnvironment):
         envs.Environment.from_dict({"boundary": [[-1e308, 0], [1e308, 0], [0, 1e308]]})
     assert np.isfinite(room(3, 2).cell_size)
+
+
+def test_grid_limit_follows_max_memory():
+    n = res.max_grid_cells("100M")
+    assert n * res.grid_bytes(1, 1).total <= 100 * 2**20 < (n + 1) * res.grid_bytes(1, 1).total
+    env = envs.load("lab", cell_size=0.01, max_grid_cells=n)        # 306 x 204 cells: fits
+    assert env.grid_shape == (204, 306)
+    with pytest.raises(envs.InvalidEnvironment, match="larger cell size"):
+        envs.load("lab", cell_size=0.001, max_grid_cells=n)

@@ -11,7 +11,7 @@ from pathlib import Path
 import envs
 from envs import UserError
 from planners.cells import CellSpace
-from planners.resources import check_grid, parse_memory
+from planners.resources import max_grid_cells, parse_memory
 
 __all__ = ["add_env_args", "load_env", "make_cells", "max_memory", "parse_angles",
            "print_json", "writable_path"]
@@ -36,14 +36,10 @@ def max_memory(args: argparse.Namespace) -> int:
 
 
 def load_env(args: argparse.Namespace) -> envs.Environment:
-    """ENV with the overrides; a --cell-size whose grid exceeds --max-memory is refused
-    before the grid is built."""
-    limit = max_memory(args)
-    if args.cell_size is None:
-        return envs.load(args.env, orientations=args.orientations)
-    env = envs.load(args.env)
-    check_grid(env.bounds, args.cell_size, limit)
-    return env.with_discretization(args.cell_size, args.orientations)
+    """ENV with the overrides; a grid too large for --max-memory is refused before it is
+    built."""
+    return envs.load(args.env, cell_size=args.cell_size, orientations=args.orientations,
+                     max_grid_cells=max_grid_cells(max_memory(args)))
 
 
 def make_cells(args: argparse.Namespace, env: envs.Environment) -> CellSpace:
