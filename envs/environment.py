@@ -162,7 +162,11 @@ class Environment:
             try:
                 data = yaml.safe_load(text)
             except yaml.YAMLError as exc:
-                raise InvalidEnvironment(f"{path} is not valid YAML ({exc}).") from None
+                mark = getattr(exc, "problem_mark", None)
+                where = f"line {mark.line + 1}: " if mark is not None else ""
+                what = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+                raise InvalidEnvironment(
+                    f"{path} is not valid YAML ({where}{what}).") from None
         else:
             try:
                 data = json.loads(text)

@@ -50,6 +50,8 @@ def make_cells(args: argparse.Namespace, env: envs.Environment) -> CellSpace:
 def writable_path(path, what: str = "--out", folder: bool = False) -> Path:
     """Check that an output file (or, with ``folder``, a folder, created here) can be
     written, before any long work; :class:`UserError` in one sentence otherwise."""
+    if not str(path).strip():           # Path("") would be the current folder
+        raise UserError(f"{what} needs a {'folder' if folder else 'file'} name.")
     p = Path(path)
     try:
         if folder:
