@@ -8,12 +8,14 @@ import sys
 import tempfile
 from pathlib import Path
 
+import numpy as np
+
 import envs
 from envs import UserError
 from planners.cells import CellSpace
 from planners.resources import max_grid_cells, parse_memory
 
-__all__ = ["add_env_args", "load_env", "make_cells", "max_memory", "parse_angles",
+__all__ = ["add_env_args", "load_env", "make_cells", "make_rng", "max_memory", "parse_angles",
            "print_json", "writable_path"]
 
 
@@ -45,6 +47,13 @@ def load_env(args: argparse.Namespace) -> envs.Environment:
 def make_cells(args: argparse.Namespace, env: envs.Environment) -> CellSpace:
     """The cell space of ENV, refusing a step table above --max-memory."""
     return CellSpace(env, max_memory=max_memory(args))
+
+
+def make_rng(seed) -> np.random.Generator:
+    """The random generator of --seed (a non-negative integer)."""
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise UserError(f"--seed must be a non-negative integer, got {seed}.")
+    return np.random.default_rng(seed)
 
 
 def writable_path(path, what: str = "--out", folder: bool = False) -> Path:

@@ -8,11 +8,10 @@ import sys
 import threading
 import time
 
-import numpy as np
 
 from envs import UserError
 
-from .common import add_env_args, load_env, make_cells
+from .common import add_env_args, load_env, make_cells, make_rng
 from .plan import parse_config
 
 __all__ = ["register", "run"]
@@ -92,7 +91,7 @@ def run(args) -> int:
 
     emu = OIEmulator(env, transport=transport, host=args.host, port=port,
                      time_scale=args.time_scale, noise=noise,
-                     rng=np.random.default_rng(args.seed), angle_bug=args.angle_bug,
+                     rng=make_rng(args.seed), angle_bug=args.angle_bug,
                      faults=faults, start=start, log=None if args.quiet else log)
     def on_sigterm(signum, frame):
         raise KeyboardInterrupt

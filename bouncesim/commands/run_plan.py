@@ -5,13 +5,12 @@ from __future__ import annotations
 
 import argparse
 
-import numpy as np
 
 from envs import UserError
 from planners.navigation import Navigator
 
-from .common import (add_env_args, load_env, make_cells, max_memory, parse_angles, print_json,
-                     writable_path)
+from .common import (add_env_args, load_env, make_cells, make_rng, max_memory, parse_angles,
+                     print_json, writable_path)
 from .plan import add_planner_args, parse_config
 
 __all__ = ["register", "run", "make_robot", "EXIT_FAILURE", "EXIT_NO_PATH"]
@@ -191,7 +190,7 @@ def run(args) -> int:
             print(f"{start} -> {goal}: no path with angles "
                   f"{', '.join(f'{a:g}°' for a in nav.angles)}")
         return EXIT_NO_PATH
-    rng = np.random.default_rng(args.seed)
+    rng = make_rng(args.seed)
     robot = make_robot(args.robot, env, noise, rng, gui=args.gui, record=args.record,
                        glance=args.glance, port=args.port, turn=args.turn, full=args.full,
                        sensing=args.sensing, time_scale=args.time_scale, faults=args.fault,
