@@ -1,8 +1,8 @@
 """Hypothesis strategies for the fuzz tests: environments (good, odd and broken), angles,
 noise, start/goal tokens, plans and pairs files.
 
-Sizes are kept small on purpose (rooms of at most about 2.5 m at cells of at least
-room/16, K mostly up to 24): every example must finish in well under a second, so that a
+Sizes are kept small on purpose (rooms of at most about 1.6 m at cells of at least
+0.16 m, K mostly up to 16): every example must finish in well under a second, so that a
 slow example is a bug (a hang) and not a big input. Huge values still appear (K up to 10^9,
 coordinates up to 1e300) where the code must refuse them before doing any work.
 """
@@ -44,14 +44,14 @@ def _star(draw, convex: bool):
     cx, cy = draw(st.floats(0.8, 1.6)), draw(st.floats(0.8, 1.6))
     angles = sorted(draw(st.lists(st.floats(0, 2 * math.pi, exclude_max=True), min_size=n,
                                   max_size=n, unique=True)))
-    base = draw(st.floats(0.6, 1.2))
-    radii = [base] * n if convex else [draw(st.floats(0.35, 1.2)) for _ in range(n)]
+    base = draw(st.floats(0.5, 0.8))
+    radii = [base] * n if convex else [draw(st.floats(0.35, 0.8)) for _ in range(n)]
     return [[round(cx + r * math.cos(a), 6), round(cy + r * math.sin(a), 6)]
             for a, r in zip(angles, radii)]
 
 
 @st.composite
-def _rectangle(draw, x0=0.0, y0=0.0, wmin=0.3, wmax=2.4):
+def _rectangle(draw, x0=0.0, y0=0.0, wmin=0.3, wmax=1.6):
     w, h = draw(st.floats(wmin, wmax)), draw(st.floats(wmin, wmax))
     return [[x0, y0], [x0 + w, y0], [x0 + w, y0 + h], [x0, y0 + h]]
 
@@ -139,7 +139,7 @@ def _obstacle_for(draw, boundary, good: bool = False):
     return [[ox, oy], [ox + bw, oy], [ox + bw, oy + bh], [ox, oy + bh]]
 
 
-orientations = st.one_of(st.integers(4, 24), st.integers(4, 24), st.integers(-2, 3),
+orientations = st.one_of(st.integers(4, 16), st.integers(4, 16), st.integers(-2, 3),
                          st.sampled_from([10**5, 10**6, 10**9]))
 
 # What env_dicts breaks on purpose (None: nothing, the environment is valid but for bad
@@ -155,19 +155,19 @@ def _is_ring(poly) -> bool:
 
 @st.composite
 def env_dicts(draw, good_only: bool = False, max_K: int | None = None):
-    """An env-file dict (MODEL §2): mostly (3 in 4) valid and small (rooms of 0.8-2.8 m, robot
-    radius 0.05-0.2 m, cells from 0.4 r to 2.5 r but at least 0.16 m, K 4-24 with odd
+    """An env-file dict (MODEL §2): mostly (3 in 4) valid and small (rooms of 0.8-1.6 m, robot
+    radius 0.1-0.2 m, cells from 0.4 r to 2.5 r but at least 0.16 m, K 4-16 with odd
     values), otherwise broken in one way: a bad boundary (self-intersecting, degenerate,
     collinear, NaN or huge coordinates, malformed), an obstacle crossing, outside or
     touching the boundary, a bad radius, cell size or K (tiny or huge), or a bad key."""
     fault = None if good_only else draw(st.sampled_from(_FAULTS))
     boundary = draw(st.one_of(_rectangle(wmin=0.8), _star(True), _star(False)))
     obstacles = draw(st.lists(_obstacle_for(boundary, good=True), max_size=2))
-    radius = draw(st.floats(0.05, 0.2))
+    radius = draw(st.floats(0.1, 0.2))      # the twin's ray-cast grid grows as (room / r)^2
     # around 2r, or below r (cells smaller than the robot), never finer than 0.16 m
     cell = max(0.16, draw(st.one_of(st.floats(1.5 * radius, 2.5 * radius),
                                     st.floats(0.4 * radius, radius))))
-    K = draw(st.integers(4, 24 if max_K is None else max(4, max_K)))
+    K = draw(st.integers(4, 16 if max_K is None else max(4, max_K)))
     if fault == "boundary":
         boundary = draw(polygons())
         if not _is_ring(boundary):

@@ -23,7 +23,7 @@ from unittest import mock
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, event, given, settings
+from hypothesis import HealthCheck, assume, event, given, settings
 from hypothesis import strategies as st
 
 import envs
@@ -52,6 +52,15 @@ PROFILE = "bouncesim-" + os.environ.get("BOUNCESIM_FUZZ_PROFILE", "ci")
 FUZZ = settings(settings.get_profile(PROFILE))
 TIMEOUT = float(os.environ.get("BOUNCESIM_FUZZ_TIMEOUT", "30"))
 LIMIT = "64M"          # --max-memory / max_memory in the fuzz: big inputs are refused at once
+
+
+def skip_known(r) -> None:
+    """Leave out the open find test_tiny_reliability_is_a_user_error records (0 < r below
+    1e-15), so that the fuzz keeps exploring the coverage entry points; drop when fixed."""
+    try:
+        assume(not 0 < float(r) < 1e-15)
+    except (TypeError, ValueError):
+        pass
 
 
 class Hang(AssertionError):
@@ -219,6 +228,7 @@ def test_navigator_plan(data, draw, w, start, goal):
 def test_coverage(data, draw, r, model, space, target, epoch):
     angles = draw.draw(S.angle_lists_for(K_of(data)))
     eps = draw.draw(S.eps_for(K_of(data)))
+    skip_known(r)
     env = build_env(data)
     if env is None:
         return
@@ -328,10 +338,10 @@ def test_cli_plan(data, draw, start, goal, pairs, as_json):
 @FUZZ
 @given(data=S.env_dicts(max_K=8), draw=st.data(),
        out=st.sampled_from(["new"] * 6 + ["existing-file", "/proc/fuzz", ""]),
-       plots=st.sampled_from([False] * 9 + [True]))
+       plots=st.sampled_from([False] * 19 + [True]))
 def test_cli_allpairs(data, draw, out, plots):
     angles = draw.draw(S.angles_for(K_of(data)))
-    # drawing the chart takes most of an example's time: one example in ten draws it
+    # drawing the chart takes most of an example's time: one example in 20 draws it
     skip_chart = (contextlib.nullcontext() if plots else
                   mock.patch("bouncesim.plots.angle_use_bars", lambda *a, **k: None))
     with env_file(data) as (d, path), skip_chart:
@@ -355,6 +365,7 @@ def test_cli_allpairs(data, draw, out, plots):
                                        ["--target", "missing.csv"]]), max_size=3),
        no_plots=st.sampled_from([True] * 19 + [False]))
 def test_cli_coverage(data, draw, r, model, out, extra, no_plots):
+    skip_known(r)
     angles = draw.draw(S.angles_for(K_of(data)))
     eps = draw.draw(S.eps_for(K_of(data)))
     with env_file(data) as (d, path):

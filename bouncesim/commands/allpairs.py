@@ -9,6 +9,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from planners.resources import check_memory
+
 from .common import add_env_args, max_memory, writable_path
 from .plan import add_planner_args, make_navigator
 
@@ -35,9 +37,11 @@ def histogram_frame(counts: np.ndarray) -> pd.DataFrame:
 
 def run(args) -> int:
     nav = make_navigator(args)
+    limit = max_memory(args)
+    check_memory(nav.cells, nav.angles, task="allpairs", max_memory=limit)  # before --out
     out = writable_path(args.out, "--out", folder=True)
     t0 = time.perf_counter()
-    ap = nav.all_pairs(max_memory=max_memory(args))
+    ap = nav.all_pairs(max_memory=limit)
     elapsed = time.perf_counter() - t0
     np.save(out / "weights.npy", ap.weights)
     hist = histogram_frame(ap.histogram())

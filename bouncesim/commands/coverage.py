@@ -16,9 +16,9 @@ import numpy as np
 
 from envs import UserError
 from planners.cells import CellSpace
-from planners.resources import check_memory
 from planners.coverage import (TARGET_FORMATS, CoverageResult, bump_turns, check_reliability,
                                coverage_pipeline, load_target)
+from planners.resources import check_memory
 
 from .common import add_env_args, load_env, make_cells, max_memory, parse_angles, writable_path
 
