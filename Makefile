@@ -4,7 +4,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: run test test-quick test-under-load lint bench clean
+.PHONY: run test test-quick test-under-load fuzz lint bench clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -23,6 +23,20 @@ test-quick: $(STAMP)
 
 test-under-load: $(STAMP)
 	bash tests/under_load.sh
+
+# Random fuzzing of every entry point (tests/test_fuzz.py): FUZZ_EXAMPLES per entry point;
+# each failing example with its traceback goes to results/fuzz/failures.txt; non-zero exit
+# status when anything is found.
+FUZZ_EXAMPLES ?= 10000
+FUZZ_FAILURES := results/fuzz/failures.txt
+
+fuzz: $(STAMP)
+	mkdir -p results/fuzz && rm -f $(FUZZ_FAILURES)
+	BOUNCESIM_FUZZ_PROFILE=fuzz BOUNCESIM_FUZZ_EXAMPLES=$(FUZZ_EXAMPLES) \
+	BOUNCESIM_FUZZ_FAILURES=$(FUZZ_FAILURES) \
+	$(PY) -m pytest -q tests/test_fuzz.py --hypothesis-show-statistics; status=$$?; \
+	if [ -s $(FUZZ_FAILURES) ]; then echo "failing examples: $(FUZZ_FAILURES)"; \
+	else echo "no failures in $(FUZZ_EXAMPLES) examples per entry point"; fi; exit $$status
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .

@@ -25,7 +25,7 @@ def names() -> list[str]:
 
 
 def load(name_or_path: str | Path, *, cell_size: float | None = None,
-         orientations: int | None = None) -> Environment:
+         orientations: int | None = None, max_grid_cells: int | None = None) -> Environment:
     """Load a catalogue environment by name, or an env file by path.
 
     Parameters
@@ -36,12 +36,15 @@ def load(name_or_path: str | Path, *, cell_size: float | None = None,
         Override the file's cell size [m].
     orientations : int, optional
         Override the file's number of orientations K.
+    max_grid_cells : int, optional
+        Refuse a grid with more cells (default ``environment.MAX_GRID_CELLS``).
     """
+    kw = {} if max_grid_cells is None else {"max_grid_cells": int(max_grid_cells)}
     p = Path(name_or_path)
     if str(name_or_path) in names():
-        env = Environment.from_file(CATALOG_DIR / f"{name_or_path}.json")
+        env = Environment.from_file(CATALOG_DIR / f"{name_or_path}.json", **kw)
     elif p.suffix or p.exists():
-        env = Environment.from_file(p)
+        env = Environment.from_file(p, **kw)
     else:
         raise InvalidEnvironment(
             f"{str(name_or_path)!r} is neither a catalogue environment "

@@ -35,11 +35,14 @@ from shapely.validation import explain_validity
 
 from .errors import InvalidEnvironment
 
-__all__ = ["Environment", "InvalidEnvironment"]
+__all__ = ["MAX_GRID_CELLS", "Environment", "InvalidEnvironment", "grid_shape"]
 
 _TOP_KEYS = {"name", "description", "boundary", "obstacles", "robot_radius",
              "discretization", "meta"}
 _DISC_KEYS = {"cell_size", "orientations"}
+# Grids above this many cells are refused outright (at ~370 bytes per cell to validate, tens
+# of GB); a caller with a memory budget passes a smaller max_grid_cells.
+MAX_GRID_CELLS = 2**27
 
 
 def _polygon(coords: Any, what: str) -> Polygon:
@@ -82,6 +85,9 @@ class Environment:
         Number of discrete headings K (>= 4).
     meta : dict
         Free-form data carried along from the file.
+    max_grid_cells : int
+        Refuse a cell size whose grid has more cells than this (default
+        :data:`MAX_GRID_CELLS`); a caller with a memory budget passes a smaller bound.
     """
 
     name: str
@@ -93,11 +99,12 @@ class Environment:
     orientations: int
     meta: dict = field(default_factory=dict)
     source: str | None = None
+    max_grid_cells: int = field(default=MAX_GRID_CELLS, repr=False)
 
     # ------------------------------------------------------------------ construction
     @classmethod
-    def from_dict(cls, data: dict, *, name: str | None = None,
-                  source: str | None = None) -> Environment:
+    def from_dict(cls, data: dict, *, name: str | None = None, source: str | None = None,
+                  max_grid_cells: int = MAX_GRID_CELLS) -> Environment:
         """Validate a parsed env file (docs/model.md §2) and build the environment."""
         if not isinstance(data, dict):
             raise InvalidEnvironment("an environment file must hold a JSON/YAML object.")
@@ -136,11 +143,12 @@ class Environment:
                   robot_radius=radius,
                   cell_size=disc.get("cell_size", 2 * radius if _is_num(radius) else 0.34),
                   orientations=disc.get("orientations", 8),
-                  meta=dict(meta), source=source)
+                  meta=dict(meta), source=source, max_grid_cells=max_grid_cells)
         return env
 
     @classmethod
-    def from_file(cls, path: str | Path) -> Environment:
+    def from_file(cls, path: str | Path, *, max_grid_cells: int = MAX_GRID_CELLS
+                  ) -> Environment:
         """Load a JSON (or YAML) env file."""
         path = Path(path)
         try:
@@ -154,14 +162,19 @@ class Environment:
             try:
                 data = yaml.safe_load(text)
             except yaml.YAMLError as exc:
-                raise InvalidEnvironment(f"{path} is not valid YAML ({exc}).") from None
+                mark = getattr(exc, "problem_mark", None)
+                where = f"line {mark.line + 1}: " if mark is not None else ""
+                what = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+                raise InvalidEnvironment(
+                    f"{path} is not valid YAML ({where}{what}).") from None
         else:
             try:
                 data = json.loads(text)
             except json.JSONDecodeError as exc:
                 raise InvalidEnvironment(
                     f"{path} is not valid JSON (line {exc.lineno}: {exc.msg}).") from None
-        return cls.from_dict(data, name=path.stem, source=str(path))
+        return cls.from_dict(data, name=path.stem, source=str(path),
+                             max_grid_cells=max_grid_cells)
 
     def __post_init__(self) -> None:
         if not _is_num(self.robot_radius) or self.robot_radius <= 0:
@@ -179,6 +192,14 @@ class Environment:
         object.__setattr__(self, "orientations", int(k))
         object.__setattr__(self, "robot_radius", float(self.robot_radius))
         object.__setattr__(self, "cell_size", float(self.cell_size))
+        rows, cols = grid_shape(self.bounds, self.cell_size)
+        if rows * cols > self.max_grid_cells:
+            raise InvalidEnvironment(
+                f"a {self.cell_size:g} m cell size gives a grid of {rows * cols:.3g} cells "
+                f"over a {self.bounds[2] - self.bounds[0]:.3g} x "
+                f"{self.bounds[3] - self.bounds[1]:.3g} m workspace, more than the "
+                f"{self.max_grid_cells} allowed; use a larger cell size (or, in the "
+                "command line, a larger --max-memory).")
         if self.free_space.is_empty:
             raise InvalidEnvironment("the obstacles cover the whole workspace.")
         if not self.grid_centres_free().any():
@@ -258,12 +279,8 @@ class Environment:
     @property
     def grid_shape(self) -> tuple[int, int]:
         """(rows, columns) of the grid: ceil(height / h), ceil(width / h)."""
-        x0, y0, x1, y1 = self.bounds
-        h = self.cell_size
-        # Guard against 3.06 / 0.34 = 9.000000000000002 giving 10 columns.
-        ncols = max(1, math.ceil((x1 - x0) / h - 1e-9))
-        nrows = max(1, math.ceil((y1 - y0) / h - 1e-9))
-        return nrows, ncols
+        rows, cols = grid_shape(self.bounds, self.cell_size)
+        return int(rows), int(cols)
 
     def points_free(self, points) -> np.ndarray:
         """Whether the robot disk centred at each point lies inside E (docs/model.md §3).
@@ -312,6 +329,23 @@ class Environment:
         return (f"Environment(name={self.name!r}, obstacles={len(self.obstacles)}, "
                 f"robot_radius={self.robot_radius}, cell_size={self.cell_size}, "
                 f"orientations={self.orientations})")
+
+
+def grid_shape(bounds, cell_size: float) -> tuple[float, float]:
+    """(rows, columns) of the grid over ``bounds`` (xmin, ymin, xmax, ymax) [m] at cell size
+    [m]: ceil(height / h), ceil(width / h), at least 1; ``inf`` where the count overflows.
+
+    >>> grid_shape((0.0, 0.0, 3.06, 2.72), 0.34)
+    (8, 9)
+    """
+    x0, y0, x1, y1 = bounds
+    h = float(cell_size)
+
+    def count(extent: float):
+        n = extent / h
+        # Guard against 3.06 / 0.34 = 9.000000000000002 giving 10 columns.
+        return max(1, math.ceil(n - 1e-9)) if math.isfinite(n) else math.inf
+    return count(y1 - y0), count(x1 - x0)
 
 
 def _is_num(x: Any) -> bool:

@@ -32,6 +32,8 @@ import numpy as np
 
 from envs import Environment, UserError
 
+from .resources import DEFAULT_MAX_MEMORY, check_memory
+
 __all__ = ["AngleError", "CellSpace", "angle_steps"]
 
 
@@ -92,9 +94,14 @@ class CellSpace:
     centres : (P, 2)     cell centres [m]
     index_grid : (rows, cols) int array, p of each grid cell or -1 when not free
     forward : (N,) int array, z' after a forward move from z, or -1 for a bump
+    max_memory : int, str or None
+        Refuse (:class:`envs.UserError`) to build the step table when its estimated peak
+        memory exceeds this many bytes (or a size such as ``"2G"``; None: no limit); see
+        :mod:`planners.resources`.
     """
 
     env: Environment
+    max_memory: int | str | None = DEFAULT_MAX_MEMORY
 
     # ------------------------------------------------------------------ cells
     @property
@@ -203,6 +210,7 @@ class CellSpace:
         P, K, h = self.P, self.K, self.h
         if P == 0:
             return np.zeros(0, dtype=np.int64)
+        check_memory(self, task="cells", max_memory=self.max_memory)
         u = np.column_stack([np.cos(self.headings), np.sin(self.headings)])      # (K, 2)
         # Snap tiny components so that axis-aligned headings are exact (cos 90° = 6e-17).
         u[np.abs(u) < 1e-12] = 0.0

@@ -25,6 +25,7 @@ from envs import UserError
 
 from .cells import CellSpace
 from .plan import Plan
+from .resources import DEFAULT_MAX_MEMORY, check_memory, parse_memory, search_bytes
 from .roadmap import Roadmap
 
 __all__ = ["AllPairs", "Navigator", "Route"]
@@ -71,12 +72,23 @@ class Navigator:
     angles : sequence of float   bouncing angles Φ [deg]
     w1, w2 : float               edge weights (defaults: the paper's 1 and 100)
     cache : int                  number of single-source searches kept for repeated starts
+    max_memory : int, str or None
+        Refuse (:class:`envs.UserError`, before building anything) when the step table,
+        roadmap and one search would need more than this many bytes (or a size such as
+        ``"2G"``; None: no limit), and cache no more searches than fit; see
+        :mod:`planners.resources`.
     """
 
     def __init__(self, cells: CellSpace, angles, w1: float = 1.0, w2: float = 100.0,
-                 cache: int = 64) -> None:
+                 cache: int = 64, max_memory=DEFAULT_MAX_MEMORY) -> None:
         self.cells = cells
         self.roadmap = Roadmap(cells, tuple(angles), w1, w2)
+        est = check_memory(cells, self.roadmap.angles, task="plan", searches=1,
+                           max_memory=max_memory)
+        if max_memory is not None:    # keep only as many cached searches as the limit allows
+            per = search_bytes(cells.N, self.roadmap.m).traced
+            spare = parse_memory(max_memory) - est.total
+            cache = min(cache, 1 + int(max(spare, 0) // max(per, 1)))
         self._cache: OrderedDict[int, tuple[np.ndarray, np.ndarray]] = OrderedDict()
         self._cache_size = cache
 
@@ -87,7 +99,7 @@ class Navigator:
     def _check(self, z, what: str) -> int:
         try:
             zi = int(z)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             raise UserError(f"{what} {z!r} is not a configuration index.") from None
         if not 0 <= zi < self.cells.N:
             raise UserError(f"{what} {zi} is out of range: configurations are 0 to "
@@ -115,15 +127,14 @@ class Navigator:
         dist, pred = self._search(s)
         return _route_from_tree(self.roadmap, s, g, dist, pred)
 
-    def all_pairs(self, max_bytes: float = 4e9) -> AllPairs:
-        """Algorithm 2: every ordered pair, one Dijkstra per source (in one C call)."""
-        rm = self.roadmap
-        need = self.cells.N * rm.n_nodes * 12.0
-        if need > max_bytes:
-            raise UserError(
-                f"all pairs at N = {self.cells.N} with {rm.m} angles needs about "
-                f"{need / 1e9:.1f} GB; use fewer orientations or a larger cell size.")
-        return AllPairs(rm)
+    def all_pairs(self, max_memory=DEFAULT_MAX_MEMORY) -> AllPairs:
+        """Algorithm 2: every ordered pair, one Dijkstra per source (in one C call).
+
+        Refuses (:class:`envs.UserError`) when the estimated peak memory exceeds
+        ``max_memory`` bytes (or a size such as ``"2G"``; None: no limit).
+        """
+        check_memory(self.cells, self.angles, task="allpairs", max_memory=max_memory)
+        return AllPairs(self.roadmap)
 
 
 class AllPairs:

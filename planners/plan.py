@@ -45,11 +45,16 @@ class Plan:
     labels: tuple
 
     def __post_init__(self) -> None:
-        labs = tuple(_num(v) for v in self.labels)
-        for v in labs:
-            if v < 0 or v >= 360:
+        labs = []
+        for v in self.labels:
+            try:
+                f = float(v)
+            except (TypeError, ValueError):
+                raise PlanParseError(f"plan label {v!r} is not a number.") from None
+            if not (0 <= f < 360):                  # also NaN and infinities
                 raise PlanParseError(f"plan label {v} is not 0 or an angle in (0°, 360°).")
-        object.__setattr__(self, "labels", labs)
+            labs.append(_num(f))
+        object.__setattr__(self, "labels", tuple(labs))
 
     # ------------------------------------------------------------------ parsing/printing
     @classmethod
@@ -73,7 +78,7 @@ class Plan:
                 labels.extend([0] * len(t))
                 continue
             try:
-                labels.append(_num(float(t)))
+                labels.append(float(t))
             except ValueError:
                 raise PlanParseError(
                     f"{tok!r} in plan {s!r} is neither a run of zeros nor an angle.") from None

@@ -38,3 +38,22 @@ def random_room(rng: np.random.Generator, K: int = 8) -> Environment:
 def corridor():
     """A 3 x 1 cell corridor at K = 4: P = 3, N = 12."""
     return room(3, 1, K=4, name="corridor")
+
+
+# ----------------------------------------------------------------------------- fuzz failures
+# `make fuzz` sets BOUNCESIM_FUZZ_FAILURES to a file: every failing fuzz test appends its
+# falsifying example (Hypothesis prints it into the report) with the traceback.
+def pytest_runtest_makereport(item, call):
+    import os
+    from pathlib import Path
+
+    path = os.environ.get("BOUNCESIM_FUZZ_FAILURES")
+    if not path or call.when != "call" or call.excinfo is None:
+        return
+    if "test_fuzz" not in item.nodeid:
+        return
+    text = str(item.repr_failure(call.excinfo))
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with open(out, "a") as fh:
+        fh.write(f"{'=' * 100}\n{item.nodeid}\n{'-' * 100}\n{text}\n\n")

@@ -449,9 +449,12 @@ def test_killed_controller_leaves_the_robot_stopped(sig, code):
         proc = _controller(emu.url)
         try:
             # the plan's long drive west (7 cells, 12 s at 0.2 m/s), well away from a turn
-            assert wait_until(lambda: emu.wheel_command == (200, 200)
-                              and abs(emu.true_pose()[2] - 180.0) < 20, 120.0), \
-                "the controller never started the long drive"
+            started = wait_until(lambda: proc.poll() is not None or (
+                emu.wheel_command == (200, 200) and abs(emu.true_pose()[2] - 180.0) < 20), 120.0)
+            if proc.poll() is not None:
+                pytest.fail(f"the controller ended (status {proc.returncode}) before the long "
+                            f"drive; its stderr: {proc.stderr.read()[-2000:]}")
+            assert started, "the controller never started the long drive"
             time.sleep(0.5)
             proc.send_signal(sig)
             try:

@@ -15,7 +15,7 @@ MODULES = ["envs", "envs.environment", "planners.cells", "planners.plan", "plann
            "bouncesim.runs.options", "bouncesim.runs.execute",
            "bouncesim.runs.sweep", "envs.raycast", "planners.coverage.event",
            "planners.coverage.api", "planners.coverage.mix", "planners.metrics",
-           "bouncesim.robots.noise"]
+           "bouncesim.robots.noise", "planners.resources"]
 
 
 @pytest.mark.parametrize("name", MODULES)

@@ -9,7 +9,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .common import add_env_args
+from planners.resources import check_memory
+
+from .common import add_env_args, max_memory, writable_path
 from .plan import add_planner_args, make_navigator
 
 __all__ = ["histogram_frame", "register", "run"]
@@ -35,11 +37,12 @@ def histogram_frame(counts: np.ndarray) -> pd.DataFrame:
 
 def run(args) -> int:
     nav = make_navigator(args)
+    limit = max_memory(args)
+    check_memory(nav.cells, nav.angles, task="allpairs", max_memory=limit)  # before --out
+    out = writable_path(args.out, "--out", folder=True)
     t0 = time.perf_counter()
-    ap = nav.all_pairs()
+    ap = nav.all_pairs(max_memory=limit)
     elapsed = time.perf_counter() - t0
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
     np.save(out / "weights.npy", ap.weights)
     hist = histogram_frame(ap.histogram())
     hist.to_csv(out / "angles_used.csv", index=False)

@@ -21,8 +21,9 @@ from planners.coverage import (MODELS, SPACES, TARGET_FORMATS, MixDesign, TurnNo
                                check_angles, default_settings, design_mix, load_target,
                                model_for, timeshared_coverage)
 from planners.metrics import tv_distance
+from planners.resources import check_memory
 
-from .common import add_env_args, load_env, parse_angles
+from .common import add_env_args, load_env, make_cells, max_memory, parse_angles, writable_path
 
 __all__ = ["register", "run", "write_outputs", "format_table"]
 
@@ -116,7 +117,7 @@ def _progress(total: int | None, desc: str = "chains", unit: str = "angle"):
 
 def run(args) -> int:
     env = load_env(args)
-    cs = CellSpace(env)
+    cs = make_cells(args, env)
     noise = TurnNoise(args.eps, args.r)
     angles = check_angles(cs.K, parse_angles(args.angles), noise)   # before any heavy work
     target, target_desc = None, f"uniform over {args.target_space}"
@@ -133,6 +134,10 @@ def run(args) -> int:
         if args.target_space != "positions":
             raise UserError("--epoch predicts coverage over position cells only; use "
                             "--target-space positions.")
+    check_memory(cs, angles, task="coverage", eps_deg=args.eps, model=args.model,
+                 settings=settings, max_memory=max_memory(args))
+    if args.out is not None:
+        writable_path(args.out, "--out", folder=True)
     model = model_for(cs, args.model, settings)
     result = design_mix(model, angles, noise, target=target, space=args.target_space,
                         progress=_progress(len(angles)))
@@ -226,11 +231,7 @@ def write_outputs(result: MixDesign, cs: CellSpace, out_dir, summary: dict,
                   plots: bool = True, timeshared=None) -> Path:
     """Write coverage.csv, alpha.json (and the heatmaps) into out_dir; ``timeshared`` is the
     mix's predicted coverage when executed in epochs (series "mix_epochs")."""
-    out = Path(out_dir)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise UserError(f"cannot create the output folder {out} ({exc.strerror}).") from None
+    out = writable_path(out_dir, "the output folder", folder=True)
     ij, xy = cs.cells_ij, cs.centres
     mixed = result.mixed_q()
     target_q = result.target if result.space == "positions" else \

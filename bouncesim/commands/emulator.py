@@ -8,12 +8,10 @@ import sys
 import threading
 import time
 
-import numpy as np
 
 from envs import UserError
-from planners.cells import CellSpace
 
-from .common import add_env_args, load_env
+from .common import add_env_args, load_env, make_cells, make_rng
 from .plan import parse_config
 
 __all__ = ["register", "run"]
@@ -67,7 +65,7 @@ def run(args) -> int:
     from bouncesim.robots.create2 import OIEmulator, parse_fault
 
     env = load_env(args)
-    cells = CellSpace(env)
+    cells = make_cells(args, env)
     start = None
     if args.start is not None:
         start = cells.pose(parse_config(args.start, cells, "start"))
@@ -93,7 +91,7 @@ def run(args) -> int:
 
     emu = OIEmulator(env, transport=transport, host=args.host, port=port,
                      time_scale=args.time_scale, noise=noise,
-                     rng=np.random.default_rng(args.seed), angle_bug=args.angle_bug,
+                     rng=make_rng(args.seed), angle_bug=args.angle_bug,
                      faults=faults, start=start, log=None if args.quiet else log)
     def on_sigterm(signum, frame):
         raise KeyboardInterrupt

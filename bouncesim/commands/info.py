@@ -2,9 +2,7 @@
 
 from __future__ import annotations
 
-from planners.cells import CellSpace
-
-from .common import add_env_args, load_env, print_json
+from .common import add_env_args, load_env, make_cells, print_json
 
 
 def register(sub) -> None:
@@ -18,7 +16,7 @@ def register(sub) -> None:
 
 def run(args) -> int:
     env = load_env(args)
-    cs = CellSpace(env)
+    cs = make_cells(args, env)
     info = {"name": env.name, "P": cs.P, "N": cs.N, "K": cs.K, "cell_size": env.cell_size,
             "bounds": list(env.bounds), "robot_radius": env.robot_radius,
             "grid": list(env.grid_shape)}

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import math
 import sys
 from pathlib import Path
 
@@ -10,7 +11,7 @@ from envs import UserError
 from planners.cells import CellSpace
 from planners.navigation import Navigator
 
-from .common import add_env_args, load_env, parse_angles, print_json
+from .common import add_env_args, load_env, make_cells, max_memory, parse_angles, print_json
 
 __all__ = ["add_planner_args", "make_navigator", "parse_config", "register", "run"]
 
@@ -43,6 +44,8 @@ def parse_config(text: str, cells: CellSpace, what: str = "start") -> int:
         x, y, deg = (float(t) for t in parts)
     except ValueError:
         raise UserError(f"{what} pose {s!r} has a part that is not a number.") from None
+    if not all(map(math.isfinite, (x, y, deg))):
+        raise UserError(f"{what} pose {s!r} has a part that is not a finite number.")
     z = cells.config_of_pose(x, y, deg)
     if z < 0:
         raise UserError(f"{what} pose ({x:g}, {y:g}) is not in a free cell.")
@@ -60,7 +63,8 @@ def add_planner_args(p) -> None:
 
 def make_navigator(args) -> Navigator:
     env = load_env(args)
-    return Navigator(CellSpace(env), parse_angles(args.angles), args.w1, args.w2)
+    return Navigator(make_cells(args, env), parse_angles(args.angles), args.w1, args.w2,
+                     max_memory=max_memory(args))
 
 
 def register(sub) -> None:
@@ -93,6 +97,9 @@ def _read_pairs(path: Path) -> list[tuple[str, str]]:
             return [(row["start"], row["goal"]) for row in reader]
     except FileNotFoundError:
         raise UserError(f"no pairs file at {path}.") from None
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        reason = getattr(exc, "strerror", None) or str(exc).rstrip(".")
+        raise UserError(f"cannot read the pairs file {path} ({reason}).") from None
 
 
 def run(args) -> int:

@@ -5,17 +5,16 @@ from __future__ import annotations
 
 import argparse
 
-import numpy as np
 
 from envs import UserError
-from planners.cells import CellSpace
 from planners.navigation import Navigator
 
 from bouncesim.robots import KINDS, make_robot
 from bouncesim.robots.noise import parse_noise
 from bouncesim.runs.execute import execute
 
-from .common import add_env_args, load_env, parse_angles, print_json
+from .common import (add_env_args, load_env, make_cells, make_rng, max_memory, parse_angles,
+                     print_json, writable_path)
 from .plan import add_planner_args, parse_config
 
 __all__ = ["register", "run", "EXIT_FAILURE", "EXIT_NO_PATH"]
@@ -103,8 +102,9 @@ def register(sub) -> None:
 
 def run(args) -> int:
     env = load_env(args)
-    cells = CellSpace(env)
-    nav = Navigator(cells, parse_angles(args.angles), args.w1, args.w2)
+    cells = make_cells(args, env)
+    nav = Navigator(cells, parse_angles(args.angles), args.w1, args.w2,
+                    max_memory=max_memory(args))
     start = parse_config(args.start, cells, "start")
     goal = parse_config(args.goal, cells, "goal")
     noise = parse_noise(args.noise, cells.delta_deg)
@@ -123,6 +123,10 @@ def run(args) -> int:
         raise UserError("--noise is for simulated robots; a real Create 2 brings its own.")
     if args.robot in ("create2", "emulator") and (args.gui or args.record):
         raise UserError("--gui and --record need --robot pybullet.")
+    if args.trace:
+        writable_path(args.trace, "--trace")
+    if args.record:
+        writable_path(args.record, "--record")
     route = nav.plan(start, goal)
     if route is None:
         if args.json:
@@ -132,7 +136,7 @@ def run(args) -> int:
             print(f"{start} -> {goal}: no path with angles "
                   f"{', '.join(f'{a:g}°' for a in nav.angles)}")
         return EXIT_NO_PATH
-    rng = np.random.default_rng(args.seed)
+    rng = make_rng(args.seed)
     robot = make_robot(args.robot, env, noise=noise, rng=rng, **_robot_options(args))
     with robot:
         result = execute(route.plan, robot, start=start, goal=goal, cells=cells,

@@ -193,6 +193,9 @@ def _resolve_pose(spec, cells: CellSpace, what: str) -> tuple[int | None, tuple 
     except (TypeError, ValueError):
         raise UserError(f"{what} must be a configuration index or a pose (x, y, heading).") \
             from None
+    if not all(map(math.isfinite, (x, y, h))):
+        raise UserError(f"{what} pose ({x:g}, {y:g}, {h:g}) has a part that is not a finite "
+                        "number.")
     z = cells.config_of_pose(x, y, h)
     return (z if z >= 0 else None), (x, y, h)
 

@@ -33,7 +33,7 @@ from envs import UserError
 
 from ..cells import angle_steps
 
-__all__ = ["TurnNoise", "as_commands"]
+__all__ = ["R_RESOLUTION", "TurnNoise", "as_commands"]
 
 
 def as_commands(commanded, n: int | None) -> np.ndarray:
@@ -49,6 +49,10 @@ def as_commands(commanded, n: int | None) -> np.ndarray:
 
 def _fmt(x: float) -> str:
     return f"{x:g}"
+
+
+R_RESOLUTION = 1e-9
+"""Reliabilities closer than this to 0 or 1 (but not equal) are refused."""
 
 
 @dataclass(frozen=True)
@@ -82,6 +86,11 @@ class TurnNoise:
             raise UserError(f"error range eps {_fmt(self.eps_deg)}° must be non-negative.")
         if not 0.0 <= self.r <= 1.0:
             raise UserError(f"reliability r must lie in [0, 1], got {_fmt(self.r)}.")
+        if 0.0 < min(self.r, 1.0 - self.r) < R_RESOLUTION:
+            # a turn probability this small next to its complement joins persistent groups
+            # by edges of no numerical weight: the chain's solves become singular
+            raise UserError(f"reliability r must be 0, 1 or within [{R_RESOLUTION:g}, "
+                            f"1 - {R_RESOLUTION:g}], got {_fmt(self.r)}.")
 
     @property
     def exact(self) -> bool:
