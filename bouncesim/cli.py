@@ -12,6 +12,8 @@ import sys
 
 from envs import UserError
 
+from bouncesim.robots.base import RobotError
+
 __all__ = ["build_parser", "main"]
 
 # Sub-command modules, in the order --help lists them. Each defines
@@ -65,6 +67,9 @@ def main(argv: list[str] | None = None) -> int:
     except UserError as exc:
         print(f"bouncesim: error: {exc}", file=sys.stderr)
         return 2
+    except RobotError as exc:                   # e.g. no robot answering on the port
+        print(f"bouncesim: robot error: {exc}", file=sys.stderr)
+        return 4
     except KeyboardInterrupt:
         print("bouncesim: interrupted.", file=sys.stderr)
         return 130

@@ -562,3 +562,20 @@ def test_lockstep_runs_are_identical_on_an_idle_and_a_busy_machine():
     assert len(first[0]) > 100 and first[1].bumped and first[5] > 0
     assert second == first
     assert third == first, "the transport does not change a lockstep run either"
+
+
+@pytest.mark.realtime
+def test_cli_robot_that_never_answers_is_one_sentence_and_exit_4(capsys):
+    # a port that accepts the connection but never sends a sensor frame (a robot switched off)
+    import socket
+
+    from bouncesim.cli import main
+    with socket.socket() as server, deadline(60):
+        server.bind(("127.0.0.1", 0))
+        server.listen(1)
+        port = server.getsockname()[1]
+        code = main(["run-plan", "lab", "--angles", "90", "--start", "8", "--goal", "0",
+                     "--robot", "create2", "--port", f"socket://127.0.0.1:{port}"])
+    err = capsys.readouterr().err
+    assert code == 4 and err.startswith("bouncesim: robot error: no ") and "sensor data" in err
+    assert "Traceback" not in err and err.count("\n") == 1

@@ -117,7 +117,8 @@ class Create2Robot(SensingMixin, TurningMixin, Robot):
     watchdog, stall_time : float
         [s] of robot time, see the module notes.
     link_timeout : float
-        [s] of wall-clock time without a valid sensor frame before the link counts as lost.
+        [s] spent listening without a valid sensor frame before the link counts as lost
+        (time the host did not run the reader does not count; in lockstep, robot time).
     connect_timeout : float
         [s] of wall time to wait for the first sensor reading.
     handle_sigterm : bool
@@ -136,7 +137,7 @@ class Create2Robot(SensingMixin, TurningMixin, Robot):
                  turn_tolerance: float = 0.4, sensing: str = "stream", baudrate: int = 115200,
                  time_scale: float = 1.0, emulator=None, max_distance: float = 10.0,
                  watchdog: float = 1.0, link_timeout: float = 0.5, stall_time: float = 0.5,
-                 connect_timeout: float = 2.0, handle_sigterm: bool = True, link=None,
+                 connect_timeout: float = 5.0, handle_sigterm: bool = True, link=None,
                  own_emulator: bool = False, spec: RobotSpec | None = None) -> None:
         self.spec = spec if spec is not None else CREATE2
         if mode not in ("safe", "full"):

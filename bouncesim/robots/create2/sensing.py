@@ -49,6 +49,9 @@ class SensorState:
     right: int
     mode: int
 
+_LISTEN_CAP = 0.05         # [s] a read counts at most this much towards a silent link
+_LISTEN_MIN = 0.001        # [s] and at least this much (bytes that never form a frame)
+
 
 class SensingMixin:
     """The sensing half of :class:`~bouncesim.robots.create2.Create2Robot`: the
@@ -56,9 +59,14 @@ class SensingMixin:
     adapter's link and state attributes and is not a robot on its own."""
 
     def _reader(self) -> None:
-        """Stream mode: read frames, keep the latest state, watch the link and the wheels."""
-        last_wall = time.monotonic()
+        """Stream mode: read frames, keep the latest state, watch the link and the wheels.
+
+        The link counts as lost after ``link_timeout`` seconds of *listening* without a valid
+        frame: each read adds the time it waited, at most ``_LISTEN_CAP``, so a reader thread
+        that a busy host did not run for a while does not mistake that for a silent robot."""
+        silent = 0.0
         while not self._closing:
+            t0 = time.monotonic()
             try:
                 n = self._ser.in_waiting
                 chunk = self._ser.read(max(1, min(n, 4096)))
@@ -67,21 +75,21 @@ class SensingMixin:
                     self._set_fault(RobotError(f"lost the serial link to {self.port}: {exc}"),
                                     stop=True)
                 return
+            listened = min(time.monotonic() - t0, _LISTEN_CAP)
+            framed = False
             if chunk:
                 for values in self._parser.feed(chunk):
                     self._update(values)
-                    last_wall = time.monotonic()
+                    framed = True
                 with self._cv:
                     self._rx += len(chunk)
                     self._cv.notify_all()
             if self._ls is not None:               # lockstep: judged in robot time
                 continue
-            # the link is judged in wall-clock time (a scaled emulator on a busy machine
-            # must not look like a lost link)
-            silent = time.monotonic() - last_wall
+            silent = 0.0 if framed else silent + max(listened, _LISTEN_MIN)
             if silent > self.link_timeout and self._fault is None:
                 self._set_fault(RobotError(
-                    f"no valid sensor data from {self.port} for {silent:.2f} s: "
+                    f"no valid sensor data from {self.port} for {silent:.2f} s of listening: "
                     "lost the link; tried to stop the robot"), stop=True)
             self._check_watchdog(self.clock())
 
