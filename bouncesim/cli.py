@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 from envs import UserError
@@ -38,6 +39,7 @@ examples:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``bouncesim`` argument parser with every built command registered."""
     parser = argparse.ArgumentParser(
         prog="bouncesim",
         description="Plan, analyse and simulate minimalist bump-and-clock robots.",
@@ -55,6 +57,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run the ``bouncesim`` command line; returns the exit status (2: a user error)."""
+    # the commands write figure files only: without a user choice, no GUI backend
+    os.environ.setdefault("MPLBACKEND", "Agg")
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):

@@ -1,4 +1,4 @@
-"""Heatmaps of coverage over the position cells, drawn on the map (matplotlib, Agg).
+"""Heatmaps of coverage over the position cells, drawn on the map (matplotlib).
 
 All functions take plain arrays over the P position cells (or group labels over the N
 configuration cells) plus the cell space, so figures can be drawn from CSV files alone.
@@ -16,14 +16,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.colors import ListedColormap
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.colors import ListedColormap  # noqa: E402
-
-from .plots import save_figure  # noqa: E402
+from .plots import draw_env, save_figure
 
 __all__ = ["draw_map", "heatmap", "diff_heatmap", "save_heatmap", "save_mix_vs_target",
            "save_group_slices", "position_grid"]
@@ -38,20 +35,13 @@ def position_grid(cs, values) -> np.ndarray:
 
 
 def draw_map(ax, env, color: str = "k", lw: float = 1.2) -> None:
-    """Draw the outer wall and obstacles [m]; obstacles are filled grey."""
-    x, y = env.boundary.exterior.xy
-    ax.plot(x, y, color=color, lw=lw)
-    for ob in env.obstacles:
-        ox, oy = ob.exterior.xy
-        ax.fill(ox, oy, color="0.55", zorder=3)
-        ax.plot(ox, oy, color=color, lw=lw * 0.8, zorder=4)
+    """Draw the outer wall and obstacles [m] as lines; obstacles are filled grey.
+
+    :func:`bouncesim.plots.draw_env` in its ``outline`` style, with a margin of 5 % of the
+    room's larger side.
+    """
     x0, y0, x1, y1 = env.bounds
-    pad = 0.05 * max(x1 - x0, y1 - y0)
-    ax.set_xlim(x0 - pad, x1 + pad)
-    ax.set_ylim(y0 - pad, y1 + pad)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
+    draw_env(ax, env, style="outline", color=color, lw=lw, pad=0.05 * max(x1 - x0, y1 - y0))
 
 
 def _extent(cs):
