@@ -68,7 +68,8 @@ def heatmap(ax, cs, values, title: str | None = None, vmax: float | None = None,
 
 def diff_heatmap(ax, cs, values, title: str | None = None):
     """Signed values per position cell (e.g. simulated − predicted) on a symmetric diverging
-    colour scale, with a colour bar; returns the image."""
+    colour scale, with a colour bar; returns the image.
+    """
     lim = float(np.abs(np.asarray(values, dtype=float)).max()) or 1.0
     im = ax.imshow(np.ma.masked_invalid(position_grid(cs, values)), origin="lower",
                    extent=_extent(cs), cmap="RdBu_r", vmin=-lim, vmax=lim,
@@ -90,7 +91,8 @@ def save_heatmap(path, cs, values, title: str | None = None, vmax: float | None 
 def save_mix_vs_target(path, cs, mixed, target, title: str | None = None,
                        label: str = "Aα") -> Path:
     """Three panels: mixed coverage (``label``, default Aα), target b (same colour scale)
-    and their difference."""
+    and their difference.
+    """
     mixed = np.asarray(mixed, dtype=float)
     target = np.asarray(target, dtype=float)
     vmax = float(max(mixed.max(), target.max()))

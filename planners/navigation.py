@@ -50,9 +50,11 @@ class Route:
 
     @property
     def angles_used(self) -> int:
+        """Number of distinct bouncing angles in the plan."""
         return self.plan.angles_used
 
     def to_json(self) -> dict:
+        """The route as a JSON-ready dict (plan as a label list and as text, cost, path)."""
         return {"start": self.start, "goal": self.goal, "plan": self.plan.to_list(),
                 "plan_text": str(self.plan), "cost": _num(self.cost),
                 "angles_used": self.angles_used, "path": list(self.path)}
@@ -82,6 +84,7 @@ class Navigator:
 
     @property
     def angles(self) -> tuple:
+        """The bouncing angles Φ [deg] of the roadmap's layers."""
         return self.roadmap.angles
 
     def _check(self, z, what: str) -> int:
@@ -208,6 +211,7 @@ class AllPairs:
 
     @property
     def N(self) -> int:
+        """Number of configurations N."""
         return self.roadmap.N
 
     def route(self, i: int, j: int) -> Route | None:
@@ -224,6 +228,7 @@ class AllPairs:
 
     @cached_property
     def reachable_fraction(self) -> float:
+        """Fraction of the ordered pairs (i ≠ j) with a plan."""
         N = self.N
         return float((self.weights[~np.eye(N, dtype=bool)] >= 0).mean()) if N > 1 else 1.0
 

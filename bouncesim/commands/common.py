@@ -23,9 +23,13 @@ def add_env_args(p: argparse.ArgumentParser) -> None:
 
 
 def load_env(args: argparse.Namespace) -> envs.Environment:
+    """The environment named by ``--env`` with the ``--cell-size`` and ``--orientations``
+    overrides.
+    """
     return envs.load(args.env, cell_size=args.cell_size, orientations=args.orientations)
 
 
 def print_json(obj, file=None) -> None:
+    """Print ``obj`` as one line of JSON (non-ASCII kept, e.g. ``°``)."""
     print(json.dumps(obj, separators=(", ", ": "), ensure_ascii=False),
           file=file or sys.stdout)

@@ -17,9 +17,19 @@ import numpy as np
 
 from envs import UserError
 from planners.cells import CellSpace
-from planners.coverage import (MODELS, SPACES, TARGET_FORMATS, MixDesign, TurnNoise,
-                               check_angles, default_settings, design_mix, load_target,
-                               model_for, timeshared_coverage)
+from planners.coverage import (
+    MODELS,
+    SPACES,
+    TARGET_FORMATS,
+    MixDesign,
+    TurnNoise,
+    check_angles,
+    default_settings,
+    design_mix,
+    load_target,
+    model_for,
+    timeshared_coverage,
+)
 from planners.metrics import tv_distance
 
 from .common import add_env_args, load_env, parse_angles
@@ -63,6 +73,7 @@ examples:
 
 
 def register(sub) -> None:
+    """Add the ``coverage`` sub-command to the CLI's sub-parsers."""
     import argparse
     p = sub.add_parser("coverage", help="coverage of bouncing policies and the best policy mix",
                        description=DESCRIPTION, epilog=EXAMPLES,
@@ -115,6 +126,7 @@ def _progress(total: int | None, desc: str = "chains", unit: str = "angle"):
 
 
 def run(args) -> int:
+    """Run ``bouncesim coverage``: per-angle coverage, the mix α and output files; exit status."""
     env = load_env(args)
     cs = CellSpace(env)
     noise = TurnNoise(args.eps, args.r)
@@ -225,7 +237,8 @@ def format_table(summary: dict) -> str:
 def write_outputs(result: MixDesign, cs: CellSpace, out_dir, summary: dict,
                   plots: bool = True, timeshared=None) -> Path:
     """Write coverage.csv, alpha.json (and the heatmaps) into out_dir; ``timeshared`` is the
-    mix's predicted coverage when executed in epochs (series "mix_epochs")."""
+    mix's predicted coverage when executed in epochs (series "mix_epochs").
+    """
     out = Path(out_dir)
     try:
         out.mkdir(parents=True, exist_ok=True)

@@ -1,5 +1,6 @@
 """``bouncesim run-plan``: plan from START to GOAL and execute the plan on a robot (simulated,
-emulated or a real Create 2)."""
+emulated or a real Create 2).
+"""
 
 from __future__ import annotations
 
@@ -7,13 +8,12 @@ import argparse
 
 import numpy as np
 
-from envs import UserError
-from planners.cells import CellSpace
-from planners.navigation import Navigator
-
 from bouncesim.robots import KINDS, make_robot
 from bouncesim.robots.noise import parse_noise
 from bouncesim.runs.execute import execute
+from envs import UserError
+from planners.cells import CellSpace
+from planners.navigation import Navigator
 
 from .common import add_env_args, load_env, parse_angles, print_json
 from .plan import add_planner_args, parse_config
@@ -26,6 +26,7 @@ ROBOTS = KINDS
 
 
 def register(sub) -> None:
+    """Add the ``run-plan`` sub-command to the CLI's sub-parsers."""
     p = sub.add_parser(
         "run-plan", help="plan from START to GOAL and run the plan on a robot",
         description="Find the shortest bouncing plan from START to GOAL (as `bouncesim plan` "
@@ -102,6 +103,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    """Run ``bouncesim run-plan``: plan, execute on the chosen body; exit status (4: failed)."""
     env = load_env(args)
     cells = CellSpace(env)
     nav = Navigator(cells, parse_angles(args.angles), args.w1, args.w2)

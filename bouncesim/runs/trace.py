@@ -61,6 +61,7 @@ class Trace:
 
     @property
     def rows(self) -> tuple[TraceRow, ...]:
+        """All rows, oldest first."""
         return tuple(self._rows)
 
     def __len__(self) -> int:
@@ -77,6 +78,7 @@ class Trace:
         return [r for r in self._rows if r.event == kind]
 
     def count(self, kind: str) -> int:
+        """Number of rows of one event kind."""
         return sum(1 for r in self._rows if r.event == kind)
 
     def to_frame(self):

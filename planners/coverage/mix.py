@@ -181,10 +181,12 @@ class MixDesign:
 
     @property
     def eps(self) -> float:
+        """Error range ε of the rotation noise [deg]."""
         return self.noise.eps_deg
 
     @property
     def r(self) -> float:
+        """Reliability r of the rotation noise (probability of an exact turn)."""
         return self.noise.r
 
     @property

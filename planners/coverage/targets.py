@@ -147,7 +147,8 @@ def _read_grid(path: Path, lines: list, cs: CellSpace) -> np.ndarray:
 def check_target(target, cs: CellSpace, space: str = "positions") -> np.ndarray:
     """The target b over ``space``, normalised: uniform when ``target`` is None, else the
     given weights (:class:`TargetError` unless there is one finite non-negative weight per
-    cell of the space and their sum is positive)."""
+    cell of the space and their sum is positive).
+    """
     n = space_size(cs, space)
     if target is None:
         return uniform_target(cs, space)

@@ -286,7 +286,8 @@ class OIEmulator:
 
     def _serve_lockstep(self, tr: Transport, final: bool = False) -> None:
         """Lockstep: obey bytes as they come; move the clock only when the adapter asks and
-        every byte it wrote before asking has been read."""
+        every byte it wrote before asking has been read.
+        """
         ls = self.lockstep
         try:
             ready, _, _ = select.select(tr.fds() + [ls.wake_fd], [], [], 0.02 if final else

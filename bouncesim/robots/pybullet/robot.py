@@ -500,7 +500,8 @@ class PyBulletRobot(Robot):
     def _turn_by_encoders(self, angle_deg: float) -> None:
         """Turn until the encoder heading change reaches the target, polling every sensor
         period; the wheel speed ramps down near the target (never below 0.03 m/s, about the
-        Create 2's speed resolution) and the turn stops at the poll nearest the target."""
+        Create 2's speed resolution) and the turn stops at the poll nearest the target.
+        """
         target = math.radians(angle_deg)
         sign = 1.0 if target > 0 else -1.0
         remaining_total = abs(target)
