@@ -15,12 +15,20 @@ configuration cells) plus the cell space, so figures can be drawn from CSV files
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.colors import ListedColormap
 
 from .plots import draw_env, save_figure
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.image import AxesImage
+    from numpy.typing import ArrayLike
+
+    from planners.cells import CellSpace
 
 __all__ = ["draw_map", "heatmap", "diff_heatmap", "save_heatmap", "save_mix_vs_target",
            "save_group_slices", "position_grid"]
@@ -50,8 +58,9 @@ def _extent(cs):
     return (x0, x0 + cols * cs.h, y0, y0 + rows * cs.h)
 
 
-def heatmap(ax, cs, values, title: str | None = None, vmax: float | None = None,
-            cmap: str = "viridis", colorbar: bool = True, label: str = "probability"):
+def heatmap(ax: Axes, cs: CellSpace, values: ArrayLike, title: str | None = None,
+            vmax: float | None = None, cmap: str = "viridis", colorbar: bool = True,
+            label: str = "probability") -> AxesImage:
     """Colour every free position cell by ``values[p]`` on the map; returns the image."""
     grid = position_grid(cs, values)
     vmax = float(np.nanmax(grid)) if vmax is None else vmax

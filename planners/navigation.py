@@ -15,6 +15,7 @@ Examples
 from __future__ import annotations
 
 from collections import OrderedDict
+from collections.abc import Iterable
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -75,8 +76,8 @@ class Navigator:
     cache : int                  number of single-source searches kept for repeated starts
     """
 
-    def __init__(self, cells: CellSpace, angles, w1: float = 1.0, w2: float = 100.0,
-                 cache: int = 64) -> None:
+    def __init__(self, cells: CellSpace, angles: Iterable[float], w1: float = 1.0,
+                 w2: float = 100.0, cache: int = 64) -> None:
         self.cells = cells
         self.roadmap = Roadmap(cells, tuple(angles), w1, w2)
         self._cache: OrderedDict[int, tuple[np.ndarray, np.ndarray]] = OrderedDict()
@@ -110,7 +111,7 @@ class Navigator:
             self._cache.popitem(last=False)
         return dist, pred
 
-    def plan(self, start, goal) -> Route | None:
+    def plan(self, start: int, goal: int) -> Route | None:
         """The minimum-weight plan from configuration ``start`` to ``goal``, or None."""
         s, g = self._check(start, "start"), self._check(goal, "goal")
         if s == g:

@@ -36,12 +36,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from envs import UserError
 from planners.coverage.noise import TurnNoise
 from planners.coverage.noise import as_commands as _commands
+
+if TYPE_CHECKING:
+    from planners.plan import PolicyMix
 
 __all__ = ["NoiseModel", "NoNoise", "SteppedNoise", "GaussianNoise", "parse_noise",
            "noise_for_mix", "noise_and_rng"]
@@ -236,7 +240,7 @@ def parse_noise(text: str, delta_deg: float | None = None) -> NoiseModel:
     raise UserError(f"unknown noise {text!r}; {_FORMS}.")
 
 
-def noise_for_mix(mix, delta_deg: float) -> NoiseModel:
+def noise_for_mix(mix: PolicyMix, delta_deg: float) -> NoiseModel:
     """The §7 noise model of a :class:`planners.plan.PolicyMix` (its eps and r) at Δ [deg]."""
     if mix.eps == 0 or mix.r == 1:
         return NoNoise()

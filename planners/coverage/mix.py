@@ -8,6 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.optimize import minimize
 
 from ..metrics import tv_distance
@@ -58,7 +59,7 @@ def _kkt_on_support(G: np.ndarray, c: np.ndarray, S: np.ndarray) -> np.ndarray:
     return sol[:k]
 
 
-def solve_mix(A, b) -> MixFit:
+def solve_mix(A: ArrayLike, b: ArrayLike) -> MixFit:
     """α = argmin ‖Aα − b‖₂ subject to α ≥ 0, Σα = 1.
 
     Parameters

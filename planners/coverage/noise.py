@@ -28,6 +28,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from envs import UserError
 
@@ -124,8 +125,8 @@ class TurnNoise:
         return steps, p
 
     # ------------------------------------------------------------------ sampling
-    def sample(self, rng: np.random.Generator, commanded_deg, n: int | None = None, *,
-               delta_deg: float) -> np.ndarray:
+    def sample(self, rng: np.random.Generator, commanded_deg: ArrayLike, n: int | None = None,
+               *, delta_deg: float) -> np.ndarray:
         """Actual turns [deg] of commanded turns [deg]: ``n`` draws for a scalar command, or
         one per array element. Randomness comes only from ``rng``.
 

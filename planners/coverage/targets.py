@@ -50,7 +50,7 @@ def space_size(cs: CellSpace, space: str) -> int:
     return cs.P if space == "positions" else cs.N
 
 
-def load_target(path, cs: CellSpace, space: str = "positions") -> np.ndarray:
+def load_target(path: str | Path, cs: CellSpace, space: str = "positions") -> np.ndarray:
     """Read a target file (formats in ``TARGET_FORMATS``) and return it normalised.
 
     Raises :class:`TargetError` with one sentence for an unreadable file, a malformed or

@@ -66,6 +66,7 @@ import socket
 import threading
 import time
 import warnings
+from typing import TYPE_CHECKING, Any
 
 from envs import UserError
 
@@ -73,6 +74,9 @@ from ..base import CREATE2, BumpEvent, Robot, RobotError, RobotSpec
 from . import oi
 from .sensing import SENSOR_IDS, SensingMixin, SensorState
 from .turning import TurningMixin
+
+if TYPE_CHECKING:
+    from .emulator import OIEmulator
 
 __all__ = ["Create2Robot", "SensorState", "SENSOR_IDS"]
 
@@ -134,9 +138,10 @@ class Create2Robot(SensingMixin, TurningMixin, Robot):
     def __init__(self, port: str | None, *, mode: str = "safe", turn: str = "encoders",
                  turn_speed: float = 0.1, turn_control: str = "predictive",
                  turn_tolerance: float = 0.4, sensing: str = "stream", baudrate: int = 115200,
-                 time_scale: float = 1.0, emulator=None, max_distance: float = 10.0,
+                 time_scale: float = 1.0, emulator: OIEmulator | None = None,
+                 max_distance: float = 10.0,
                  watchdog: float = 1.0, link_timeout: float = 0.5, stall_time: float = 0.5,
-                 connect_timeout: float = 2.0, handle_sigterm: bool = True, link=None,
+                 connect_timeout: float = 2.0, handle_sigterm: bool = True, link: Any = None,
                  own_emulator: bool = False, spec: RobotSpec | None = None) -> None:
         self.spec = spec if spec is not None else CREATE2
         if mode not in ("safe", "full"):

@@ -168,7 +168,8 @@ class PyBulletRobot(Robot):
     ...     bot.turn(90)
     """
 
-    def __init__(self, env: Environment | str, noise: NoiseModel | None = None, rng=None, *,
+    def __init__(self, env: Environment | str, noise: NoiseModel | None = None,
+                 rng: np.random.Generator | int | None = None, *,
                  gui: bool = False, record: str | Path | None = None,
                  turn: str = "clock", back_off: float = 0.0,
                  time_step: float = DEFAULT_TIME_STEP,
