@@ -114,6 +114,9 @@ SIZES = (("lab", 24), ("fig1", 24), ("complex", 24), ("complex", 48), ("complex"
 
 
 def ladder(budget: float) -> list[dict]:
+    """Time the pipeline at every size of :data:`SIZES` within ``budget`` [s] per reference run;
+    rows of the table.
+    """
     rows = []
     ref_done = True
     for name, K in SIZES:
@@ -157,6 +160,9 @@ def _fmt_row(row) -> str:
 
 
 def big(with_matrix: bool = True) -> None:
+    """Time the 0.05 m complex case (about 2.4 M configurations at K = 360) and print its peak
+    memory.
+    """
     t0 = time.perf_counter()
     env = envs.load("complex", cell_size=0.05, orientations=360)
     cs = CellSpace(env)
@@ -198,6 +204,7 @@ def big(with_matrix: bool = True) -> None:
 
 
 def main(argv=None) -> int:
+    """Run the coverage benchmark and print its table (exit status)."""
     ap = argparse.ArgumentParser(prog="python -m benchmarks.bench_coverage",
                                  description=__doc__.splitlines()[0])
     ap.add_argument("--big", action="store_true",

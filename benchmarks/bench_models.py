@@ -23,8 +23,14 @@ import numpy as np
 
 import envs
 from planners.cells import CellSpace
-from planners.coverage import (MODELS, TurnNoise, clear_cache, design_mix, model_for,
-                               timeshared_coverage)
+from planners.coverage import (
+    MODELS,
+    TurnNoise,
+    clear_cache,
+    design_mix,
+    model_for,
+    timeshared_coverage,
+)
 from planners.metrics import tv_distance
 
 ANGLES = (30.0, 75.0, 315.0)
@@ -33,6 +39,7 @@ EPS, R = 5.0, 0.8
 
 
 def twin_counts(cs: CellSpace, angle: float, steps: int, seed: int) -> np.ndarray:
+    """Visits per position cell of 200 twin robots at one angle [§7 noise], ``steps`` steps each."""
     from bouncesim.robots.kinematic import KinematicBatch
     from bouncesim.robots.noise import SteppedNoise
     n = 200
@@ -42,6 +49,7 @@ def twin_counts(cs: CellSpace, angle: float, steps: int, seed: int) -> np.ndarra
 
 
 def main(argv=None) -> int:
+    """Run the model benchmark and print its table (exit status)."""
     ap = argparse.ArgumentParser(prog="python -m benchmarks.bench_models",
                                  description=__doc__.split("\n\n")[0])
     ap.add_argument("--env", default="complex")

@@ -23,6 +23,7 @@ from planners.navigation import Navigator
 
 
 def best_of(fn, repeat: int):
+    """Best wall time [s] of ``repeat`` calls of ``fn``, and the last result."""
     times = []
     for _ in range(repeat):
         t0 = time.perf_counter()
@@ -32,6 +33,7 @@ def best_of(fn, repeat: int):
 
 
 def nx_build(cells: CellSpace, angles):
+    """The reference roadmap as an ``nx.DiGraph`` over (z, angle index) nodes (same weights)."""
     G = nx.DiGraph()
     m = len(angles)
     steps = [int(round(a / cells.delta_deg)) for a in angles]
@@ -49,6 +51,9 @@ def nx_build(cells: CellSpace, angles):
 
 
 def nx_from_source(G, cells, angles, s):
+    """Shortest cost and path from configuration ``s`` to every configuration in the networkx
+    graph.
+    """
     dist, paths = nx.multi_source_dijkstra(G, [(s, a) for a in range(len(angles))])
     best: dict[int, tuple[float, list]] = {}
     for (z, _b), d in dist.items():
@@ -65,6 +70,7 @@ def nx_from_source(G, cells, angles, s):
 
 
 def main(argv=None) -> None:
+    """Run the navigation benchmark against networkx and print the table."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--env", default="complex")
     ap.add_argument("--orientations", type=int, default=8)

@@ -81,7 +81,8 @@ def bounce_loop(bot: PyBulletRobot, sim_seconds: float, angle: float, every_step
 
 def scrape_drift(bot: PyBulletRobot, speed: float = 0.2, dist: float = 1.0) -> float:
     """Heading change [deg] over ``dist`` [m] of driving along the wall on the robot's left
-    with the heading 1° into it (an ideal symmetric robot keeps its heading)."""
+    with the heading 1° into it (an ideal symmetric robot keeps its heading).
+    """
     x0, y0, x1, y1 = bot.env.bounds
     bot.place(x0 + 0.25, y1 - bot.body_radius - 0.0005, 1.0)
     bot.drive(speed)
@@ -92,7 +93,8 @@ def scrape_drift(bot: PyBulletRobot, speed: float = 0.2, dist: float = 1.0) -> f
 
 def turn_accuracy(env, mode: str, n: int = 20) -> np.ndarray:
     """|error| [deg] of n bump-and-turn cycles (angles 45, 90, 135, 30, 75, 315 in turn) from
-    the centre of cell 0 facing east."""
+    the centre of cell 0 facing east.
+    """
     angles = [45, 90, 135, 30, 75, 315]
     errs = []
     with PyBulletRobot(env, turn=mode) as bot:
@@ -107,6 +109,7 @@ def turn_accuracy(env, mode: str, n: int = 20) -> np.ndarray:
 
 
 def main(argv=None) -> None:
+    """Run the PyBullet benchmark (real-time factor, bump latency) and print the table."""
     ap = argparse.ArgumentParser(prog="python -m benchmarks.bench_pybullet",
                                  description=__doc__.split("\n\n")[0])
     ap.add_argument("--env", default="lab")

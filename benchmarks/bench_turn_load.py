@@ -39,8 +39,8 @@ ROOM = {"name": "bench-room", "boundary": [[0, 0], [1.7, 0], [1.7, 1.02], [0, 1.
 
 def _emulator_process(conn) -> None:
     """Serve an OI emulator on TCP; answer 'pose' and 'place' requests on ``conn``."""
-    from envs import Environment
     from bouncesim.robots.create2 import OIEmulator
+    from envs import Environment
     emu = OIEmulator(Environment.from_dict(ROOM), transport="tcp").start()
     conn.send(emu.url)
     try:
@@ -79,6 +79,7 @@ def _hdiff(a: float, b: float) -> float:
 
 def measure(url: str, conn, control: str, turns: int, drives: int, jitter: bool,
             rng: np.random.Generator) -> dict:
+    """Turn and drive errors of one control mode over an emulator link (with optional jitter)."""
     def pose():
         conn.send(("pose",))
         return conn.recv()
@@ -114,6 +115,7 @@ def measure(url: str, conn, control: str, turns: int, drives: int, jitter: bool,
 
 
 def main(argv=None) -> None:
+    """Run the turn-under-load benchmark (clock vs encoder turns) and print the table."""
     ap = argparse.ArgumentParser(prog="python -m benchmarks.bench_turn_load",
                                  description=__doc__.split("\n\n")[0])
     ap.add_argument("--turns", type=int, default=8, help="90° turns per cell (default 8)")

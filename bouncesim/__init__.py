@@ -1,0 +1,90 @@
+"""bouncesim: plan, execute and draw bump-and-clock robots from a notebook.
+
+The short list a researcher needs, in the order of a session (every name is imported on
+first use, so ``import bouncesim`` stays light and never needs pybullet or pyserial):
+
+- maps: :func:`load` (``envs.load``), :func:`env_names`;
+- cells: :class:`CellSpace` (``planners.cells``);
+- navigation: :class:`Navigator` (``planners.navigation``), :class:`Plan`;
+- coverage: :func:`design_mix`, :func:`model_for`, :data:`MODELS`, :class:`TurnNoise`
+  (``planners.coverage``), :class:`PolicyMix`, :func:`tv_distance`;
+- robots: :func:`make_robot`, :func:`noise_for_mix` (``bouncesim.robots``);
+- runs: :func:`execute` (``bouncesim.runs.execute``), :class:`Trace`;
+- figures: :func:`draw_trace`, :func:`draw_env`, :func:`heatmap`, :func:`save_figure`.
+
+Examples
+--------
+>>> import bouncesim
+>>> cs = bouncesim.CellSpace(bouncesim.load("lab"))
+>>> route = bouncesim.Navigator(cs, [90, 135]).plan(8, 0)
+>>> str(route.plan)
+'90° 90° 00000000 90° 90°'
+>>> with bouncesim.make_robot("kinematic", cs.env) as bot:
+...     run = bouncesim.execute(route.plan, bot, start=8, goal=0)
+>>> run.success
+True
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+__all__ = ["MODELS", "CellSpace", "Navigator", "Plan", "PolicyMix", "Trace", "TurnNoise",
+           "design_mix", "draw_env", "draw_trace", "env_names", "execute", "heatmap", "load",
+           "make_robot", "model_for", "noise_for_mix", "save_figure", "tv_distance"]
+
+# public name -> (module, attribute): imported on first access (PEP 562)
+_LAZY = {
+    "load": ("envs", "load"),
+    "env_names": ("envs", "names"),
+    "CellSpace": ("planners.cells", "CellSpace"),
+    "Navigator": ("planners.navigation", "Navigator"),
+    "Plan": ("planners.plan", "Plan"),
+    "PolicyMix": ("planners.plan", "PolicyMix"),
+    "MODELS": ("planners.coverage", "MODELS"),
+    "TurnNoise": ("planners.coverage", "TurnNoise"),
+    "design_mix": ("planners.coverage", "design_mix"),
+    "model_for": ("planners.coverage", "model_for"),
+    "tv_distance": ("planners.metrics", "tv_distance"),
+    "make_robot": ("bouncesim.robots.factory", "make_robot"),
+    "noise_for_mix": ("bouncesim.robots.noise", "noise_for_mix"),
+    "execute": ("bouncesim.runs.execute", "execute"),
+    "Trace": ("bouncesim.runs.trace", "Trace"),
+    "draw_trace": ("bouncesim.plots", "draw_trace"),
+    "draw_env": ("bouncesim.plots", "draw_env"),
+    "save_figure": ("bouncesim.plots", "save_figure"),
+    "heatmap": ("bouncesim.coverage_plots", "heatmap"),
+}
+
+if TYPE_CHECKING:  # for type checkers and IDEs only; at run time __getattr__ imports
+    from envs import load
+    from envs import names as env_names
+    from planners.cells import CellSpace
+    from planners.coverage import MODELS, TurnNoise, design_mix, model_for
+    from planners.metrics import tv_distance
+    from planners.navigation import Navigator
+    from planners.plan import Plan, PolicyMix
+
+    from .coverage_plots import heatmap
+    from .plots import draw_env, draw_trace, save_figure
+    from .robots.factory import make_robot
+    from .robots.noise import noise_for_mix
+    from .runs.execute import execute
+    from .runs.trace import Trace
+
+
+def __getattr__(name: str) -> Any:
+    """Import a public name of :data:`__all__` on first access and cache it here."""
+    try:
+        module, attr = _LAZY[name]
+    except KeyError:
+        raise AttributeError(f"module 'bouncesim' has no attribute {name!r}") from None
+    value = getattr(importlib.import_module(module), attr)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    """Module attributes, the lazy public names included."""
+    return sorted(set(globals()) | set(__all__))

@@ -8,11 +8,11 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
-from envs import UserError
-
 from bouncesim.robots.base import RobotError
+from envs import UserError
 
 __all__ = ["build_parser", "main"]
 
@@ -40,23 +40,21 @@ examples:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``bouncesim`` argument parser with every built command registered."""
     parser = argparse.ArgumentParser(
         prog="bouncesim",
         description="Plan, analyse and simulate minimalist bump-and-clock robots.",
         epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMAND_MODULES:
-        try:
-            mod = importlib.import_module(name)
-        except ModuleNotFoundError as exc:
-            if exc.name == name:  # a command that is not built yet
-                continue
-            raise
-        mod.register(sub)
+        importlib.import_module(name).register(sub)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run the ``bouncesim`` command line; returns the exit status (2: a user error)."""
+    # the commands write figure files only: without a user choice, no GUI backend
+    os.environ.setdefault("MPLBACKEND", "Agg")
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):

@@ -1,4 +1,4 @@
-"""Heatmaps of coverage over the position cells, drawn on the map (matplotlib, Agg).
+"""Heatmaps of coverage over the position cells, drawn on the map (matplotlib).
 
 All functions take plain arrays over the P position cells (or group labels over the N
 configuration cells) plus the cell space, so figures can be drawn from CSV files alone.
@@ -15,15 +15,20 @@ configuration cells) plus the cell space, so figures can be drawn from CSV files
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.colors import ListedColormap
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.colors import ListedColormap  # noqa: E402
+from .plots import draw_env, save_figure
 
-from .plots import save_figure  # noqa: E402
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.image import AxesImage
+    from numpy.typing import ArrayLike
+
+    from planners.cells import CellSpace
 
 __all__ = ["draw_map", "heatmap", "diff_heatmap", "save_heatmap", "save_mix_vs_target",
            "save_group_slices", "position_grid"]
@@ -38,20 +43,13 @@ def position_grid(cs, values) -> np.ndarray:
 
 
 def draw_map(ax, env, color: str = "k", lw: float = 1.2) -> None:
-    """Draw the outer wall and obstacles [m]; obstacles are filled grey."""
-    x, y = env.boundary.exterior.xy
-    ax.plot(x, y, color=color, lw=lw)
-    for ob in env.obstacles:
-        ox, oy = ob.exterior.xy
-        ax.fill(ox, oy, color="0.55", zorder=3)
-        ax.plot(ox, oy, color=color, lw=lw * 0.8, zorder=4)
+    """Draw the outer wall and obstacles [m] as lines; obstacles are filled grey.
+
+    :func:`bouncesim.plots.draw_env` in its ``outline`` style, with a margin of 5 % of the
+    room's larger side.
+    """
     x0, y0, x1, y1 = env.bounds
-    pad = 0.05 * max(x1 - x0, y1 - y0)
-    ax.set_xlim(x0 - pad, x1 + pad)
-    ax.set_ylim(y0 - pad, y1 + pad)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
+    draw_env(ax, env, style="outline", color=color, lw=lw, pad=0.05 * max(x1 - x0, y1 - y0))
 
 
 def _extent(cs):
@@ -60,8 +58,9 @@ def _extent(cs):
     return (x0, x0 + cols * cs.h, y0, y0 + rows * cs.h)
 
 
-def heatmap(ax, cs, values, title: str | None = None, vmax: float | None = None,
-            cmap: str = "viridis", colorbar: bool = True, label: str = "probability"):
+def heatmap(ax: Axes, cs: CellSpace, values: ArrayLike, title: str | None = None,
+            vmax: float | None = None, cmap: str = "viridis", colorbar: bool = True,
+            label: str = "probability") -> AxesImage:
     """Colour every free position cell by ``values[p]`` on the map; returns the image."""
     grid = position_grid(cs, values)
     vmax = float(np.nanmax(grid)) if vmax is None else vmax
@@ -78,7 +77,8 @@ def heatmap(ax, cs, values, title: str | None = None, vmax: float | None = None,
 
 def diff_heatmap(ax, cs, values, title: str | None = None):
     """Signed values per position cell (e.g. simulated − predicted) on a symmetric diverging
-    colour scale, with a colour bar; returns the image."""
+    colour scale, with a colour bar; returns the image.
+    """
     lim = float(np.abs(np.asarray(values, dtype=float)).max()) or 1.0
     im = ax.imshow(np.ma.masked_invalid(position_grid(cs, values)), origin="lower",
                    extent=_extent(cs), cmap="RdBu_r", vmin=-lim, vmax=lim,
@@ -100,7 +100,8 @@ def save_heatmap(path, cs, values, title: str | None = None, vmax: float | None 
 def save_mix_vs_target(path, cs, mixed, target, title: str | None = None,
                        label: str = "Aα") -> Path:
     """Three panels: mixed coverage (``label``, default Aα), target b (same colour scale)
-    and their difference."""
+    and their difference.
+    """
     mixed = np.asarray(mixed, dtype=float)
     target = np.asarray(target, dtype=float)
     vmax = float(max(mixed.max(), target.max()))

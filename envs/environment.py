@@ -30,6 +30,7 @@ from typing import Any
 
 import numpy as np
 import shapely
+from numpy.typing import ArrayLike
 from shapely.geometry import Polygon
 from shapely.validation import explain_validity
 
@@ -282,7 +283,7 @@ class Environment:
         rows, cols = grid_shape(self.bounds, self.cell_size)
         return int(rows), int(cols)
 
-    def points_free(self, points) -> np.ndarray:
+    def points_free(self, points: ArrayLike) -> np.ndarray:
         """Whether the robot disk centred at each point lies inside E (docs/model.md §3).
 
         Parameters
@@ -302,7 +303,7 @@ class Environment:
             out[inside] = d >= self.robot_radius - self.tol
         return out
 
-    def segments_free(self, starts, ends) -> np.ndarray:
+    def segments_free(self, starts: ArrayLike, ends: ArrayLike) -> np.ndarray:
         """Whether the disk can slide along each segment [start, end] without a wall.
 
         The segment is free when it stays at distance >= radius - tol from every wall and its

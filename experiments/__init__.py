@@ -1,0 +1,1 @@
+"""Experiments: thin scripts that write ``results/<name>/`` (CSV, config.json, figures)."""

@@ -1,4 +1,4 @@
-"""Which model's policy mix α actually delivers the target coverage?
+"""Which model's policy mix α delivers the target coverage: designed, then executed.
 
 Table I's setting (the complex environment, Φ = {30°, 75°, 315°}, ε = 5°, r = 0.8, 360
 orientations, uniform target over the position cells): each coverage model (``--models``,
@@ -109,6 +109,7 @@ def draw_figure(out: Path) -> Path:
 
 
 def main(argv=None) -> int:
+    """Parse the command line and run the experiment; exit status."""
     p = experiment_parser(NAME, __doc__.split("\n\n")[0])
     add_models_arg(p, "step,sampled,event", "each designs its own mix")
     p.add_argument("--orientations", type=int, default=None, help="K (default 360; quick 72)")

@@ -42,6 +42,7 @@ def add_models_arg(p: argparse.ArgumentParser, default: str, what: str) -> None:
 
 
 def output_dir(path: Path) -> Path:
+    """Create ``path`` (and parents) if needed; returns it."""
     path = Path(path)
     path.mkdir(parents=True, exist_ok=True)
     return path

@@ -52,7 +52,8 @@ def _num(x):
 
 def write_csvs(out: Path, cs: CellSpace, res, conf_mix) -> None:
     """table1.csv, coverage.csv and groups.csv from a MixDesign (positions target) and the
-    MixFit of the same chains against the uniform target over configurations."""
+    MixFit of the same chains against the uniform target over configurations.
+    """
     rows = []
     for a, al, alc, pa in zip(res.angles, res.alpha, conf_mix.alpha, PAPER_ALPHA):
         ac = res.per_angle[res.angles.index(a)]
@@ -85,9 +86,8 @@ def draw_figures(out: Path, cs: CellSpace) -> list[Path]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from bouncesim.plots import save_figure
-
     from bouncesim.coverage_plots import heatmap, save_group_slices, save_mix_vs_target
+    from bouncesim.plots import save_figure
     table = pd.read_csv(out / "table1.csv")
     cov = pd.read_csv(out / "coverage.csv", dtype={"angle": str})
     groups = pd.read_csv(out / "groups.csv")
@@ -147,6 +147,7 @@ def compare(table: pd.DataFrame, column: str = "alpha") -> list[str]:
 
 
 def main(argv=None) -> int:
+    """Parse the command line and run the experiment; exit status."""
     ap = experiment_parser(NAME, "Policy mix over 30°, 75°, 315° on the complex environment "
                            "(the paper's Table I) with Figs. 9-11 analogues.")
     add_models_arg(ap, "step", "each model after the paper's step model adds a column "

@@ -189,9 +189,8 @@ def draw_figures(out: Path) -> list[Path]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from bouncesim.plots import save_figure
-
     from bouncesim.coverage_plots import diff_heatmap, heatmap
+    from bouncesim.plots import save_figure
 
     out = Path(out)
     preds = pd.read_csv(out / "predictions.csv", dtype={"policy": str})
@@ -246,6 +245,7 @@ def draw_figures(out: Path) -> list[Path]:
 
 # ----------------------------------------------------------------------------- main
 def main(argv=None) -> int:
+    """Parse the command line and run the experiment; exit status."""
     p = experiment_parser(NAME, __doc__.split("\n\n")[0])
     p.add_argument("--envs", default=None,
                    help=f"comma-separated environments (default {','.join(ENVS)}; quick: lab,fig1)")

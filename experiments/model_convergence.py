@@ -71,6 +71,7 @@ def predict_q(cs: CellSpace, angle: float, model: str, settings: dict, rng) -> n
 
 
 def draw_figure(out: Path) -> Path:
+    """Draw convergence.png (TV against resolution and time) from the CSVs in ``out``."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -117,6 +118,7 @@ def draw_figure(out: Path) -> Path:
 
 
 def main(argv=None) -> int:
+    """Parse the command line and run the experiment; exit status."""
     p = experiment_parser(NAME, __doc__.split("\n\n")[0])
     p.add_argument("--envs", default=None, help="comma-separated (default lab,complex)")
     p.add_argument("--steps", type=int, default=None,

@@ -31,13 +31,15 @@ def make_robot(backend: str, env, noise, rng):
     return robots.make_robot(backend, env, noise=noise, rng=rng, **options)
 
 
-def execute_fig3(env, cells, routes, table, args, out):
-    """Run every plan on every backend: one noise-free run, then ``n`` noisy seeds per
-    noise level. Returns ({(plan, backend): noise-free trace frame}, config additions)."""
-    n_noisy = 3 if args.quick else 20
-    sigmas = (2.0,) if args.quick else (2.0, 5.0)
+def execute_fig3(env, cells, routes, table, config, out):
+    """Run every plan on every backend: one noise-free run, then ``n`` noisy seeds per level.
+
+    ``config`` is the :class:`experiments.nav_fig3.Config` (its ``quick`` and ``seed``).
+    Returns ({(plan, backend): noise-free trace frame}, config additions).
+    """
+    n_noisy = 3 if config.quick else 20
+    sigmas = (2.0,) if config.quick else (2.0, 5.0)
     backends = [b for b in BACKENDS if _available(b)]
-    root = np.random.default_rng(args.seed)
     jobs = []
     for (_, row), route in zip(table.iterrows(), routes):
         if route is None:
@@ -48,8 +50,7 @@ def execute_fig3(env, cells, routes, table, args, out):
                 for i in range(n_noisy):
                     jobs.append((row["plan"], route, backend, f"gauss:{sigma:g}",
                                  GaussianNoise(sigma), i + 1))
-    seeds = np.random.SeedSequence(args.seed).spawn(len(jobs))
-    del root
+    seeds = np.random.SeedSequence(config.seed).spawn(len(jobs))
     rows, traces = [], {}
     for (plan_label, route, backend, noise_name, noise, rep), ss in zip(
             tqdm(jobs, desc="executing Fig. 3 plans", unit="run"), seeds):
@@ -60,7 +61,7 @@ def execute_fig3(env, cells, routes, table, args, out):
         finally:
             robot.close()
         rows.append({"plan": plan_label, "backend": backend, "noise": noise_name,
-                     "rep": rep, "seed": args.seed, "seed_entropy": str(ss.entropy),
+                     "rep": rep, "seed": config.seed, "seed_entropy": str(ss.entropy),
                      "spawn_key": ss.spawn_key[0],
                      "success": bool(run.success), "reason": run.reason,
                      "final_x": run.final_pose[0], "final_y": run.final_pose[1],

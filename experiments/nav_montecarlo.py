@@ -109,7 +109,8 @@ def heading_class(start_heading: float, plan) -> str:
 
 def sample_pairs(name: str, n: int, rng: np.random.Generator) -> pd.DataFrame:
     """``n`` reachable ordered pairs (start ≠ goal) drawn uniformly without replacement, with
-    their shortest plans."""
+    their shortest plans.
+    """
     _, cells = _world(name)
     ap = Navigator(cells, ANGLES, W1, W2).all_pairs()
     W = ap.weights.copy()
@@ -188,7 +189,8 @@ def length_bin(length) -> pd.Series:
 
 def summarise(runs: pd.DataFrame, by: list[str]) -> pd.DataFrame:
     """Success rate with a 95 % Wilson interval per group, plus mean deviations and median
-    final position error."""
+    final position error.
+    """
     runs = runs.copy()
     if "length_bin" in by:
         labels = length_bin([b + 1 for b in LENGTH_BINS[:-1]]).tolist()     # in bin order
@@ -256,7 +258,8 @@ def draw(runs_csv: Path, path: Path) -> None:
 
 def draw_by_length(runs_csv: Path, path: Path, backend: str = "kinematic") -> None:
     """Success rate against plan length (binned), one curve per noise level, one panel per
-    environment, for one backend, from runs.csv."""
+    environment, for one backend, from runs.csv.
+    """
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -300,6 +303,7 @@ def draw_by_length(runs_csv: Path, path: Path, backend: str = "kinematic") -> No
 
 # ============================================================================ main
 def main(argv=None) -> int:
+    """Parse the command line and run the experiment; exit status."""
     p = experiment_parser("nav_montecarlo", __doc__.splitlines()[0])
     p.add_argument("--pairs", type=int, default=None,
                    help="pairs per environment (default 300; 12 with --quick)")

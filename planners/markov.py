@@ -113,10 +113,12 @@ class ChainAnalysis:
 
     @property
     def n_states(self) -> int:
+        """Number of states of the chain."""
         return int(self.pi.shape[0])
 
     @property
     def n_groups(self) -> int:
+        """Number of persistent groups."""
         return len(self.groups)
 
     def group_labels(self) -> np.ndarray:
@@ -271,7 +273,7 @@ def _start_vector(n: int, start) -> np.ndarray:
 
 
 def _group_indicator(n: int, groups) -> tuple[np.ndarray, sp.csr_matrix]:
-    """labels (N,) with -1 for transient states and the (N, G) 0/1 indicator matrix."""
+    """Labels (N,) with -1 for transient states and the (N, G) 0/1 indicator matrix."""
     lab = np.full(n, -1, dtype=np.int64)
     for g, idx in enumerate(groups):
         lab[np.asarray(idx, dtype=np.int64)] = g

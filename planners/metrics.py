@@ -10,11 +10,12 @@ experiments.
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 __all__ = ["tv_distance"]
 
 
-def tv_distance(a, b, *, normalise: bool = True) -> float:
+def tv_distance(a: ArrayLike, b: ArrayLike, *, normalise: bool = True) -> float:
     """Total-variation distance ½ Σ |a − b| between two non-negative vectors.
 
     Parameters

@@ -15,6 +15,7 @@ Examples
 from __future__ import annotations
 
 from collections import OrderedDict
+from collections.abc import Iterable
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -51,9 +52,11 @@ class Route:
 
     @property
     def angles_used(self) -> int:
+        """Number of distinct bouncing angles in the plan."""
         return self.plan.angles_used
 
     def to_json(self) -> dict:
+        """The route as a JSON-ready dict (plan as a label list and as text, cost, path)."""
         return {"start": self.start, "goal": self.goal, "plan": self.plan.to_list(),
                 "plan_text": str(self.plan), "cost": _num(self.cost),
                 "angles_used": self.angles_used, "path": list(self.path)}
@@ -79,8 +82,8 @@ class Navigator:
         :mod:`planners.resources`.
     """
 
-    def __init__(self, cells: CellSpace, angles, w1: float = 1.0, w2: float = 100.0,
-                 cache: int = 64, max_memory=DEFAULT_MAX_MEMORY) -> None:
+    def __init__(self, cells: CellSpace, angles: Iterable[float], w1: float = 1.0,
+                 w2: float = 100.0, cache: int = 64, max_memory=DEFAULT_MAX_MEMORY) -> None:
         self.cells = cells
         self.roadmap = Roadmap(cells, tuple(angles), w1, w2)
         est = check_memory(cells, self.roadmap.angles, task="plan", searches=1,
@@ -94,6 +97,7 @@ class Navigator:
 
     @property
     def angles(self) -> tuple:
+        """The bouncing angles Φ [deg] of the roadmap's layers."""
         return self.roadmap.angles
 
     def _check(self, z, what: str) -> int:
@@ -119,7 +123,7 @@ class Navigator:
             self._cache.popitem(last=False)
         return dist, pred
 
-    def plan(self, start, goal) -> Route | None:
+    def plan(self, start: int, goal: int) -> Route | None:
         """The minimum-weight plan from configuration ``start`` to ``goal``, or None."""
         s, g = self._check(start, "start"), self._check(goal, "goal")
         if s == g:
@@ -219,6 +223,7 @@ class AllPairs:
 
     @property
     def N(self) -> int:
+        """Number of configurations N."""
         return self.roadmap.N
 
     def route(self, i: int, j: int) -> Route | None:
@@ -235,6 +240,7 @@ class AllPairs:
 
     @cached_property
     def reachable_fraction(self) -> float:
+        """Fraction of the ordered pairs (i ≠ j) with a plan."""
         N = self.N
         return float((self.weights[~np.eye(N, dtype=bool)] >= 0).mean()) if N > 1 else 1.0
 

@@ -151,6 +151,7 @@ class Plan:
         return out
 
     def to_list(self) -> list:
+        """The observation labels as a list (0 = step, else the angle [deg])."""
         return list(self.labels)
 
 

@@ -112,6 +112,7 @@ class MemoryEstimate:
 
     @property
     def total(self) -> float:
+        """Traced plus native bytes: the whole estimated peak."""
         return self.traced + self.native
 
 
@@ -150,7 +151,8 @@ def roadmap_bytes(N: int, m: int, forward=None) -> MemoryEstimate:
 
 def search_bytes(N: int, m: int, searches: int = 1) -> MemoryEstimate:
     """Single-source Dijkstra runs kept by ``Navigator`` (distances float64, predecessors
-    int32 per node; the heap is native)."""
+    int32 per node; the heap is native).
+    """
     nodes = (m + 1) * N
     return MemoryEstimate("the searches", searches * nodes * (_F64 + _I32),
                           nodes * _HEAP_NATIVE)
@@ -158,7 +160,8 @@ def search_bytes(N: int, m: int, searches: int = 1) -> MemoryEstimate:
 
 def all_pairs_bytes(N: int, m: int) -> MemoryEstimate:
     """``AllPairs``: the multi-source Dijkstra's (N, (m + 1) N) distances and predecessors,
-    then the pointer jumping's per-(source, layer node) arrays."""
+    then the pointer jumping's per-(source, layer node) arrays.
+    """
     nodes = (m + 1) * N
     M = m * N
     traced = (N * nodes * (_F64 + _I32)                   # dist, pred
@@ -230,7 +233,8 @@ def check_memory(cells, angles=(), *, task: str = "plan", eps_deg: float = 0.0,
                  model: str = "step", settings=None, searches: int = _SEARCH_CACHE,
                  max_memory=DEFAULT_MAX_MEMORY) -> MemoryEstimate:
     """Raise :class:`envs.UserError` (one sentence) when :func:`estimate` exceeds
-    ``max_memory`` (bytes, or a size such as ``"2G"``; None: no limit); else return it."""
+    ``max_memory`` (bytes, or a size such as ``"2G"``; None: no limit); else return it.
+    """
     est = estimate(cells, angles, task=task, eps_deg=eps_deg, model=model,
                    settings=settings, searches=searches)
     _refuse(est, max_memory, f"{_TASK_WORDS[task]} in {cells.env.name} with "
@@ -241,7 +245,8 @@ def check_memory(cells, angles=(), *, task: str = "plan", eps_deg: float = 0.0,
 def max_grid_cells(max_memory=DEFAULT_MAX_MEMORY) -> int:
     """The largest grid (rows x columns) whose validation fits in ``max_memory``: what to
     pass as ``envs.load(..., max_grid_cells=)``, which refuses larger grids before building
-    them."""
+    them.
+    """
     return max(1, int(parse_memory(max_memory) // grid_bytes(1, 1).total))
 
 

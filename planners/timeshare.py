@@ -93,6 +93,7 @@ class DelayChain:
 
     @property
     def n(self) -> int:
+        """Number of states of the delay chain."""
         return int(self.reward.shape[0])
 
     @classmethod
@@ -171,7 +172,8 @@ class TimeShared:
     def _epoch(self, WT, hist: np.ndarray, steps: int, inject=None):
         """Run ``steps`` steps of one angle from boundary state ``hist`` (D, n).
 
-        Returns (end state (D, n), Σ_t v_t (n,) float64)."""
+        Returns (end state (D, n), Σ_t v_t (n,) float64).
+        """
         D, n = self.D, self.chain.n
         buf = np.zeros((2 * D, n), dtype=np.float32)
         buf[1:D + 1] = hist                  # row 0 is written at t = 0 before it is read

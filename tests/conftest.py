@@ -11,7 +11,8 @@ from envs import Environment
 def room(cols: int, rows: int, obstacles=(), K: int = 8, h: float = 0.34,
          name: str = "room") -> Environment:
     """A cols x rows cell rectangle (cell h = 2 r) with grid-aligned obstacles given as
-    (i0, j0, i1, j1) cell ranges (inclusive-exclusive)."""
+    (i0, j0, i1, j1) cell ranges (inclusive-exclusive).
+    """
     W, H = cols * h, rows * h
     obs = [[[i0 * h, j0 * h], [i1 * h, j0 * h], [i1 * h, j1 * h], [i0 * h, j1 * h]]
            for (i0, j0, i1, j1) in obstacles]

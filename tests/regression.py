@@ -141,9 +141,9 @@ def twin_histogram(cs: CellSpace, angle: float, seed: int) -> np.ndarray:
 
 
 def pybullet_histogram(cs: CellSpace, angle: float, seed: int) -> np.ndarray:
-    from bouncesim.runs.execute import execute
     from bouncesim.robots.noise import SteppedNoise
     from bouncesim.robots.pybullet import PyBulletRobot
+    from bouncesim.runs.execute import execute
     s = TV_SETTING
     counts = np.zeros(cs.P, dtype=np.int64)
     for rng in np.random.default_rng(seed).spawn(s["pybullet_runs"]):
@@ -159,7 +159,8 @@ def pybullet_histogram(cs: CellSpace, angle: float, seed: int) -> np.ndarray:
 def compute_tv(pybullet: bool = True, floors: bool = True) -> dict:
     """TV(predicted, simulated) per angle (and the noise floors when ``floors``): the twin
     against every model of ``TV_SETTING["models"]`` (keys ``twin`` for the step model,
-    ``twin_<model>`` for the others), PyBullet against the step model."""
+    ``twin_<model>`` for the others), PyBullet against the step model.
+    """
     s = TV_SETTING
     cs = CellSpace(envs.load(s["env"], orientations=s["orientations"]))
     noise = TurnNoise(s["eps"], s["r"])

@@ -23,7 +23,8 @@ __all__ = ["angle_lists", "angle_lists_for", "angle_texts", "angles_for", "env_d
 # ----------------------------------------------------------------------------- numbers
 def mostly(good, bad, odds: int = 6):
     """``good`` in ``odds`` examples out of ``odds + 1``, else ``bad`` (a proportional
-    choice: ``st.one_of`` does not weight its branches evenly)."""
+    choice: ``st.one_of`` does not weight its branches evenly).
+    """
     return st.sampled_from([True] * odds + [False]).flatmap(lambda ok: good if ok else bad)
 
 
@@ -98,7 +99,8 @@ _malformed = st.one_of(st.none(), st.integers(), st.text(max_size=5),
 
 def polygons(good_only: bool = False):
     """Polygons: convex, star-shaped, rectangles; unless ``good_only`` also
-    self-intersecting, degenerate, collinear, NaN/huge coordinates and malformed values."""
+    self-intersecting, degenerate, collinear, NaN/huge coordinates and malformed values.
+    """
     good = st.one_of(_rectangle(), _star(True), _star(False))
     if good_only:
         return good
@@ -110,7 +112,8 @@ def polygons(good_only: bool = False):
 @st.composite
 def _obstacle_for(draw, boundary, good: bool = False):
     """An obstacle inside, crossing, outside or touching the boundary's bounding box
-    (``good``: inside or touching only)."""
+    (``good``: inside or touching only).
+    """
     xs = [v[0] for v in boundary]
     ys = [v[1] for v in boundary]
     x0, x1, y0, y1 = min(xs), max(xs), min(ys), max(ys)
@@ -159,7 +162,8 @@ def env_dicts(draw, good_only: bool = False, max_K: int | None = None):
     radius 0.1-0.2 m, cells from 0.4 r to 2.5 r but at least 0.16 m, K 4-16 with odd
     values), otherwise broken in one way: a bad boundary (self-intersecting, degenerate,
     collinear, NaN or huge coordinates, malformed), an obstacle crossing, outside or
-    touching the boundary, a bad radius, cell size or K (tiny or huge), or a bad key."""
+    touching the boundary, a bad radius, cell size or K (tiny or huge), or a bad key.
+    """
     fault = None if good_only else draw(st.sampled_from(_FAULTS))
     boundary = draw(st.one_of(_rectangle(wmin=0.8), _star(True), _star(False)))
     obstacles = draw(st.lists(_obstacle_for(boundary, good=True), max_size=2))

@@ -1,5 +1,6 @@
 """The cell model and step table (docs/model.md §3-5) against hand computation and a per-cell
-loop."""
+loop.
+"""
 
 from __future__ import annotations
 

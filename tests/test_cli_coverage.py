@@ -108,7 +108,8 @@ def test_user_errors_exit_2_with_one_sentence(tmp_path, capsys, argv, match):
 def test_epoch_reports_the_mix_as_executed(tmp_path, capsys):
     """--epoch: the time-shared prediction next to A alpha, consistent across the outputs.
     The target ½(q_90 + q_135) makes alpha = (½, ½); switching the angle every step (1-step
-    epochs) is then the chain ½(W_90 + W_135), whose coverage differs from A alpha."""
+    epochs) is then the chain ½(W_90 + W_135), whose coverage differs from A alpha.
+    """
     first = tmp_path / "first"
     assert main(["coverage", "lab", "--angles", "90,135", "--eps", "45", "--r", "0.8",
                  "--out", str(first), "--no-plots"]) == 0

@@ -1,14 +1,14 @@
 """The Robot conformance suite (bouncesim.robots.conformance) run against every simulated
-backend."""
+backend.
+"""
 
 from __future__ import annotations
 
 import pytest
 
-from bouncesim.robots.kinematic import KinematicRobot
-
 from bouncesim.robots import ConformanceError, check_robot
 from bouncesim.robots.conformance import CHECKS
+from bouncesim.robots.kinematic import KinematicRobot
 
 
 def _kinematic(env):

@@ -1,5 +1,6 @@
 """Coverage chains of bouncing robots and the policy mix (planners.coverage: the noise, the
-step model, targets and the mix)."""
+step model, targets and the mix).
+"""
 
 from __future__ import annotations
 
@@ -13,9 +14,18 @@ import pytest
 import envs
 from envs import Environment, UserError
 from planners.cells import AngleError, CellSpace
-from planners.coverage import (StepModel, StepSettings, TargetError, TurnNoise, design_mix,
-                               load_target, model_for, solve_mix, transition_matrix,
-                               uniform_target)
+from planners.coverage import (
+    StepModel,
+    StepSettings,
+    TargetError,
+    TurnNoise,
+    design_mix,
+    load_target,
+    model_for,
+    solve_mix,
+    transition_matrix,
+    uniform_target,
+)
 from planners.coverage import mix as cov_mix
 
 

@@ -20,9 +20,19 @@ from bouncesim.robots.kinematic import KinematicBatch
 from bouncesim.robots.noise import SteppedNoise
 from envs import Environment, UserError
 from planners.cells import CellSpace
-from planners.coverage import (MODELS, EventModel, EventSettings, SampledModel, SampledSettings,
-                               StepModel, TurnNoise, design_mix, flight_steps, model_for,
-                               timeshared_coverage)
+from planners.coverage import (
+    MODELS,
+    EventModel,
+    EventSettings,
+    SampledModel,
+    SampledSettings,
+    StepModel,
+    TurnNoise,
+    design_mix,
+    flight_steps,
+    model_for,
+    timeshared_coverage,
+)
 from planners.metrics import tv_distance as tv
 from planners.plan import PolicyMix
 
@@ -41,7 +51,8 @@ def _rect(w, h):
 def twin_q(env, angle, eps=5.0, r=0.8, robots=1000, burn=1000, steps=2000, seed=0,
            epoch=None):
     """Step-sampled twin histogram after a burn-in (counted steps = robots x steps); the
-    angle may be a PolicyMix, run in epochs of ``epoch`` steps."""
+    angle may be a PolicyMix, run in epochs of ``epoch`` steps.
+    """
     cs = CellSpace(env)
     b = KinematicBatch(env, robots, np.random.default_rng(seed), cells=cs)
     noise = SteppedNoise(eps, r, cs.delta_deg)
@@ -71,7 +82,8 @@ def test_event_corridor_90_hand_computed():
     """φ = 90° without noise: one cycle east → north → west → south. Flights of 0.76 m give
     2 forward steps + a bump step, flights of 0.06 m a bump step only:
     cell 0: west-end bump, south bump, first east step = 3; cell 1: 2 forward steps;
-    cell 2: east-end bump, north bump, first west step = 3 → q = (3, 2, 3)/8."""
+    cell 2: east-end bump, north bump, first west step = 3 → q = (3, 2, 3)/8.
+    """
     cs = CellSpace(_env(CORRIDOR))
     assert cs.P == 3
     res = EventModel(cs, EventSettings(bin_length=0.01)).analyse(90)
@@ -87,7 +99,8 @@ def test_event_corridor_180_classes_weighted_by_the_start():
     """φ = 180°: east/west starts (6 of 12) end in the end-to-end shuttle (steps per round
     trip: cells 0 and 2 get 1 forward + 1 bump, cell 1 gets 2 forward: uniform), each
     north/south start bounces in its own cell. q = 1/2 · uniform + 1/6 per cell = 1/3.
-    The closed classes are weighted by absorption from the cell-centre starts."""
+    The closed classes are weighted by absorption from the cell-centre starts.
+    """
     cs = CellSpace(_env(CORRIDOR))
     res = EventModel(cs, EventSettings(bin_length=0.01)).analyse(180)
     np.testing.assert_allclose(res.q, [1 / 3] * 3, atol=1e-9)
@@ -164,7 +177,8 @@ EMPTY = _rect(2.72, 2.04)
 def test_event_matches_twin_in_the_empty_room():
     """Empty 2.72 × 2.04 m room, K = 360, Φ = {30, 75, 315}, ε = 5°, r = 0.8.
     Twin: 1000 robots, 1000 burn-in + 2000 counted steps (2e6 steps); seed-to-seed TV of
-    such histograms 0.002-0.007. Measured event TV 0.004-0.010; step model 0.37-0.51."""
+    such histograms 0.002-0.007. Measured event TV 0.004-0.010; step model 0.37-0.51.
+    """
     env = _env(EMPTY, K=360, name="empty")
     cs = CellSpace(env)
     for a in (30, 75, 315):
@@ -183,7 +197,8 @@ def test_event_matches_twin_catalogue(name):
     twin leaks into it from the rest of the room at ~1e-4 per step and was never seen to
     leave it), so the limit needs a long burn-in: 500 robots, 40000 burn-in + 4000
     counted steps (2e6 steps; floor 0.006).
-    Measured event TV 0.007-0.017 (step model 0.24-0.72)."""
+    Measured event TV 0.007-0.017 (step model 0.24-0.72).
+    """
     env = envs.load(name, orientations=360, cell_size=0.34)
     cs = CellSpace(env)
     for a in (30, 75, 315):
@@ -231,7 +246,8 @@ def test_event_matches_twin_random_envs(seed):
     polygonal hole, K = 360. Every angle, and the event model's α mix for the uniform
     target executed in 500-step epochs (its time-shared prediction, planners.timeshare).
     Twin: 1000 robots, 2000 burn-in + 3000 counted steps; two seeds of such mix histograms
-    differ by 0.002-0.007. Measured mix TV 0.005-0.016 (Σ α_i q_i: 0.006-0.038)."""
+    differ by 0.002-0.007. Measured mix TV 0.005-0.016 (Σ α_i q_i: 0.006-0.038).
+    """
     rng = np.random.default_rng(seed)
     angles = (30.0, 75.0, 315.0)
     for env in (_random_rectilinear(rng), _random_polygon(rng)):

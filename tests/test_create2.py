@@ -84,7 +84,8 @@ def wait_until(pred, timeout: float = 10.0) -> bool:
 
 def assert_stopped(emu: OIEmulator) -> None:
     """The emulated wheels are stopped and the body stays put (in lockstep the clock stands
-    still, so only the wheel command says anything)."""
+    still, so only the wheel command says anything).
+    """
     assert wait_until(lambda: emu.wheel_command == (0, 0)), \
         f"the robot is still driving: {emu.wheel_command}"
     x0, y0, h0 = emu.true_pose()
@@ -525,7 +526,8 @@ def test_docstring_examples():
 # ---------------------------------------------------------------- lockstep determinism
 def _lockstep_session(transport: str, lockstep: bool = True) -> tuple:
     """A short run with every kind of event: drive to a bump, turns both ways, a timed drive,
-    lost and garbled bytes (seeded). Returns what the adapter read and where the body went."""
+    lost and garbled bytes (seeded). Returns what the adapter read and where the body went.
+    """
     readings = []
     with rig(transport=transport, lockstep=lockstep,
              emu_kw={"rng": np.random.default_rng(5)}) as (emu, bot):

@@ -9,10 +9,10 @@ import pytest
 
 import envs
 from bouncesim.cli import main
-from bouncesim.runs.execute import execute
+from bouncesim.robots.base import CREATE2, BumpEvent, Robot, RobotError
 from bouncesim.robots.kinematic import KinematicBatch, KinematicRobot
 from bouncesim.robots.noise import GaussianNoise, SteppedNoise
-from bouncesim.robots.base import CREATE2, BumpEvent, Robot, RobotError
+from bouncesim.runs.execute import execute
 from bouncesim.runs.trace import Trace
 from envs import UserError
 from planners.cells import CellSpace
@@ -34,7 +34,8 @@ def lab_cells(lab):
 
 class InterfaceOnly(Robot):
     """A robot that exposes nothing but the Robot interface (a hardware stand-in): it wraps a
-    kinematic twin but has no place() and no true_pose()."""
+    kinematic twin but has no place() and no true_pose().
+    """
 
     def __init__(self, inner: Robot) -> None:
         self._inner = inner
@@ -233,7 +234,8 @@ def test_trace_csv_round_trip(tmp_path, lab):
 # ------------------------------------------------------------------ policy mixes
 def test_mix_run_on_the_twin_matches_the_batch(lab, lab_cells):
     """One twin driven through the Robot interface and one batch robot from the same start
-    with the same noise stream visit exactly the same cells."""
+    with the same noise stream visit exactly the same cells.
+    """
     noise = SteppedNoise(45, 0.7, 45)
     for z0 in (5, 100, 250):
         bot = KinematicRobot(lab, noise, np.random.default_rng(z0))

@@ -22,6 +22,7 @@ from pathlib import Path
 from unittest import mock
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
@@ -32,8 +33,13 @@ from bouncesim.robots.noise import parse_noise
 from bouncesim.runs.execute import execute
 from envs import Environment, UserError
 from planners.cells import CellSpace
-from planners.coverage import (TurnNoise, default_settings, design_mix, model_for,
-                               timeshared_coverage)
+from planners.coverage import (
+    TurnNoise,
+    default_settings,
+    design_mix,
+    model_for,
+    timeshared_coverage,
+)
 from planners.navigation import Navigator
 from planners.plan import Plan, PolicyMix
 
@@ -80,7 +86,8 @@ def assert_sentence(msg: str) -> None:
 
 def api(fn, *args, **kw):
     """fn(*args, **kw) under the time guard; a UserError is returned (after checking its
-    message), anything else propagates and fails the example."""
+    message), anything else propagates and fails the example.
+    """
     with time_guard():
         try:
             out = fn(*args, **kw)
@@ -122,7 +129,8 @@ def build_env(data) -> Environment | None:
 @contextlib.contextmanager
 def env_file(data):
     """A temporary folder holding the env file, also the working folder (so that a stray
-    relative output lands there)."""
+    relative output lands there).
+    """
     with tempfile.TemporaryDirectory() as d, contextlib.chdir(d):
         path = Path(d) / "env.json"
         path.write_text(json.dumps(data) if not isinstance(data, str) else data)
@@ -131,7 +139,8 @@ def env_file(data):
 
 def env_argv(path: str, draw) -> list[str]:
     """ENV plus its options: the fuzz's --max-memory, and in about one example in four an
-    override (sometimes a bad one) of --cell-size, --orientations or --max-memory."""
+    override (sometimes a bad one) of --cell-size, --orientations or --max-memory.
+    """
     kind = draw(st.sampled_from([None] * 9 + ["max-memory", "cell-size", "orientations"]))
     argv = [path, "--max-memory=" + (LIMIT if kind != "max-memory" else
                                      draw(st.sampled_from(["1K", "x", "0", "2G", "1e400"])))]
@@ -403,6 +412,8 @@ def test_tiny_reliability_is_a_user_error():
     # found by make fuzz: 0 < r below ~1e-16 joined persistent groups by turns of no
     # numerical weight, the stationary solve was singular and q NaN
     for r in (1e-20, 1 - 1e-12):
-        assert isinstance(api(TurnNoise, 90.0, r), UserError)
+        with pytest.raises(UserError) as err:
+            TurnNoise(90.0, r)
+        assert_sentence(str(err.value))
     assert np.isfinite(design_mix(model_for(CellSpace(env)), [90.0],
                                   TurnNoise(90.0, 1e-6)).mixed_q()).all()

@@ -1,5 +1,6 @@
 """The kinematic twin: hand-computed bounces, an independent ray-cast reference, the polling
-default, determinism, and the batch against the discrete step table (docs/model.md §5, §8-9)."""
+default, determinism, and the batch against the discrete step table (docs/model.md §5, §8-9).
+"""
 
 from __future__ import annotations
 
@@ -10,11 +11,17 @@ import pytest
 import shapely
 
 import envs
-from envs import UserError
-from bouncesim.robots.kinematic import (CONTACT_GAP, KinematicBatch, KinematicRobot, LocalCaster,
-                                 WallCaster, unit)
-from bouncesim.robots.noise import GaussianNoise, SteppedNoise
 from bouncesim.robots.base import Robot
+from bouncesim.robots.kinematic import (
+    CONTACT_GAP,
+    KinematicBatch,
+    KinematicRobot,
+    LocalCaster,
+    WallCaster,
+    unit,
+)
+from bouncesim.robots.noise import GaussianNoise, SteppedNoise
+from envs import UserError
 from planners.cells import CellSpace
 from planners.plan import PolicyMix
 
@@ -298,7 +305,8 @@ def _chain_counts(cells: CellSpace, starts, angle: float, steps: int) -> np.ndar
                                               ("lab", 90.0, 8), ("lab", 270.0, 8)])
 def test_batch_tracks_the_step_table_on_axis_headings(env_name, angle, K):
     """On axis-aligned headings the continuous twin visits exactly the cells the discrete
-    chain visits: walls are on grid lines and h = 2 r, so a blocked step bumps at once."""
+    chain visits: walls are on grid lines and h = 2 r, so a blocked step bumps at once.
+    """
     env = room(6, 4, obstacles=[(2, 1, 4, 2), (5, 2, 6, 4)], K=4) if env_name == "room" \
         else envs.load("lab")
     cells = CellSpace(env)
@@ -347,7 +355,8 @@ def test_batch_noise_keeps_walls(complex_env):
 
 def test_scalar_and_vector_casts_are_bitwise_equal(complex_env):
     """The single robot (plain Python floats) and the batch (numpy) compute the same numbers,
-    so a KinematicRobot and a KinematicBatch robot follow the same trajectory."""
+    so a KinematicRobot and a KinematicBatch robot follow the same trajectory.
+    """
     env = complex_env
     rng = np.random.default_rng(3)
     x0, y0, x1, y1 = env.bounds

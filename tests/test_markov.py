@@ -1,5 +1,6 @@
 """Markov-chain analysis (planners.markov) on chains small enough to solve by hand, and
-against independent implementations (quantecon; dense Cesàro limits) on random chains."""
+against independent implementations (quantecon; dense Cesàro limits) on random chains.
+"""
 
 from __future__ import annotations
 
@@ -7,9 +8,17 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from planners.markov import (absorption_matrix, absorption_probabilities, analyse_chain,
-                             analyse_run_chain, check_stochastic, closed_classes, run_ends,
-                             sparse_solve, stationary_distributions)
+from planners.markov import (
+    absorption_matrix,
+    absorption_probabilities,
+    analyse_chain,
+    analyse_run_chain,
+    check_stochastic,
+    closed_classes,
+    run_ends,
+    sparse_solve,
+    stationary_distributions,
+)
 
 
 def groups_of(res):

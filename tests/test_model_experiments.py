@@ -1,5 +1,6 @@
 """The coverage-model choice everywhere: the CLI flag and the --quick runs of the model
-experiments (alpha_delivery, model_convergence, coverage_validation with every model)."""
+experiments (alpha_delivery, model_convergence, coverage_validation with every model).
+"""
 
 from __future__ import annotations
 

@@ -1,5 +1,6 @@
 """Navigation (docs/model.md §6): hand-checked plans, replay, networkx cross-check, all pairs,
-CLI."""
+CLI.
+"""
 
 from __future__ import annotations
 
@@ -22,7 +23,8 @@ from .conftest import random_room, room
 
 def replay(cs: CellSpace, start: int, plan: Plan, angles, w1=1.0, w2=100.0):
     """Run a plan through the step model; return (final z, cost), or None if it is
-    inconsistent (a 0 where the robot bumps or an angle where it moves)."""
+    inconsistent (a 0 where the robot bumps or an angle where it moves).
+    """
     z, cost, cur = start, 0.0, None
     for lab in plan.labels:
         if lab == 0:

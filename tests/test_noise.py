@@ -10,9 +10,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from bouncesim.robots.noise import GaussianNoise, NoNoise, SteppedNoise, noise_for_mix, parse_noise
 from envs import UserError
-from bouncesim.robots.noise import (GaussianNoise, NoNoise, SteppedNoise, noise_for_mix,
-                             parse_noise)
 from planners.plan import PolicyMix
 
 N = 200_000

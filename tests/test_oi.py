@@ -1,6 +1,7 @@
 """The byte-level Open Interface layer (bouncesim.robots.create2.oi) against the specification's
 worked examples, hand-computed frames, and property tests of the stream parser's
-resynchronisation."""
+resynchronisation.
+"""
 
 from __future__ import annotations
 

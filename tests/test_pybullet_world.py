@@ -21,10 +21,10 @@ import shapely
 from shapely.geometry import Polygon
 
 import envs
+from bouncesim.robots.base import RobotError
 from bouncesim.robots.pybullet import robot as pbw
 from bouncesim.robots.pybullet import walls as pbwalls
 from bouncesim.robots.pybullet.walls import convex_pieces, ear_clip, wall_pieces
-from bouncesim.robots.base import RobotError
 from envs import UserError
 
 from .conftest import room
@@ -34,7 +34,7 @@ needs_pybullet = pytest.mark.skipif(not HAVE_PYBULLET, reason="pybullet is not i
 
 
 def hdiff(a: float, b: float) -> float:
-    """a − b for headings [deg], wrapped to (−180, 180]."""
+    """A − b for headings [deg], wrapped to (−180, 180]."""
     return (a - b + 180.0) % 360.0 - 180.0
 
 
@@ -200,7 +200,8 @@ def test_default_start_and_place():
 def test_bump_stops_within_1cm_of_the_wall(heading):
     """From (0.68, 0.51) in the lab: the stop pose is within 1 cm of the exact contact point
     of a disk of the body's radius (the kinematic twin's closed form), and the body's edge is
-    within 1 cm of the wall (never more than 2 mm into it), also 0.5 s after the stop."""
+    within 1 cm of the wall (never more than 2 mm into it), also 0.5 s after the stop.
+    """
     from bouncesim.robots.kinematic import KinematicRobot
     env = envs.load("lab")
     with make(env) as bot:
@@ -229,7 +230,8 @@ def test_bump_stops_within_1cm_of_the_wall(heading):
 ])
 def test_bumper_left_right_split(heading, expect):
     """Approaching a wall at +30° / −30° to its normal closes one switch (the side of the
-    contact); head-on closes both."""
+    contact); head-on closes both.
+    """
     env = room(6, 4)                                       # 2.04 m x 1.36 m
     with make(env, start=(1.02, 0.68, heading)) as bot:
         ev = bot.drive_until_bump(0.2, 20.0)
@@ -262,7 +264,8 @@ def test_bumper_ignores_parallel_and_rear_contacts():
 @pytest.mark.parametrize("mode", ["clock", "encoders"])
 def test_turn_error_over_20_turns(mode):
     """20 bump-and-turn cycles in the lab (the executor's use): mean |error| ≤ 2°, each ≤ 3°;
-    the body's own heading change is the reference (true pose)."""
+    the body's own heading change is the reference (true pose).
+    """
     angles = [45, 90, 135, 30, 75, 315]
     env = envs.load("lab")
     errs = []
@@ -300,7 +303,8 @@ def test_turn_applies_the_noise_sample_and_back_off():
 @pytest.mark.physics
 def test_encoders_count_wheel_travel():
     """1 m of straight driving is 1 / (π · 0.072 / 508.8) = 2249.4 counts per wheel; a 90°
-    turn is ±(π/2 · 0.235/2) / 0.4446 mm = ±415.1 counts."""
+    turn is ±(π/2 · 0.235/2) / 0.4446 mm = ±415.1 counts.
+    """
     env = envs.load("lab")
     with make(env, start=(0.4, 0.68, 0.0)) as bot:
         e0 = bot.encoders()
@@ -353,7 +357,8 @@ def test_same_seed_same_trajectory_and_robots_coexist():
 @pytest.mark.physics
 def test_non_convex_obstacle_fig1_L_block():
     """The robot driving into the L block's concave corner stops with both inner faces
-    touching (centre (1.02 + r', 1.02 + r')), both switches closed; it never enters it."""
+    touching (centre (1.02 + r', 1.02 + r')), both switches closed; it never enters it.
+    """
     env = envs.load("fig1")
     with make(env, start=(1.53, 1.53, 225.0)) as bot:
         ev = bot.drive_until_bump(0.2, 10.0)
@@ -370,7 +375,8 @@ def test_non_convex_obstacle_fig1_L_block():
 def test_bounce_never_penetrates(name):
     """40 s of bouncing in fig1 (L block, triangles, a stub wall) and complex (L-shaped
     room, L block, pillars, a partition): at every 15 ms sample the body is less than 3 mm
-    into any wall, and never outside the free space."""
+    into any wall, and never outside the free space.
+    """
     env = envs.load(name)
     walls = env.walls
     angles = [135, 90, 45, 135, 270]
@@ -397,7 +403,8 @@ def test_bounce_never_penetrates(name):
 @pytest.mark.parametrize("start,goal", [(8, 0), (103, 8)])
 def test_fig3_plans_succeed_in_pybullet(mode, start, goal):
     """The paper's Fig. 3 plans in the lab with angles {90°, 135°}, without rotation noise,
-    run by the plan executor on the PyBullet Create 2."""
+    run by the plan executor on the PyBullet Create 2.
+    """
     if importlib.util.find_spec("bouncesim.runs.execute") is None:
         pytest.skip("bouncesim.runs.execute (the plan executor) is not there yet")
     from bouncesim.runs.execute import execute

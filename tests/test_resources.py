@@ -1,5 +1,6 @@
 """The pre-flight memory estimates (planners.resources): close to what the code allocates,
-and a refusal is one sentence with exit status 2, before anything large is allocated."""
+and a refusal is one sentence with exit status 2, before anything large is allocated.
+"""
 
 from __future__ import annotations
 

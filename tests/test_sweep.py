@@ -15,10 +15,22 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from bouncesim.runs.executors import (DaskExecutor, PoolExecutor, SerialExecutor,
-                                      add_executor_args, make_executor)
-from bouncesim.runs.sweep import (Sweep, TrialError, demo_trial, grid, read_journal, run_sweep,
-                                  trial_seed)
+from bouncesim.runs.executors import (
+    DaskExecutor,
+    PoolExecutor,
+    SerialExecutor,
+    add_executor_args,
+    make_executor,
+)
+from bouncesim.runs.sweep import (
+    Sweep,
+    TrialError,
+    demo_trial,
+    grid,
+    read_journal,
+    run_sweep,
+    trial_seed,
+)
 from envs import UserError
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -34,7 +34,8 @@ def _stationary(M):
 
 def _epoch_occupancy(Ps, alpha, g, E):
     """Dense: epoch map M = Σ α_i P_i^E, its stationary μ and the normalised occupancy
-    Σ α_i Σ_{t=1..E} μ P_i^t g."""
+    Σ α_i Σ_{t=1..E} μ P_i^t g.
+    """
     M = sum(a * np.linalg.matrix_power(Pm, E) for a, Pm in zip(alpha, Ps))
     mu = _stationary(M)
     occ = np.zeros(g.shape[1])
@@ -67,7 +68,8 @@ def _brute_delay(chain: DelayChain, Ws, alpha, E):
     """The delay chain expanded into an ordinary step chain over (flight f, steps flown j),
     j = 0 … d_f − 1: flight f at j < d_f − 1 moves to j + 1; at the last step it lands in
     dst_f, turns by W and starts flight f' (weight w_f') at j = 0. The reward of a flight
-    is counted when it starts: g(f, 0) = R[src_f]."""
+    is counted when it starts: g(f, 0) = R[src_f].
+    """
     F = chain.src.size
     idx = {}
     for f in range(F):
@@ -159,7 +161,8 @@ def test_fig1_mix_matches_the_twin_where_the_sum_rule_fails():
     time-shared prediction is within 0.05. Statistical bound: two twin seeds of 200 robots
     × 5000 steps after a 20 000-step burn-in differ by the noise floor (0.016 for seeds 1
     and 2, which many robots sharing few epochs make large), and we require the pooled
-    time-shared TV below 0.02 + 1.5 floors."""
+    time-shared TV below 0.02 + 1.5 floors.
+    """
     from bouncesim.robots.kinematic import KinematicBatch
     from bouncesim.robots.noise import noise_for_mix
 

@@ -18,6 +18,7 @@ __all__ = ["histogram_frame", "register", "run"]
 
 
 def register(sub) -> None:
+    """Add the ``allpairs`` sub-command to the CLI's sub-parsers."""
     p = sub.add_parser(
         "allpairs", help="shortest plans for every ordered pair and the angle-use histogram",
         description="Run Algorithm 2 (docs/model.md §6): the weight matrix L (-1 where "
@@ -30,12 +31,14 @@ def register(sub) -> None:
 
 
 def histogram_frame(counts: np.ndarray) -> pd.DataFrame:
+    """Table (angles_used, plans, fraction) of a histogram of plans by distinct angles used."""
     total = counts.sum()
     return pd.DataFrame({"angles_used": np.arange(len(counts)), "plans": counts,
                          "fraction": counts / total if total else counts * 0.0})
 
 
 def run(args) -> int:
+    """Run ``bouncesim allpairs``: weights, angle use and figure files; exit status."""
     nav = make_navigator(args)
     limit = max_memory(args)
     check_memory(nav.cells, nav.angles, task="allpairs", max_memory=limit)  # before --out

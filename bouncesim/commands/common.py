@@ -40,7 +40,8 @@ def max_memory(args: argparse.Namespace) -> int:
 
 def load_env(args: argparse.Namespace) -> envs.Environment:
     """ENV with the overrides; a grid too large for --max-memory is refused before it is
-    built."""
+    built.
+    """
     return envs.load(args.env, cell_size=args.cell_size, orientations=args.orientations,
                      max_grid_cells=max_grid_cells(max_memory(args)))
 
@@ -59,7 +60,8 @@ def make_rng(seed) -> np.random.Generator:
 
 def writable_path(path, what: str = "--out", folder: bool = False) -> Path:
     """Check that an output file (or, with ``folder``, a folder, created here) can be
-    written, before any long work; :class:`UserError` in one sentence otherwise."""
+    written, before any long work; :class:`UserError` in one sentence otherwise.
+    """
     if not str(path).strip():           # Path("") would be the current folder
         raise UserError(f"{what} needs a {'folder' if folder else 'file'} name.")
     p = Path(path)
@@ -83,5 +85,6 @@ def writable_path(path, what: str = "--out", folder: bool = False) -> Path:
 
 
 def print_json(obj, file=None) -> None:
+    """Print ``obj`` as one line of JSON (non-ASCII kept, e.g. ``°``)."""
     print(json.dumps(obj, separators=(", ", ": "), ensure_ascii=False),
           file=file or sys.stdout)

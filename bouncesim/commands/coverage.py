@@ -17,9 +17,19 @@ import numpy as np
 
 from envs import UserError
 from planners.cells import CellSpace
-from planners.coverage import (MODELS, SPACES, TARGET_FORMATS, MixDesign, TurnNoise,
-                               check_angles, default_settings, design_mix, load_target,
-                               model_for, timeshared_coverage)
+from planners.coverage import (
+    MODELS,
+    SPACES,
+    TARGET_FORMATS,
+    MixDesign,
+    TurnNoise,
+    check_angles,
+    default_settings,
+    design_mix,
+    load_target,
+    model_for,
+    timeshared_coverage,
+)
 from planners.metrics import tv_distance
 from planners.resources import check_memory
 
@@ -64,6 +74,7 @@ examples:
 
 
 def register(sub) -> None:
+    """Add the ``coverage`` sub-command to the CLI's sub-parsers."""
     import argparse
     p = sub.add_parser("coverage", help="coverage of bouncing policies and the best policy mix",
                        description=DESCRIPTION, epilog=EXAMPLES,
@@ -116,6 +127,7 @@ def _progress(total: int | None, desc: str = "chains", unit: str = "angle"):
 
 
 def run(args) -> int:
+    """Run ``bouncesim coverage``: per-angle coverage, the mix α and output files; exit status."""
     env = load_env(args)
     cs = make_cells(args, env)
     noise = TurnNoise(args.eps, args.r)
@@ -230,7 +242,8 @@ def format_table(summary: dict) -> str:
 def write_outputs(result: MixDesign, cs: CellSpace, out_dir, summary: dict,
                   plots: bool = True, timeshared=None) -> Path:
     """Write coverage.csv, alpha.json (and the heatmaps) into out_dir; ``timeshared`` is the
-    mix's predicted coverage when executed in epochs (series "mix_epochs")."""
+    mix's predicted coverage when executed in epochs (series "mix_epochs").
+    """
     out = writable_path(out_dir, "the output folder", folder=True)
     ij, xy = cs.cells_ij, cs.centres
     mixed = result.mixed_q()

@@ -8,7 +8,6 @@ import sys
 import threading
 import time
 
-
 from envs import UserError
 
 from .common import add_env_args, load_env, make_cells, make_rng
@@ -18,6 +17,7 @@ __all__ = ["register", "run"]
 
 
 def register(sub) -> None:
+    """Add the ``emulator`` sub-command to the CLI's sub-parsers."""
     p = sub.add_parser(
         "emulator", help="serve an emulated Create 2 Open Interface on a pty or TCP port",
         description="Run an emulated iRobot Create 2 that speaks the Open Interface byte "
@@ -61,8 +61,9 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from bouncesim.robots.noise import parse_noise
+    """Run ``bouncesim emulator``: serve an emulated Create 2 until Ctrl-C; exit status."""
     from bouncesim.robots.create2 import OIEmulator, parse_fault
+    from bouncesim.robots.noise import parse_noise
 
     env = load_env(args)
     cells = make_cells(args, env)

@@ -6,6 +6,7 @@ from .common import add_env_args, load_env, make_cells, print_json
 
 
 def register(sub) -> None:
+    """Add the ``info`` sub-command to the CLI's sub-parsers."""
     p = sub.add_parser("info", help="print the cell model's sizes (P, N, K, ...)",
                        description="Load ENV and print the number of free position cells P, "
                        "configurations N = K*P, orientations K, cell size, bounds and radius.")
@@ -15,6 +16,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    """Run ``bouncesim info``: print the cell model's sizes; exit status."""
     env = load_env(args)
     cs = make_cells(args, env)
     info = {"name": env.name, "P": cs.P, "N": cs.N, "K": cs.K, "cell_size": env.cell_size,

@@ -53,6 +53,9 @@ def parse_config(text: str, cells: CellSpace, what: str = "start") -> int:
 
 
 def add_planner_args(p) -> None:
+    """Add ``--angles``, ``--w1`` and ``--w2`` (the roadmap's angles [deg] and weights) to a
+    parser.
+    """
     p.add_argument("--angles", required=True, metavar="A,B,...",
                    help="bouncing angles [deg], multiples of 360/K, e.g. 45,90,135")
     p.add_argument("--w1", type=float, default=1.0,
@@ -62,12 +65,14 @@ def add_planner_args(p) -> None:
 
 
 def make_navigator(args) -> Navigator:
+    """A :class:`~planners.navigation.Navigator` for the parsed environment, angles and weights."""
     env = load_env(args)
     return Navigator(make_cells(args, env), parse_angles(args.angles), args.w1, args.w2,
                      max_memory=max_memory(args))
 
 
 def register(sub) -> None:
+    """Add the ``plan`` sub-command to the CLI's sub-parsers."""
     p = sub.add_parser(
         "plan", help="shortest bouncing plan from a start to a goal configuration",
         description="Find the minimum-weight observation string from START to GOAL on the "
@@ -103,6 +108,7 @@ def _read_pairs(path: Path) -> list[tuple[str, str]]:
 
 
 def run(args) -> int:
+    """Run ``bouncesim plan`` for one query or a CSV of pairs; exit status (3: no plan)."""
     if args.pairs is None and (args.start is None or args.goal is None):
         raise UserError("give --start and --goal, or --pairs FILE.csv.")
     if args.pairs is not None and (args.start is not None or args.goal is not None):

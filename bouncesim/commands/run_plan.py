@@ -1,20 +1,27 @@
 """``bouncesim run-plan``: plan from START to GOAL and execute the plan on a robot (simulated,
-emulated or a real Create 2)."""
+emulated or a real Create 2).
+"""
 
 from __future__ import annotations
 
 import argparse
 
-
-from envs import UserError
-from planners.navigation import Navigator
-
 from bouncesim.robots import KINDS, make_robot
 from bouncesim.robots.noise import parse_noise
 from bouncesim.runs.execute import execute
+from envs import UserError
+from planners.navigation import Navigator
 
-from .common import (add_env_args, load_env, make_cells, make_rng, max_memory, parse_angles,
-                     print_json, writable_path)
+from .common import (
+    add_env_args,
+    load_env,
+    make_cells,
+    make_rng,
+    max_memory,
+    parse_angles,
+    print_json,
+    writable_path,
+)
 from .plan import add_planner_args, parse_config
 
 __all__ = ["register", "run", "EXIT_FAILURE", "EXIT_NO_PATH"]
@@ -25,6 +32,7 @@ ROBOTS = KINDS
 
 
 def register(sub) -> None:
+    """Add the ``run-plan`` sub-command to the CLI's sub-parsers."""
     p = sub.add_parser(
         "run-plan", help="plan from START to GOAL and run the plan on a robot",
         description="Find the shortest bouncing plan from START to GOAL (as `bouncesim plan` "
@@ -101,6 +109,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    """Run ``bouncesim run-plan``: plan, execute on the chosen body; exit status (4: failed)."""
     env = load_env(args)
     cells = make_cells(args, env)
     nav = Navigator(cells, parse_angles(args.angles), args.w1, args.w2,

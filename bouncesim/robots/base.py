@@ -47,6 +47,7 @@ class RobotSpec:
 
     @property
     def metres_per_count(self) -> float:
+        """Wheel travel per encoder count [m]."""
         return math.pi * self.wheel_diameter / self.counts_per_rev
 
     def turn_time(self, angle_deg: float, wheel_speed: float) -> float:
@@ -114,7 +115,8 @@ class Robot(ABC):
     @abstractmethod
     def turn(self, angle_deg: float) -> None:
         """Turn in place CCW by ``angle_deg`` [deg] (blocking), by clock or by encoders as the
-        backend is configured. Simulators add their seeded rotation noise here."""
+        backend is configured. Simulators add their seeded rotation noise here.
+        """
 
     def encoders(self) -> tuple[int, int] | None:
         """(left, right) cumulative wheel encoder counts, or None where there are none."""
@@ -127,7 +129,8 @@ class Robot(ABC):
     # -------------------------------------------------------------- composite behaviour
     def drive_until_bump(self, speed: float, timeout: float) -> BumpEvent:
         """Drive forward at ``speed`` [m/s] until the bumper closes or ``timeout`` [s] passes,
-        then stop. Polls the bumper every sensor period."""
+        then stop. Polls the bumper every sensor period.
+        """
         t0 = self.clock()
         self.drive(speed)
         try:

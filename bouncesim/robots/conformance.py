@@ -35,6 +35,7 @@ from collections.abc import Callable, Iterable
 import numpy as np
 
 from envs import Environment
+
 from .base import BumpEvent, Robot
 from .factory import make_robot
 
@@ -45,6 +46,7 @@ ROOM = {"name": "conformance-room", "boundary": [[0, 0], [1.7, 0], [1.7, 1.02], 
 
 
 def room_env() -> Environment:
+    """The small room the conformance checks drive in."""
     return Environment.from_dict(ROOM)
 
 

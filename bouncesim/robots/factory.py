@@ -9,6 +9,9 @@ from __future__ import annotations
 import importlib.util
 import inspect
 from dataclasses import replace
+from typing import Any
+
+import numpy as np
 
 from envs import Environment, UserError
 
@@ -27,8 +30,8 @@ _EMULATOR_OPTIONS = ("transport", "host", "port", "time_scale", "angle_bug", "fa
                      "encoder_offset", "start", "glance_deg", "mode_offset", "lockstep", "log")
 
 
-def make_robot(kind: str, env: Environment, *, noise: NoiseModel | None = None, rng=None,
-               **options) -> Robot:
+def make_robot(kind: str, env: Environment, *, noise: NoiseModel | None = None,
+               rng: np.random.Generator | int | None = None, **options: Any) -> Robot:
     """A robot of ``kind`` in ``env``; every simulated body takes ``noise`` and ``rng`` the same
     way (:func:`bouncesim.robots.noise.noise_and_rng`: noise without an rng is refused).
 

@@ -36,12 +36,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from envs import UserError
 from planners.coverage.noise import TurnNoise
 from planners.coverage.noise import as_commands as _commands
+
+if TYPE_CHECKING:
+    from planners.plan import PolicyMix
 
 __all__ = ["NoiseModel", "NoNoise", "SteppedNoise", "GaussianNoise", "parse_noise",
            "noise_for_mix", "noise_and_rng"]
@@ -70,13 +74,16 @@ class NoNoise(NoiseModel):
     """Exact turns: the body turns by exactly the commanded angle."""
 
     def sample(self, rng, commanded_deg: float) -> float:
+        """The commanded turn [deg], unchanged."""
         return float(commanded_deg)
 
     def sample_many(self, rng, commanded, n=None) -> np.ndarray:
+        """The commanded turns [deg] as an array, unchanged."""
         return _commands(commanded, n)
 
     @property
     def exact(self) -> bool:
+        """Always True: no noise."""
         return True
 
     def __str__(self) -> str:
@@ -127,6 +134,7 @@ class SteppedNoise(NoiseModel):
 
     @property
     def exact(self) -> bool:
+        """True when no turn is ever perturbed (ε below Δ, or r = 1)."""
         return self.m == 0 or self.r == 1.0
 
     def offsets(self) -> tuple[np.ndarray, np.ndarray]:
@@ -136,6 +144,7 @@ class SteppedNoise(NoiseModel):
         return d[order] * self.delta_deg, p[order]
 
     def sample_many(self, rng, commanded, n=None) -> np.ndarray:
+        """Executed turns [deg] for the commanded ones under the §7 model."""
         return self.turn.sample(rng, commanded, n, delta_deg=self.delta_deg)
 
     def __str__(self) -> str:
@@ -166,9 +175,11 @@ class GaussianNoise(NoiseModel):
 
     @property
     def exact(self) -> bool:
+        """True when σ = 0."""
         return self.sigma_deg == 0
 
     def sample_many(self, rng, commanded, n=None) -> np.ndarray:
+        """Executed turns [deg]: commanded plus Gaussian noise of standard deviation σ."""
         c = _commands(commanded, n)
         if self.exact:
             return c
@@ -229,7 +240,7 @@ def parse_noise(text: str, delta_deg: float | None = None) -> NoiseModel:
     raise UserError(f"unknown noise {text!r}; {_FORMS}.")
 
 
-def noise_for_mix(mix, delta_deg: float) -> NoiseModel:
+def noise_for_mix(mix: PolicyMix, delta_deg: float) -> NoiseModel:
     """The §7 noise model of a :class:`planners.plan.PolicyMix` (its eps and r) at Δ [deg]."""
     if mix.eps == 0 or mix.r == 1:
         return NoNoise()

@@ -25,7 +25,8 @@ __all__ = ["SerialExecutor", "PoolExecutor", "DaskExecutor", "add_executor_args"
 
 def _exit_with_parent(parent: int) -> None:
     """Worker initializer: end this worker when the process that started it is gone (so a
-    killed sweep leaves no orphans computing chunks nobody will read)."""
+    killed sweep leaves no orphans computing chunks nobody will read).
+    """
 
     def watch() -> None:
         while True:
@@ -38,7 +39,8 @@ def _exit_with_parent(parent: int) -> None:
 
 def _results_as_completed(futures: list, as_completed: Callable) -> Iterator:
     """Results of ``futures`` as they complete; the rest are cancelled when the consumer
-    stops early (an error, or a closed generator)."""
+    stops early (an error, or a closed generator).
+    """
     try:
         for fut in as_completed(futures):
             yield fut.result()
@@ -60,10 +62,12 @@ class SerialExecutor:
         return False
 
     def map_unordered(self, fn: Callable, args: Sequence[tuple]) -> Iterator:
+        """Call ``fn(*a)`` for each ``a`` in turn, yielding the results in order."""
         for a in args:
             yield fn(*a)
 
     def describe(self) -> dict:
+        """Kind and worker count, for ``config.json``."""
         return {"kind": self.name, "workers": 1}
 
 
@@ -94,10 +98,12 @@ class PoolExecutor:
         return False
 
     def map_unordered(self, fn: Callable, args: Sequence[tuple]) -> Iterator:
+        """Submit ``fn(*a)`` for every ``a``; yield results as they complete."""
         return _results_as_completed([self._pool.submit(fn, *a) for a in args],
                                      futures_as_completed)
 
     def describe(self) -> dict:
+        """Kind and worker count, for ``config.json``."""
         return {"kind": self.name, "workers": self.workers}
 
 
@@ -149,11 +155,13 @@ class DaskExecutor:
         return False
 
     def map_unordered(self, fn: Callable, args: Sequence[tuple]) -> Iterator:
+        """Submit ``fn(*a)`` for every ``a`` to the cluster; yield results as they complete."""
         from distributed import as_completed
         return _results_as_completed(
             [self._client.submit(fn, *a, pure=False) for a in args], as_completed)
 
     def describe(self) -> dict:
+        """Kind, worker count and cluster address, for ``config.json``."""
         return {"kind": self.name, "workers": self.workers,
                 "cluster": "LocalCluster" if self.address is None else self.address}
 

@@ -1,5 +1,6 @@
 """Run metadata: what produced a result (the one home of package versions and the git
-revision written to every ``config.json``, by sweeps and experiments alike)."""
+revision written to every ``config.json``, by sweeps and experiments alike).
+"""
 
 from __future__ import annotations
 

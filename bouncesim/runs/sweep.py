@@ -127,7 +127,8 @@ def demo_trial(params: dict, rng: np.random.Generator) -> dict:
 def _importable(fn: Callable) -> Callable:
     """The same function under its importable module name when it was defined in a module run
     as ``python -m package.module`` (``__main__``), so that workers and a remote scheduler
-    import it by name and the sweep's identity does not depend on how the module was run."""
+    import it by name and the sweep's identity does not depend on how the module was run.
+    """
     if getattr(fn, "__module__", None) != "__main__":
         return fn
     spec = getattr(sys.modules.get("__main__"), "__spec__", None)
@@ -293,6 +294,9 @@ class Sweep:
     # ------------------------------------------------------------------ identity
     @property
     def identity(self) -> dict:
+        """What makes a sweep the same sweep (trial function, seed, trials' hash): a re-run must
+        match.
+        """
         blob = json.dumps(self.trials, sort_keys=True).encode()
         fn = self.trial_fn
         return {"trial_fn": f"{fn.__module__}.{fn.__qualname__}", "root_seed": self.root_seed,
@@ -303,14 +307,17 @@ class Sweep:
 
     @property
     def journal_path(self) -> Path:
+        """The append-only journal of finished trials (JSON lines)."""
         return self.out_dir / f"{self.name}.jsonl"
 
     @property
     def csv_path(self) -> Path:
+        """The tidy CSV of all trials, written when the sweep completes."""
         return self.out_dir / f"{self.name}.csv"
 
     @property
     def config_path(self) -> Path:
+        """The sweep's ``config.json``."""
         return self.out_dir / "config.json"
 
     def _load_or_create_config(self) -> dict:

@@ -22,8 +22,13 @@ from __future__ import annotations
 
 import csv
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 __all__ = ["Trace", "TraceRow", "EVENTS"]
 
@@ -49,10 +54,11 @@ class Trace:
 
     COLUMNS = ("t", "x", "y", "heading", "event", "detail")
 
-    def __init__(self, rows=()) -> None:
+    def __init__(self, rows: Iterable[TraceRow] = ()) -> None:
         self._rows: list[TraceRow] = list(rows)
 
-    def add(self, t: float, pose, event: str, detail: str = "") -> None:
+    def add(self, t: float, pose: tuple[float, float, float] | None, event: str,
+            detail: str = "") -> None:
         """Append a row; ``pose`` is (x, y, heading) or None (hardware)."""
         if event not in EVENTS:
             raise ValueError(f"unknown trace event {event!r}; use one of {', '.join(EVENTS)}.")
@@ -61,6 +67,7 @@ class Trace:
 
     @property
     def rows(self) -> tuple[TraceRow, ...]:
+        """All rows, oldest first."""
         return tuple(self._rows)
 
     def __len__(self) -> int:
@@ -77,15 +84,16 @@ class Trace:
         return [r for r in self._rows if r.event == kind]
 
     def count(self, kind: str) -> int:
+        """Number of rows of one event kind."""
         return sum(1 for r in self._rows if r.event == kind)
 
-    def to_frame(self):
+    def to_frame(self) -> pd.DataFrame:
         """A pandas DataFrame with columns t, x, y, heading, event, detail."""
         import pandas as pd
         return pd.DataFrame([tuple(getattr(r, c) for c in self.COLUMNS) for r in self._rows],
                             columns=list(self.COLUMNS))
 
-    def to_csv(self, path) -> Path:
+    def to_csv(self, path: str | Path) -> Path:
         """Write the trace as CSV (one row per event; empty cells where the pose is unknown)."""
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)

@@ -27,8 +27,15 @@ PolicyMix(angles=(90.0, 135.0), alpha=(...), eps=45.0, r=0.9)
 
 from __future__ import annotations
 
-from .api import (MODELS, check_angles, check_model, default_settings, design_mix, model_for,
-                  timeshared_coverage)
+from .api import (
+    MODELS,
+    check_angles,
+    check_model,
+    default_settings,
+    design_mix,
+    model_for,
+    timeshared_coverage,
+)
 from .base import AngleCoverage, CoverageModel, clear_cache
 from .event import EventModel, EventSettings, flight_steps
 from .mix import MixDesign, MixFit, solve_mix

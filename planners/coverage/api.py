@@ -24,7 +24,11 @@ True
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterable
+from typing import Any
+
 import numpy as np
+from numpy.typing import ArrayLike
 
 from envs import UserError
 
@@ -54,7 +58,7 @@ def check_model(name: str) -> str:
     return name
 
 
-def default_settings(name: str):
+def default_settings(name: str) -> Any:
     """The recommended settings record of a model."""
     return MODELS[check_model(name)].Settings()
 
@@ -76,7 +80,7 @@ def _settings(name: str, settings):
     return settings
 
 
-def model_for(cs: CellSpace, name: str = "step", settings=None) -> CoverageModel:
+def model_for(cs: CellSpace, name: str = "step", settings: Any = None) -> CoverageModel:
     """The coverage model ``name`` of ``cs``.
 
     Parameters
@@ -91,7 +95,7 @@ def model_for(cs: CellSpace, name: str = "step", settings=None) -> CoverageModel
     return MODELS[name].build(cs, _settings(name, settings))
 
 
-def check_angles(K: int, angles, noise: TurnNoise) -> tuple:
+def check_angles(K: int, angles: Iterable[float], noise: TurnNoise) -> tuple:
     """The angles as floats after checking them and ε against K (before any heavy work)."""
     angles = tuple(float(a) for a in angles)
     if not angles:
@@ -101,8 +105,9 @@ def check_angles(K: int, angles, noise: TurnNoise) -> tuple:
     return angles
 
 
-def design_mix(model: CoverageModel, angles, noise: TurnNoise = _EXACT, target=None,
-               space: str = "positions", progress=None) -> MixDesign:
+def design_mix(model: CoverageModel, angles: Iterable[float], noise: TurnNoise = _EXACT,
+               target: ArrayLike | None = None, space: str = "positions",
+               progress: Callable[[Iterable], Iterable] | None = None) -> MixDesign:
     """Algorithm 3 on any model: every angle's coverage, and the mix that best meets a target.
 
     Parameters

@@ -61,22 +61,27 @@ class AngleCoverage:
 
     @property
     def eps(self) -> float:
+        """Error range ε of the rotation noise [deg]."""
         return self.noise.eps_deg
 
     @property
     def r(self) -> float:
+        """Reliability r of the rotation noise (probability of an exact turn)."""
         return self.noise.r
 
     @property
     def groups(self) -> tuple:
+        """The persistent groups (closed classes) of the angle's chain."""
         return self.analysis.groups
 
     @property
     def group_sizes(self) -> np.ndarray:
+        """Number of states in each persistent group."""
         return self.analysis.group_sizes
 
     @property
     def transient_fraction(self) -> float:
+        """Fraction of the states that are transient."""
         return self.analysis.transient_fraction
 
     def summary(self) -> dict:
@@ -126,7 +131,8 @@ def _cached(cls, env, settings):
 def cached_build(cls, cs: CellSpace, settings):
     """``cls(cs, settings)`` for a model with a costly angle-independent part (flights,
     samples), cached per (model, environment, settings): the angles of a pipeline and its
-    time-shared prediction share one set of flights."""
+    time-shared prediction share one set of flights.
+    """
     return _cached(cls, cs.env, settings)
 
 

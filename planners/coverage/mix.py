@@ -8,6 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.optimize import minimize
 
 from ..metrics import tv_distance
@@ -58,7 +59,7 @@ def _kkt_on_support(G: np.ndarray, c: np.ndarray, S: np.ndarray) -> np.ndarray:
     return sol[:k]
 
 
-def solve_mix(A, b) -> MixFit:
+def solve_mix(A: ArrayLike, b: ArrayLike) -> MixFit:
     """α = argmin ‖Aα − b‖₂ subject to α ≥ 0, Σα = 1.
 
     Parameters
@@ -181,10 +182,12 @@ class MixDesign:
 
     @property
     def eps(self) -> float:
+        """Error range ε of the rotation noise [deg]."""
         return self.noise.eps_deg
 
     @property
     def r(self) -> float:
+        """Reliability r of the rotation noise (probability of an exact turn)."""
         return self.noise.r
 
     @property

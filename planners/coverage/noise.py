@@ -28,6 +28,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from envs import UserError
 
@@ -38,7 +39,8 @@ __all__ = ["R_RESOLUTION", "TurnNoise", "as_commands"]
 
 def as_commands(commanded, n: int | None) -> np.ndarray:
     """Commanded turns [deg] as a float array: ``n`` copies of a scalar, or the array itself
-    (whose length must then be ``n`` when ``n`` is given)."""
+    (whose length must then be ``n`` when ``n`` is given).
+    """
     c = np.asarray(commanded, dtype=float)
     if n is not None:
         c = np.broadcast_to(c, (int(n),) if c.ndim == 0 else c.shape)
@@ -100,7 +102,8 @@ class TurnNoise:
     # ------------------------------------------------------------------ support over K
     def quanta(self, K: int | None = None, *, delta_deg: float | None = None) -> int:
         """ε / Δ at K orientations (Δ = 360°/K), or for an error quantum ``delta_deg`` [deg]
-        (UserError unless ε is a whole multiple of Δ, below 360° for K)."""
+        (UserError unless ε is a whole multiple of Δ, below 360° for K).
+        """
         if K is not None:
             return angle_steps(self.eps_deg, K, what="error range eps", allow_zero=True)
         if delta_deg is None:
@@ -120,7 +123,8 @@ class TurnNoise:
               ) -> tuple[np.ndarray, np.ndarray]:
         """Turns of one bump commanded as ``angle_deg`` (a multiple of Δ in (0°, 360°)):
         (φ + δ)/Δ mod K [orientation steps] and their probabilities, one per offset of
-        :meth:`support`; with ``positive`` only those with positive probability."""
+        :meth:`support`; with ``positive`` only those with positive probability.
+        """
         s = angle_steps(angle_deg, K)
         d, p = self.support(K)
         steps = (s + d) % K
@@ -130,8 +134,8 @@ class TurnNoise:
         return steps, p
 
     # ------------------------------------------------------------------ sampling
-    def sample(self, rng: np.random.Generator, commanded_deg, n: int | None = None, *,
-               delta_deg: float) -> np.ndarray:
+    def sample(self, rng: np.random.Generator, commanded_deg: ArrayLike, n: int | None = None,
+               *, delta_deg: float) -> np.ndarray:
         """Actual turns [deg] of commanded turns [deg]: ``n`` draws for a scalar command, or
         one per array element. Randomness comes only from ``rng``.
 

@@ -136,7 +136,8 @@ class StepModel:
 
     def analyse(self, angle_deg: float, noise: TurnNoise = _EXACT) -> AngleCoverage:
         """Persistent groups, limiting distribution (uniform start over the N
-        configurations) and coverage of one bouncing angle."""
+        configurations) and coverage of one bouncing angle.
+        """
         cs = self.cs
         t0 = time.process_time()
         steps, probs = noise.turns(cs.K, angle_deg, positive=True)

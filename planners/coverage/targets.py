@@ -50,7 +50,7 @@ def space_size(cs: CellSpace, space: str) -> int:
     return cs.P if space == "positions" else cs.N
 
 
-def load_target(path, cs: CellSpace, space: str = "positions") -> np.ndarray:
+def load_target(path: str | Path, cs: CellSpace, space: str = "positions") -> np.ndarray:
     """Read a target file (formats in ``TARGET_FORMATS``) and return it normalised.
 
     Raises :class:`TargetError` with one sentence for an unreadable file, a malformed or
@@ -147,7 +147,8 @@ def _read_grid(path: Path, lines: list, cs: CellSpace) -> np.ndarray:
 def check_target(target, cs: CellSpace, space: str = "positions") -> np.ndarray:
     """The target b over ``space``, normalised: uniform when ``target`` is None, else the
     given weights (:class:`TargetError` unless there is one finite non-negative weight per
-    cell of the space and their sum is positive)."""
+    cell of the space and their sum is positive).
+    """
     n = space_size(cs, space)
     if target is None:
         return uniform_target(cs, space)

@@ -66,6 +66,7 @@ import socket
 import threading
 import time
 import warnings
+from typing import TYPE_CHECKING, Any
 
 from envs import UserError
 
@@ -73,6 +74,9 @@ from ..base import CREATE2, BumpEvent, Robot, RobotError, RobotSpec
 from . import oi
 from .sensing import SENSOR_IDS, SensingMixin, SensorState
 from .turning import TurningMixin
+
+if TYPE_CHECKING:
+    from .emulator import OIEmulator
 
 __all__ = ["Create2Robot", "SensorState", "SENSOR_IDS"]
 
@@ -135,9 +139,10 @@ class Create2Robot(SensingMixin, TurningMixin, Robot):
     def __init__(self, port: str | None, *, mode: str = "safe", turn: str = "encoders",
                  turn_speed: float = 0.1, turn_control: str = "predictive",
                  turn_tolerance: float = 0.4, sensing: str = "stream", baudrate: int = 115200,
-                 time_scale: float = 1.0, emulator=None, max_distance: float = 10.0,
+                 time_scale: float = 1.0, emulator: OIEmulator | None = None,
+                 max_distance: float = 10.0,
                  watchdog: float = 1.0, link_timeout: float = 0.5, stall_time: float = 0.5,
-                 connect_timeout: float = 5.0, handle_sigterm: bool = True, link=None,
+                 connect_timeout: float = 5.0, handle_sigterm: bool = True, link: Any = None,
                  own_emulator: bool = False, spec: RobotSpec | None = None) -> None:
         self.spec = spec if spec is not None else CREATE2
         if mode not in ("safe", "full"):
@@ -366,6 +371,7 @@ class Create2Robot(SensingMixin, TurningMixin, Robot):
 
     # ------------------------------------------------------------------ Robot interface
     def drive(self, speed: float) -> None:
+        """Drive straight at ``speed`` [m/s] (both wheels) until stopped."""
         speed = float(speed)
         if not math.isfinite(speed) or abs(speed) > self.spec.max_wheel_speed + 1e-12:
             raise UserError(f"speed {speed:g} m/s is beyond the robot's "
@@ -378,16 +384,19 @@ class Create2Robot(SensingMixin, TurningMixin, Robot):
             self._send_stop()
 
     def bumper(self) -> tuple[bool, bool]:
+        """The (left, right) bumper state from a fresh sensor frame."""
         self._raise_fault()
         st = self._fresh(2 if self.sensing == "stream" else 1)
         return st.bump_left, st.bump_right
 
     def clock(self) -> float:
+        """The robot clock [s] since connecting (emulated time under lockstep or a time scale)."""
         if self._ls is not None:
             return self._ls.now()
         return (time.monotonic() - self._t0) * self.time_scale
 
     def wait(self, duration: float) -> None:
+        """Wait ``duration`` [s] on the robot clock while reading sensors (faults raise)."""
         duration = float(duration)
         if duration < 0 or not math.isfinite(duration):
             raise ValueError(f"cannot wait {duration} s.")
@@ -408,14 +417,17 @@ class Create2Robot(SensingMixin, TurningMixin, Robot):
         """Running estimate [s] of how late the host acts on a reading (its age when used).
         A timed wait asks for its deadline this much early (the host acts that late on the
         answer), and after a reading it stops when the deadline is nearer than half of it (the
-        next chance would come about this late: stopping now misses by less)."""
+        next chance would come about this late: stopping now misses by less).
+        """
         return 0.7 * lag + 0.3 * max(self.clock() - st.t, 0.0)
 
     def encoders(self) -> tuple[int, int]:
+        """The (left, right) wheel encoder counts from a fresh sensor frame."""
         st = self._fresh(1)
         return st.left, st.right
 
     def drive_until_bump(self, speed: float, timeout: float) -> BumpEvent:
+        """Drive at ``speed`` [m/s] until a bump or ``timeout`` [s]; returns the bump event."""
         speed = float(speed)
         timeout = max(0.0, float(timeout))
         if speed > 0:
@@ -442,17 +454,20 @@ class Create2Robot(SensingMixin, TurningMixin, Robot):
 
     # ------------------------------------------------------------------ simulation only
     def place(self, x: float, y: float, heading_deg: float) -> None:
+        """Place the emulated robot at (x [m], y [m], heading [deg]); no-op on hardware."""
         if self.emulator is None:
             return super().place(x, y, heading_deg)
         self.emulator.place(x, y, heading_deg)
 
     def true_pose(self) -> tuple[float, float, float] | None:
+        """The emulator's true pose (x [m], y [m], heading [deg]); None on hardware."""
         return None if self.emulator is None else self.emulator.true_pose()
 
     # ------------------------------------------------------------------ teardown
     def close(self) -> None:
         """Stop the wheels, pause the stream, turn the OI off (Stop, 173) and release the
-        port; idempotent and never raises."""
+        port; idempotent and never raises.
+        """
         if self._closed:
             return
         self._closing = True

@@ -69,6 +69,7 @@ import select
 import threading
 import time
 from collections import Counter
+from collections.abc import Callable, Iterable
 
 import numpy as np
 
@@ -139,12 +140,15 @@ class OIEmulator:
     :attr:`opcodes` are thread-safe views for simulations and tests.
     """
 
-    def __init__(self, env: Environment, noise: NoiseModel | None = None, rng=None, *,
+    def __init__(self, env: Environment, noise: NoiseModel | None = None,
+                 rng: np.random.Generator | int | None = None, *,
                  transport: str = "pty", host: str = "127.0.0.1", port: int = 0,
-                 time_scale: float = 1.0, angle_bug: bool = False, faults=(),
-                 encoder_offset: tuple[int, int] = (0, 0), start=None,
+                 time_scale: float = 1.0, angle_bug: bool = False,
+                 faults: Iterable[Fault] = (),
+                 encoder_offset: tuple[int, int] = (0, 0),
+                 start: tuple[float, float, float] | None = None,
                  glance_deg: float | None = 80.0, mode_offset: int = 0, lockstep: bool = False,
-                 log=None) -> None:
+                 log: Callable[[str], None] | None = None) -> None:
         if not (math.isfinite(time_scale) and 0 < time_scale <= 20):
             raise UserError(f"time scale must lie in (0, 20], got {time_scale:g}.")
         self.env = env
@@ -286,7 +290,8 @@ class OIEmulator:
 
     def _serve_lockstep(self, tr: Transport, final: bool = False) -> None:
         """Lockstep: obey bytes as they come; move the clock only when the adapter asks and
-        every byte it wrote before asking has been read."""
+        every byte it wrote before asking has been read.
+        """
         ls = self.lockstep
         try:
             ready, _, _ = select.select(tr.fds() + [ls.wake_fd], [], [], 0.02 if final else

@@ -1,5 +1,6 @@
 """Faults the OI emulator can inject (:class:`bouncesim.robots.create2.OIEmulator`): what a
-real Create 2 and its link do wrong, scheduled in emulated time."""
+real Create 2 and its link do wrong, scheduled in emulated time.
+"""
 
 from __future__ import annotations
 

@@ -80,7 +80,8 @@ class Lockstep:
 
     def reaching(self) -> float:
         """The time an advance under way is reaching (the time of a frame sent during it),
-        else :meth:`now`."""
+        else :meth:`now`.
+        """
         with self._cv:
             return self._t if self._want is None else self._want[1]
 
@@ -98,13 +99,15 @@ class Lockstep:
 
     @property
     def closed(self) -> bool:
+        """Whether the clock was closed (no more advances)."""
         return self._closed
 
     # ------------------------------------------------------------------ adapter side
     def advance(self, host_bytes: int, until: float) -> int:
         """Move the emulated time to ``until`` (clipped to the next period boundary, never
         backwards) once the emulator has read ``host_bytes``; returns the bytes the emulator
-        has written by then. Raises :class:`LockstepClosed` when the emulator is gone."""
+        has written by then. Raises :class:`LockstepClosed` when the emulator is gone.
+        """
         with self._cv:
             if self._closed:
                 raise LockstepClosed("the emulator has closed")
@@ -132,6 +135,7 @@ class Lockstep:
         return self._wake_r
 
     def drain_wake(self) -> None:
+        """Empty the wake pipe after the emulator has seen an advance request."""
         try:
             while os.read(self._wake_r, 64):
                 pass
@@ -151,7 +155,8 @@ class Lockstep:
 
     def complete(self) -> bool:
         """The requested time is reached; returns True when it is a period boundary (a
-        stream frame is then due, and must have been written before this call)."""
+        stream frame is then due, and must have been written before this call).
+        """
         with self._cv:
             if self._want is None:
                 return False

@@ -206,7 +206,8 @@ def encoder_delta(new: int, old: int) -> int:
 # ------------------------------------------------------------------------- commands
 def encode_drive(velocity_mm_s: float, radius_mm: int) -> bytes:
     """Drive (137): velocity [mm/s] in −500…500 and radius [mm] in −2000…2000, or one of the
-    special radii (straight 0x8000 / 0x7FFF, −1 spin clockwise, 1 spin counter-clockwise)."""
+    special radii (straight 0x8000 / 0x7FFF, −1 spin clockwise, 1 spin counter-clockwise).
+    """
     r = int(radius_mm)
     if r not in (RADIUS_STRAIGHT, RADIUS_STRAIGHT_ALT) and not -MAX_RADIUS_MM <= r <= \
             MAX_RADIUS_MM:
@@ -265,7 +266,8 @@ def encode_pause_resume(resume: bool) -> bytes:
 # ------------------------------------------------------------------------- packets
 def encode_packets(ids, values) -> bytes:
     """Data bytes of packets ``ids`` (groups allowed) from ``values`` (packet id -> int;
-    missing packets read 0), as the robot sends them in a Sensors / Query List reply."""
+    missing packets read 0), as the robot sends them in a Sensors / Query List reply.
+    """
     out = bytearray()
     for pid in expand_ids(ids):
         spec = PACKETS[pid]
@@ -295,7 +297,8 @@ def decode_packets(ids, data) -> dict[int, int]:
 
 def encode_stream_frame(items) -> bytes:
     """One stream frame ``19, n, id1, data1…, idk, datak…, checksum`` from (id, value) pairs
-    (single packets; a group id takes a dict of its members' values)."""
+    (single packets; a group id takes a dict of its members' values).
+    """
     body = bytearray()
     for pid, value in items:
         body.append(int(pid))
@@ -426,6 +429,7 @@ class CommandParser:
         self._buf = bytearray()
 
     def feed(self, chunk) -> list[tuple[int, bytes]]:
+        """Add received bytes; every complete (opcode, data) command so far, in order."""
         self._buf += bytes(chunk)
         out = []
         buf = self._buf

@@ -56,14 +56,16 @@ _LISTEN_MIN = 0.001        # [s] and at least this much (bytes that never form a
 class SensingMixin:
     """The sensing half of :class:`~bouncesim.robots.create2.Create2Robot`: the
     reader thread, queries, lockstep reads, link, stall and watchdog checks. It uses the
-    adapter's link and state attributes and is not a robot on its own."""
+    adapter's link and state attributes and is not a robot on its own.
+    """
 
     def _reader(self) -> None:
         """Stream mode: read frames, keep the latest state, watch the link and the wheels.
 
         The link counts as lost after ``link_timeout`` seconds of *listening* without a valid
         frame: each read adds the time it waited, at most ``_LISTEN_CAP``, so a reader thread
-        that a busy host did not run for a while does not mistake that for a silent robot."""
+        that a busy host did not run for a while does not mistake that for a silent robot.
+        """
         silent = 0.0
         while not self._closing:
             t0 = time.monotonic()
@@ -162,7 +164,8 @@ class SensingMixin:
 
     def _query(self, deadline: float = math.inf) -> SensorState | None:
         """Query mode: one Query List exchange, retried after a short or garbled reply; None
-        when the robot clock reaches ``deadline`` before the next query is due."""
+        when the robot clock reaches ``deadline`` before the next query is due.
+        """
         if self._ls is not None:
             return self._query_lockstep(deadline)
         need = oi.reply_size(SENSOR_IDS)
@@ -201,7 +204,8 @@ class SensingMixin:
 
     def _query_lockstep(self, deadline: float) -> SensorState | None:
         """:meth:`_query` in lockstep: the clock moves to the next sensor period, then the
-        query is asked and answered with the clock standing still."""
+        query is asked and answered with the clock standing still.
+        """
         need = oi.reply_size(SENSOR_IDS)
         request = oi.encode_query_list(SENSOR_IDS)
         for _ in range(3):
@@ -224,7 +228,8 @@ class SensingMixin:
 
     def _advance(self, until: float) -> int:
         """Lockstep: move the emulated clock towards ``until`` (at most one sensor period);
-        returns the bytes the emulator has written by then. A gone emulator is a lost link."""
+        returns the bytes the emulator has written by then. A gone emulator is a lost link.
+        """
         try:
             return self._ls.advance(self._tx, until)
         except LockstepClosed as exc:
@@ -234,7 +239,8 @@ class SensingMixin:
 
     def _next_state_lockstep(self, after: int | None, deadline: float) -> SensorState | None:
         """:meth:`_next_state` in stream mode and lockstep: read what the emulator sent, and
-        move its clock to the next frame until a new reading or ``deadline`` comes."""
+        move its clock to the next frame until a new reading or ``deadline`` comes.
+        """
         while True:
             with self._cv:
                 self._cv.wait_for(lambda: self._rx >= self._ls.robot_bytes or
@@ -263,7 +269,8 @@ class SensingMixin:
     def _next_state(self, after: int | None, deadline: float, check: bool = True
                     ) -> SensorState | None:
         """The next reading newer than ``after`` (None: any), or None once the robot clock
-        passes ``deadline``. Raises the pending RobotError, if any."""
+        passes ``deadline``. Raises the pending RobotError, if any.
+        """
         with self._cv:
             self._last_call = self.clock()
         if self.sensing == "query":
@@ -291,7 +298,8 @@ class SensingMixin:
 
     def _fresh(self, n: int = 1) -> SensorState:
         """A reading taken after this call (the ``n``-th one; the first may have been in
-        flight already)."""
+        flight already).
+        """
         st = self._state
         seq = None if st is None else st.seq
         limit = self.clock() + max(1.0, self.link_timeout * 2)

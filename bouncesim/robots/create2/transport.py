@@ -1,5 +1,6 @@
 """The OI emulator's end of the serial link: a pseudo-terminal master, or a TCP listener
-with one client (what a pyserial ``socket://`` URL connects to)."""
+with one client (what a pyserial ``socket://`` URL connects to).
+"""
 
 from __future__ import annotations
 
@@ -42,6 +43,7 @@ class Transport:
             raise UserError(f"transport must be 'pty' or 'tcp', got {kind!r}.")
 
     def fds(self) -> list:
+        """The file descriptors the emulator's select loop waits on."""
         if self.kind == "pty":
             return [self.master]
         return [self.listener] + ([self.client] if self.client is not None else [])
@@ -84,7 +86,8 @@ class Transport:
 
     def write(self, data: bytes) -> int:
         """Send without blocking: bytes nobody reads are lost, as on a serial line. Returns
-        the number of bytes sent."""
+        the number of bytes sent.
+        """
         if not data:
             return 0
         try:
@@ -97,6 +100,7 @@ class Transport:
         return 0
 
     def close(self) -> None:
+        """Close the pty or the sockets (idempotent)."""
         for fd in (self.master, self.slave):
             if fd is not None:
                 try:

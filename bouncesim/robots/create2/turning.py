@@ -22,9 +22,11 @@ _TURN_CORRECTIONS = 3      # measured misses a predictive turn corrects at most
 
 class TurningMixin:
     """In-place turns of :class:`~bouncesim.robots.create2.Create2Robot` (uses its
-    sensing and drive methods; not a robot on its own)."""
+    sensing and drive methods; not a robot on its own).
+    """
 
     def turn(self, angle_deg: float) -> None:
+        """Turn in place CCW by ``angle_deg`` [deg] (negative: CW), by clock or by encoders."""
         angle = float(angle_deg)
         if not math.isfinite(angle):
             raise ValueError(f"cannot turn by {angle_deg} degrees.")
@@ -65,7 +67,8 @@ class TurningMixin:
     def _turn_predictive(self, angle: float) -> None:
         """Encoder turn that tolerates a slow host (docs/readme_hardware.md, "Turns on a busy
         host"): legs that slow down near the target and stop where the angle will be when the
-        stop lands; then the settled miss is measured and corrected at creep speed."""
+        stop lands; then the settled miss is measured and corrected at creep speed.
+        """
         b, mpc = self.spec.wheel_base, self.spec.metres_per_count
         sense = 1.0 if angle > 0 else -1.0
         target = math.radians(abs(angle))
@@ -89,7 +92,8 @@ class TurningMixin:
         """Spin in ``sense`` (+1 CCW) until ``way * miss(reading)`` [rad] is used up: full turn
         speed far from the end, slowing linearly to creep speed within the slow zone, and a
         stop issued early by the rotation expected while it travels (the reading's age plus
-        half a sensor period)."""
+        half a sensor period).
+        """
         b, period = self.spec.wheel_base, self.spec.sensor_period
         v_max, v_min = self.turn_speed, min(self.turn_speed, _CREEP_SPEED)
         zone = math.radians(_SLOW_ZONE_DEG)

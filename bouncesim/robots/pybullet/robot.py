@@ -168,7 +168,8 @@ class PyBulletRobot(Robot):
     ...     bot.turn(90)
     """
 
-    def __init__(self, env: Environment | str, noise: NoiseModel | None = None, rng=None, *,
+    def __init__(self, env: Environment | str, noise: NoiseModel | None = None,
+                 rng: np.random.Generator | int | None = None, *,
                  gui: bool = False, record: str | Path | None = None,
                  turn: str = "clock", back_off: float = 0.0,
                  time_step: float = DEFAULT_TIME_STEP,
@@ -500,7 +501,8 @@ class PyBulletRobot(Robot):
     def _turn_by_encoders(self, angle_deg: float) -> None:
         """Turn until the encoder heading change reaches the target, polling every sensor
         period; the wheel speed ramps down near the target (never below 0.03 m/s, about the
-        Create 2's speed resolution) and the turn stops at the poll nearest the target."""
+        Create 2's speed resolution) and the turn stops at the poll nearest the target.
+        """
         target = math.radians(angle_deg)
         sign = 1.0 if target > 0 else -1.0
         remaining_total = abs(target)

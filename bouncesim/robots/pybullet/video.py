@@ -1,5 +1,6 @@
 """Top-down video of a PyBullet world: frames from PyBullet's tiny renderer, written by
-imageio (``.gif``, or ``.mp4`` and other containers with imageio-ffmpeg)."""
+imageio (``.gif``, or ``.mp4`` and other containers with imageio-ffmpeg).
+"""
 
 from __future__ import annotations
 
@@ -32,7 +33,8 @@ def check_record_format(path: Path) -> None:
 def render_top_down(p, kw: dict, bounds, width: int, wall_height: float) -> np.ndarray:
     """One RGB uint8 frame, ``width`` pixels wide, looking straight down on ``bounds``
     (x0, y0, x1, y1) [m] with a 0.15 m margin; ``p`` is the pybullet module and ``kw`` the
-    client's keyword arguments."""
+    client's keyword arguments.
+    """
     x0, y0, x1, y1 = bounds
     m = 0.15
     w, h = (x1 - x0) + 2 * m, (y1 - y0) + 2 * m

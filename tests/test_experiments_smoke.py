@@ -1,0 +1,54 @@
+"""The experiments run end to end at their ``--quick`` budget and write what they say."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import pandas as pd
+import pytest
+
+from experiments import allpairs_fig7, nav_fig3
+
+
+def _config(out):
+    cfg = json.loads((out / "config.json").read_text())
+    assert cfg["quick"] is True and "versions" in cfg and "git_revision" in cfg
+    return cfg
+
+
+@pytest.mark.parametrize("physics", [False, pytest.param(True, marks=pytest.mark.physics)],
+                         ids=["plans", "plans+runs"])
+def test_nav_fig3_quick(tmp_path, physics):
+    argv = ["--quick", "--out", str(tmp_path)] + ([] if physics else ["--no-physics"])
+    assert nav_fig3.main(argv) == 0
+    plans = pd.read_csv(tmp_path / "plans.csv")
+    assert list(plans["ours"]) == ["90° 90° 00000000 90° 90°", "135° 135° 0"]
+    assert (tmp_path / "fig3_paths.png").stat().st_size > 0
+    cfg = _config(tmp_path)
+    assert cfg["angles"] == [90.0, 135.0] and cfg["physics"] is physics
+    if physics:
+        runs = pd.read_csv(tmp_path / "runs.csv")
+        assert len(runs) > 0 and runs["success"].dtype == bool
+        assert cfg["noisy_runs_per_level"] == 3
+
+
+def test_allpairs_fig7_quick(tmp_path):
+    assert allpairs_fig7.main(["--quick", "--out", str(tmp_path)]) == 0
+    table = pd.read_csv(tmp_path / "angles_used.csv")
+    assert set(table["env"]) == {"lab"} and table["plans"].sum() > 0
+    assert len(pd.read_csv(tmp_path / "claims.csv")) == 3
+    assert (tmp_path / "angles_used_lab.png").stat().st_size > 0
+    assert _config(tmp_path)["envs"] == ["lab"]
+
+
+def test_configs_are_frozen():
+    for mod in (nav_fig3, allpairs_fig7):
+        cfg = mod.Config()
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            cfg.seed = 1
+
+
+def test_bad_angles_exit_2(tmp_path, capsys):
+    assert nav_fig3.main(["--angles", "7", "--no-physics", "--out", str(tmp_path)]) == 2
+    assert "nav_fig3: error:" in capsys.readouterr().err
