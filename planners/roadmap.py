@@ -107,10 +107,7 @@ class Roadmap:
     @cached_property
     def rotated(self) -> np.ndarray:
         """(m, N) array: configuration after a bump at z with angle Φ[b]."""
-        P, K = self.cells.P, self.cells.K
-        z = np.arange(self.N)
-        p, k = z % P, z // P
-        return ((k[None, :] + self._steps[:, None]) % K) * P + p[None, :]
+        return self.cells.turn(np.arange(self.N)[None, :], self._steps[:, None])
 
     @cached_property
     def graph(self) -> sp.csr_matrix:
