@@ -13,7 +13,7 @@ MODULES = ["envs", "envs.environment", "planners.cells", "planners.plan", "plann
            "bouncesim.robots", "bouncesim.robots.factory", "bouncesim.robots.conformance",
            "bouncesim.robots.create2.faults",
            "bouncesim.runs.options", "bouncesim.runs.execute",
-           "bouncesim.runs.sweep", "envs.raycast", "planners.coverage.event",
+           "bouncesim.runs.sweep", "envs.motion", "planners.coverage.event",
            "planners.coverage.api", "planners.coverage.mix", "planners.metrics",
            "bouncesim.robots.noise"]
 

@@ -1,12 +1,9 @@
 """The kinematic twin: exact continuous geometry, simulated time (docs/model.md §8-9).
 
-The robot is a disk of radius r whose centre moves inside the C-space (E eroded by r). A
-straight drive is a ray cast against the walls *grown into capsules*: the disk centred at c
-touches a wall segment AB exactly when dist(c, AB) = r, so the first contact along the ray
-c + t u is the first entry of the ray into one of the capsules {p : dist(p, AB) <= r}. Each
-capsule is the union of a rectangle (the segment's two offset sides) and two disks (its end
-points), so the entry distance has a closed form (no polygonal approximation of the rounded
-corners, unlike ``env.cspace``). :class:`WallCaster` does this vectorised over robots x walls.
+The robot is a disk of radius r moving inside the C-space (E eroded by r). Everything about
+how it moves, stops and is counted comes from the motion layer :mod:`envs.motion`, which
+the coverage models share: the exact capsule ray casts (:class:`WallCaster`,
+:class:`LocalCaster`), the contact constants, the step rule and point → cell.
 
 Two bodies use it:
 
@@ -56,10 +53,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from envs import Environment, UserError
-# The pure-geometry ray casts live in envs.raycast (shared with the coverage models in
-# planners); re-exported here under their old names.
-from envs.raycast import (BUMP_RANGE, CONTACT_GAP, STEP_TOL, LocalCaster,  # noqa: F401
-                          WallCaster, casters, unit)
+# The motion layer (shared with the coverage models in planners); the casters and constants
+# are re-exported here under their old names.
+from envs.motion import (BUMP_RANGE, CONTACT_GAP, STEP_TOL, LocalCaster,  # noqa: F401
+                         WallCaster, casters, drive_distance, step, unit)
 from planners.cells import CellSpace
 from planners.metrics import tv_distance
 from planners.plan import PolicyMix
@@ -168,7 +165,7 @@ class KinematicRobot(Robot):
         if dist == 0:
             return 0.0
         sign = 1.0 if dist > 0 else -1.0
-        free = max(self._free_distance(sign, abs(dist) + CONTACT_GAP) - CONTACT_GAP, 0.0)
+        free = drive_distance(self._free_distance(sign, abs(dist) + CONTACT_GAP))
         d = sign * min(abs(dist), free)
         self._advance(d)
         return d
@@ -241,7 +238,7 @@ class KinematicRobot(Robot):
         for _ in range(_MAX_EVENTS):
             reach = speed * (duration - t)
             ahead = self._free_distance(1.0, reach + CONTACT_GAP + BUMP_RANGE)
-            dist = max(ahead - CONTACT_GAP, 0.0)
+            dist = drive_distance(ahead)
             if dist > reach:
                 self._advance(reach)
                 return None, dist - reach
@@ -292,7 +289,7 @@ class KinematicRobot(Robot):
             along = tx * ex + ty * ey
             to_end = (L - lam if along > 0 else lam) / abs(along) + 1e-9
             block = self.caster.cast_one(x, y, tx, ty)
-            d = min(to_end, max(block - CONTACT_GAP, 0.0), speed * ts * budget)
+            d = min(to_end, drive_distance(block), speed * ts * budget)
             if d <= 0:
                 return None
             self._x += d * tx
@@ -413,11 +410,12 @@ class BatchCoverage:
 class KinematicBatch:
     """Many independent kinematic robots stepped together (docs/model.md §9 step semantics).
 
-    A step: if the wall ahead is at least h away, move h forward (counted in the cell where
-    the step starts); otherwise move to contact, then rotate in place by the current bouncing
-    angle plus noise (one step, counted in the cell of the contact position). A contact within
-    ``STEP_TOL`` of h counts as a full forward step (the robot then bumps at the start of the
-    next step), as :func:`bouncesim.runs.execute.execute` counts it on a Robot.
+    A step (the step rule, :func:`envs.motion.step`): if the wall ahead is at least h away,
+    move h forward (counted in the cell where the step starts); otherwise move to contact,
+    then rotate in place by the current bouncing angle plus noise (one step, counted in the
+    cell of the contact position). A contact within ``STEP_TOL`` of h counts as a full
+    forward step (the robot then bumps at the start of the next step), as
+    :func:`bouncesim.runs.execute.execute` counts it on a Robot.
 
     Parameters
     ----------
@@ -470,20 +468,11 @@ class KinematicBatch:
         self.pos = self.cells.centres[p].copy()
         self.heading = (k * self.cells.delta_deg).astype(float)
         self._u = self._u_of = None      # cached unit headings, refreshed on turns
-        x0, y0 = env.origin
-        self._x0, self._y0 = x0, y0
-        self._grid = self.cells.index_grid
-        self._rows, self._cols = self._grid.shape
 
     def cell_of(self, pos: np.ndarray) -> np.ndarray:
-        """Position cell p of each point (n, 2), or -1 outside the free cells."""
-        h = self.cells.h
-        i = np.floor((pos[:, 0] - self._x0) / h).astype(np.int64)
-        j = np.floor((pos[:, 1] - self._y0) / h).astype(np.int64)
-        ok = (i >= 0) & (i < self._cols) & (j >= 0) & (j < self._rows)
-        out = np.full(len(pos), -1, dtype=np.int64)
-        out[ok] = self._grid[j[ok], i[ok]]
-        return out
+        """Position cell p of each point (n, 2), or -1 outside the free cells
+        (:meth:`planners.cells.CellSpace.cell_of_point`)."""
+        return self.cells.cell_of_point(pos)
 
     def step(self, angles_deg, noise: NoiseModel | None = None
              ) -> tuple[np.ndarray, np.ndarray]:
@@ -507,9 +496,7 @@ class KinematicBatch:
                              for (x, y), (a, b) in zip(self.pos.tolist(), u.tolist())])
         else:
             free = self.local.cast(self.pos, u)
-        free -= CONTACT_GAP
-        move = np.clip(free, 0.0, self.h, out=free)
-        bumped = move < self.h - STEP_TOL
+        move, bumped = step(drive_distance(free), self.h)     # docs/model.md §9
         counted = self.cell_of(self.pos)
         self.pos += move[:, None] * u
         if bumped.any():
