@@ -32,15 +32,9 @@ import numpy as np
 import shapely
 
 import envs
-from bouncesim.robots.kinematic import (
-    CONTACT_GAP,
-    STEP_TOL,
-    KinematicBatch,
-    KinematicRobot,
-    casters,
-    unit,
-)
+from bouncesim.robots.kinematic import KinematicBatch, KinematicRobot
 from bouncesim.runs.execute import execute
+from envs.motion import casters, drive_distance, step, unit
 from planners.cells import CellSpace
 
 ANGLE = 135.0
@@ -75,10 +69,10 @@ class ShapelyStepper:
                 lo = mid
             else:
                 hi = mid
-        move = max(lo - CONTACT_GAP, 0.0)
+        move = drive_distance(lo)
         self.pos = c + move * u
         p = int(self.cells.cell_of_point(self.pos[None])[0])
-        if move >= h - STEP_TOL:           # a contact at the full step is a forward step
+        if not step(move, h)[1]:           # a contact at the full step is a forward step
             return int(self.cells.cell_of_point(c[None])[0]), move
         self.heading = (self.heading + angle) % 360.0
         return p, move
@@ -120,7 +114,7 @@ def bench_env(name: str, sizes, budget: int, ref_steps: int, seed: int,
     st = np.array(states)
     caster, _ = casters(env)
     free = caster.cast(st[:, :2], unit(st[:, 2]))
-    twin_moves = np.clip(free - CONTACT_GAP, 0.0, cells.h)
+    twin_moves, _ = step(drive_distance(free), cells.h)
     agree = float(np.mean(np.abs(twin_moves - np.array(moves)) <= 1e-6))
     rows.append(dict(env=name, method="shapely reference", robots=1, steps=n_ref * per,
                      seconds=dt, rate=ref_rate, agree=f"{agree:.4f}"))

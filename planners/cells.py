@@ -31,6 +31,7 @@ from functools import cached_property
 import numpy as np
 
 from envs import Environment, UserError
+from envs.motion import grid_index, unit_rad
 
 from .resources import DEFAULT_MAX_MEMORY, check_memory
 
@@ -106,10 +107,12 @@ class CellSpace:
     # ------------------------------------------------------------------ cells
     @property
     def h(self) -> float:
+        """Cell size [m]."""
         return self.env.cell_size
 
     @property
     def K(self) -> int:
+        """Number of orientations."""
         return self.env.orientations
 
     @property
@@ -119,6 +122,7 @@ class CellSpace:
 
     @cached_property
     def index_grid(self) -> np.ndarray:
+        """(rows, cols) grid of position indices p, -1 where the cell centre is not free."""
         free = self.env.grid_centres_free()
         grid = np.full(free.shape, -1, dtype=np.int64)
         grid[free] = np.arange(int(free.sum()))  # row-major from the bottom row
@@ -126,19 +130,23 @@ class CellSpace:
 
     @cached_property
     def cells_ij(self) -> np.ndarray:
+        """(P, 2) grid column and row (i, j) of each free position cell."""
         jj, ii = np.nonzero(self.index_grid >= 0)
         return np.stack([ii, jj], axis=1)
 
     @property
     def P(self) -> int:
+        """Number of free position cells."""
         return int(self.cells_ij.shape[0])
 
     @property
     def N(self) -> int:
+        """Number of configurations, K · P."""
         return self.K * self.P
 
     @cached_property
     def centres(self) -> np.ndarray:
+        """(P, 2) centre [m] of each free position cell."""
         x0, y0 = self.env.origin
         return np.column_stack([x0 + (self.cells_ij[:, 0] + 0.5) * self.h,
                                 y0 + (self.cells_ij[:, 1] + 0.5) * self.h])
@@ -147,6 +155,13 @@ class CellSpace:
     def headings(self) -> np.ndarray:
         """Heading of each orientation k [rad]."""
         return 2 * np.pi * np.arange(self.K) / self.K
+
+    @cached_property
+    def units(self) -> np.ndarray:
+        """(K, 2) unit heading vector of each orientation k (axis headings exact, §5)."""
+        u = unit_rad(self.headings)
+        u.flags.writeable = False
+        return u
 
     # ------------------------------------------------------------------ indices
     def z(self, p, k):
@@ -165,16 +180,16 @@ class CellSpace:
         return float(x), float(y), float(k * self.delta_deg)
 
     def cell_of_point(self, xy) -> np.ndarray:
-        """p of the grid cell containing each point, or -1 outside the free cells."""
-        pts = np.asarray(xy, dtype=float).reshape(-1, 2)
-        x0, y0 = self.env.origin
-        i = np.floor((pts[:, 0] - x0) / self.h).astype(np.int64)
-        j = np.floor((pts[:, 1] - y0) / self.h).astype(np.int64)
-        nrows, ncols = self.index_grid.shape
-        ok = (i >= 0) & (i < ncols) & (j >= 0) & (j < nrows)
-        out = np.full(len(pts), -1, dtype=np.int64)
-        out[ok] = self.index_grid[j[ok], i[ok]]
-        return out
+        """P of the grid cell containing each point (§3, :func:`envs.motion.grid_index`), or
+        -1 outside the free cells.
+        """
+        g = grid_index(xy, self.env.origin, self.h, self.index_grid.shape)
+        return self._p_of_grid_index[g]
+
+    @cached_property
+    def _p_of_grid_index(self) -> np.ndarray:
+        """P of every flat grid index, then -1 (what grid index -1, outside, looks up)."""
+        return np.append(self.index_grid.ravel(), -1)
 
     def orientation_of(self, heading_deg) -> np.ndarray:
         """Nearest orientation k of each heading [deg]."""
@@ -201,6 +216,7 @@ class CellSpace:
         return self.z(p, (k + np.asarray(steps)) % self.K)
 
     def angle_steps(self, angle_deg: float, what: str = "bouncing angle") -> int:
+        """An angle [deg] as a whole number of orientation steps Δ (UserError otherwise)."""
         return angle_steps(angle_deg, self.K, what)
 
     # ------------------------------------------------------------------ step table
@@ -211,9 +227,7 @@ class CellSpace:
         if P == 0:
             return np.zeros(0, dtype=np.int64)
         check_memory(self, task="cells", max_memory=self.max_memory)
-        u = np.column_stack([np.cos(self.headings), np.sin(self.headings)])      # (K, 2)
-        # Snap tiny components so that axis-aligned headings are exact (cos 90° = 6e-17).
-        u[np.abs(u) < 1e-12] = 0.0
+        u = self.units                                                           # (K, 2)
         c = np.broadcast_to(self.centres[None, :, :], (K, P, 2)).reshape(-1, 2)  # z order
         uu = np.repeat(u, P, axis=0)
         d = c + h * uu
@@ -234,9 +248,7 @@ class CellSpace:
         di = floor(½ + (1 + 1e-6)·cos θ_k) and dj = floor(½ + (1 + 1e-6)·sin θ_k), the same
         for every cell (the grid is translation invariant). K = 8: (1, 0), (1, 1), (0, 1), …
         """
-        u = np.column_stack([np.cos(self.headings), np.sin(self.headings)])
-        u[np.abs(u) < 1e-12] = 0.0
-        return np.floor(0.5 + (1 + 1e-6) * u).astype(np.int64)
+        return np.floor(0.5 + (1 + 1e-6) * self.units).astype(np.int64)
 
     def run_length(self, k: int, n: int) -> float:
         """[m] distance between the centres of the cells where n forward moves at orientation

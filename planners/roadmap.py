@@ -79,20 +79,25 @@ class Roadmap:
     # ------------------------------------------------------------------ sizes
     @property
     def m(self) -> int:
+        """Number of bouncing angles."""
         return len(self.angles)
 
     @property
     def N(self) -> int:
+        """Number of configurations."""
         return self.cells.N
 
     @property
     def n_nodes(self) -> int:
+        """Nodes of the roadmap: m layers of N, plus N start nodes."""
         return (self.m + 1) * self.N
 
     def start_node(self, z):
+        """The start node of configuration(s) ``z``."""
         return self.m * self.N + np.asarray(z)
 
     def node(self, z, a):
+        """The node of configuration(s) ``z`` in angle layer(s) ``a``."""
         return np.asarray(a) * self.N + np.asarray(z)
 
     def config_of(self, node):
@@ -107,10 +112,7 @@ class Roadmap:
     @cached_property
     def rotated(self) -> np.ndarray:
         """(m, N) array: configuration after a bump at z with angle Φ[b]."""
-        P, K = self.cells.P, self.cells.K
-        z = np.arange(self.N)
-        p, k = z % P, z // P
-        return ((k[None, :] + self._steps[:, None]) % K) * P + p[None, :]
+        return self.cells.turn(np.arange(self.N)[None, :], self._steps[:, None])
 
     @cached_property
     def graph(self) -> sp.csr_matrix:

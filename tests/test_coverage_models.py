@@ -61,7 +61,7 @@ def twin_q(env, angle, eps=5.0, r=0.8, robots=1000, burn=1000, steps=2000, seed=
 
 
 # ---------------------------------------------------------------------------- hand cases
-@pytest.mark.parametrize("name", ["envs.raycast", "planners.coverage.event",
+@pytest.mark.parametrize("name", ["envs.motion", "planners.coverage.event",
                                   "planners.coverage.api", "planners.timeshare"])
 def test_doctests(name):
     mod = importlib.import_module(name)
@@ -73,6 +73,25 @@ def test_flight_steps_follow_the_twin_rule():
     # a step is forward while at least h - STEP_TOL (1e-6 m) is free
     assert flight_steps([0.0, 0.3399985, 0.3399995, 0.68, 1.019999, 1.02], 0.34).tolist() == \
         [0, 0, 1, 2, 3, 3]
+
+
+def test_flight_steps_is_the_step_rule_along_a_flight():
+    """envs.motion.flight_steps counts the forward steps that envs.motion.step makes along a
+    straight flight, which is floor((D + STEP_TOL)/h) away from rounding at the threshold.
+    """
+    from envs.motion import STEP_TOL, step
+    h = 0.34
+    rng = np.random.default_rng(3)
+    near = (np.arange(1, 8) * h)[:, None] + np.array([-2e-6, -1e-6 + 1e-9, -1e-9, 0.0, 1e-9])
+    d = np.concatenate([rng.uniform(0.0, 3.0, 3000), near.ravel(), [0.0, 1e-12]])
+    by_steps = []
+    for x in d.tolist():
+        m = 0
+        while not step(x - m * h, h)[1]:
+            m += 1
+        by_steps.append(m)
+    assert flight_steps(d, h).tolist() == by_steps
+    assert flight_steps(d, h).tolist() == np.floor((d + STEP_TOL) / h).astype(int).tolist()
 
 
 CORRIDOR = _rect(1.10, 0.40)       # C-space [0.17, 0.93] x [0.17, 0.23]; P = 3 (x = .17 .51 .85)

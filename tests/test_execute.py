@@ -249,6 +249,28 @@ def test_mix_run_on_the_twin_matches_the_batch(lab, lab_cells):
         assert np.allclose(run.final_pose[:2], batch.pos[0], atol=1e-9)
 
 
+def test_policy_mix_in_epochs_on_the_twin_matches_the_batch(lab, lab_cells):
+    """The same for a policy mix executed in epochs: one Generator feeds the epoch draws and
+    the turn noise of both (the batch draws them from its own rng in the same order), so the
+    single robot and a one-robot batch share every step (the step rule of envs.motion).
+    """
+    mix = PolicyMix((45.0, 135.0, 270.0), (0.3, 0.5, 0.2))
+    noise = SteppedNoise(45, 0.7, 45)
+    for z0 in (7, 120, 300):
+        g = np.random.default_rng(z0)
+        bot = KinematicRobot(lab, noise, g)
+        run = execute(mix, bot, steps=600, epoch=7, rng=g, start=z0, cells=lab_cells,
+                      record_trace=False)
+        batch = KinematicBatch(lab, 1, np.random.default_rng(z0), starts=[z0])
+        res = batch.run(mix, 600, epoch=7, noise=noise)
+        assert run.steps == 600 and run.reason == "finished" and len(run.epoch_angles) == 86
+        assert len(set(run.epoch_angles)) == 3
+        assert np.array_equal(run.counts, res.counts)
+        assert run.dropped == res.dropped and run.bumps == res.bumps
+        assert np.allclose(run.final_pose[:2], batch.pos[0], atol=1e-9)
+        assert run.final_pose[2] == pytest.approx(float(batch.heading[0]), abs=1e-9)
+
+
 def test_mix_epochs_follow_alpha(lab):
     mix = PolicyMix((90.0, 135.0, 180.0), (0.2, 0.5, 0.3))
     run = execute(mix, KinematicRobot(lab), steps=3000, epoch=3, rng=np.random.default_rng(1),

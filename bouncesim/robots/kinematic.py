@@ -1,12 +1,9 @@
 """The kinematic twin: exact continuous geometry, simulated time (docs/model.md §8-9).
 
-The robot is a disk of radius r whose centre moves inside the C-space (E eroded by r). A
-straight drive is a ray cast against the walls *grown into capsules*: the disk centred at c
-touches a wall segment AB exactly when dist(c, AB) = r, so the first contact along the ray
-c + t u is the first entry of the ray into one of the capsules {p : dist(p, AB) <= r}. Each
-capsule is the union of a rectangle (the segment's two offset sides) and two disks (its end
-points), so the entry distance has a closed form (no polygonal approximation of the rounded
-corners, unlike ``env.cspace``). :class:`WallCaster` does this vectorised over robots x walls.
+The robot is a disk of radius r moving inside the C-space (E eroded by r). Everything about
+how it moves, stops and is counted comes from the motion layer :mod:`envs.motion`, which
+the coverage models share: the exact capsule ray casts (:class:`WallCaster`,
+:class:`LocalCaster`), the contact constants, the step rule and point → cell.
 
 Two bodies use it:
 
@@ -56,16 +53,26 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from envs import Environment, UserError
-# The pure-geometry ray casts live in envs.raycast (shared with the coverage models in
-# planners); re-exported here under their old names.
-from envs.raycast import (BUMP_RANGE, CONTACT_GAP, STEP_TOL, LocalCaster,  # noqa: F401
-                          WallCaster, casters, unit)
+
+# The motion layer (shared with the coverage models in planners); the casters and constants
+# are re-exported here under their old names.
+from envs.motion import (  # noqa: F401
+    BUMP_RANGE,
+    CONTACT_GAP,
+    STEP_TOL,
+    LocalCaster,
+    WallCaster,
+    casters,
+    drive_distance,
+    step,
+    unit,
+)
 from planners.cells import CellSpace
 from planners.metrics import tv_distance
 from planners.plan import PolicyMix
 
-from .noise import NoiseModel, NoNoise, noise_and_rng, noise_for_mix
 from .base import CREATE2, BumpEvent, Robot, RobotSpec
+from .noise import NoiseModel, NoNoise, noise_and_rng, noise_for_mix
 
 __all__ = ["WallCaster", "LocalCaster", "casters", "KinematicRobot", "KinematicBatch",
            "BatchCoverage", "unit", "CONTACT_GAP", "BUMP_RANGE", "STEP_TOL", "CENTRE_ZONE_DEG"]
@@ -164,17 +171,19 @@ class KinematicRobot(Robot):
 
     def _move(self, dist: float) -> float:
         """Move ``dist`` [m] along the heading (negative: backwards), stopping at contact.
-        Returns the distance actually travelled (signed)."""
+        Returns the distance actually travelled (signed).
+        """
         if dist == 0:
             return 0.0
         sign = 1.0 if dist > 0 else -1.0
-        free = max(self._free_distance(sign, abs(dist) + CONTACT_GAP) - CONTACT_GAP, 0.0)
+        free = drive_distance(self._free_distance(sign, abs(dist) + CONTACT_GAP))
         d = sign * min(abs(dist), free)
         self._advance(d)
         return d
 
     # ------------------------------------------------------------------ Robot interface
     def drive(self, speed: float) -> None:
+        """Start driving straight at ``speed`` [m/s] (negative: backwards)."""
         speed = float(speed)
         if not math.isfinite(speed) or abs(speed) > self.spec.max_wheel_speed + 1e-12:
             raise UserError(f"speed {speed:g} m/s is beyond the robot's "
@@ -182,6 +191,7 @@ class KinematicRobot(Robot):
         self._speed = speed
 
     def stop(self) -> None:
+        """Stop both wheels."""
         self._speed = 0.0
 
     def _contacts(self) -> list[tuple[float, float, float, tuple | None]]:
@@ -196,6 +206,7 @@ class KinematicRobot(Robot):
         return out
 
     def bumper(self) -> tuple[bool, bool]:
+        """(left, right) switches: closed by a contact within the bumper arc."""
         arc = 90.0 if self.glance_deg is None else self.glance_deg
         left = right = False
         for beta, _, _, _ in self._contacts():
@@ -205,9 +216,11 @@ class KinematicRobot(Robot):
         return bool(left), bool(right)
 
     def clock(self) -> float:
+        """Simulated time [s] since the robot was built."""
         return self._t
 
     def wait(self, duration: float) -> None:
+        """Let ``duration`` [s] of simulated time pass with the current drive command."""
         duration = float(duration)
         if duration < 0 or not math.isfinite(duration):
             raise ValueError(f"cannot wait {duration} s.")
@@ -218,6 +231,7 @@ class KinematicRobot(Robot):
         self._t += duration
 
     def turn(self, angle_deg: float) -> None:
+        """Turn in place CCW by ``angle_deg`` [deg] plus the noise model's draw."""
         angle = float(angle_deg)
         actual = self.noise.sample(self.rng, angle)
         self._set_heading((self._heading + actual) % 360.0)
@@ -228,6 +242,7 @@ class KinematicRobot(Robot):
         self._speed = 0.0
 
     def encoders(self) -> tuple[int, int]:
+        """(left, right) cumulative wheel encoder counts."""
         mpc = self.spec.metres_per_count
         return int(round(self._wheel[0] / mpc)), int(round(self._wheel[1] / mpc))
 
@@ -241,7 +256,7 @@ class KinematicRobot(Robot):
         for _ in range(_MAX_EVENTS):
             reach = speed * (duration - t)
             ahead = self._free_distance(1.0, reach + CONTACT_GAP + BUMP_RANGE)
-            dist = max(ahead - CONTACT_GAP, 0.0)
+            dist = drive_distance(ahead)
             if dist > reach:
                 self._advance(reach)
                 return None, dist - reach
@@ -262,7 +277,8 @@ class KinematicRobot(Robot):
 
     def _slide(self, contacts, speed: float, budget: float) -> float | None:
         """Slide along the one glancing contact for at most ``budget`` [s]; the time used,
-        or None when the robot is wedged (two walls at once, or the slide is blocked)."""
+        or None when the robot is wedged (two walls at once, or the slide is blocked).
+        """
         # contacts closer than _SAME_CONTACT are one (a wall's end and its corner vertex a
         # micrometre apart); of those, a straight wall is preferred to its corner
         groups: list[list] = []
@@ -292,7 +308,7 @@ class KinematicRobot(Robot):
             along = tx * ex + ty * ey
             to_end = (L - lam if along > 0 else lam) / abs(along) + 1e-9
             block = self.caster.cast_one(x, y, tx, ty)
-            d = min(to_end, max(block - CONTACT_GAP, 0.0), speed * ts * budget)
+            d = min(to_end, drive_distance(block), speed * ts * budget)
             if d <= 0:
                 return None
             self._x += d * tx
@@ -357,6 +373,7 @@ class KinematicRobot(Robot):
 
     # ------------------------------------------------------------------ simulation only
     def place(self, x: float, y: float, heading_deg: float) -> None:
+        """Put the robot at (x [m], y [m]) facing ``heading_deg`` [deg], stopped."""
         x, y = float(x), float(y)
         if not bool(self.env.points_free([[x, y]])[0]):
             raise UserError(f"the robot does not fit at ({x:g}, {y:g}) in {self.env.name}.")
@@ -365,6 +382,7 @@ class KinematicRobot(Robot):
         self._speed = 0.0
 
     def true_pose(self) -> tuple[float, float, float]:
+        """(x [m], y [m], heading [deg]) now."""
         return self._x, self._y, self._heading
 
     def __repr__(self) -> str:
@@ -413,11 +431,12 @@ class BatchCoverage:
 class KinematicBatch:
     """Many independent kinematic robots stepped together (docs/model.md §9 step semantics).
 
-    A step: if the wall ahead is at least h away, move h forward (counted in the cell where
-    the step starts); otherwise move to contact, then rotate in place by the current bouncing
-    angle plus noise (one step, counted in the cell of the contact position). A contact within
-    ``STEP_TOL`` of h counts as a full forward step (the robot then bumps at the start of the
-    next step), as :func:`bouncesim.runs.execute.execute` counts it on a Robot.
+    A step (the step rule, :func:`envs.motion.step`): if the wall ahead is at least h away,
+    move h forward (counted in the cell where the step starts); otherwise move to contact,
+    then rotate in place by the current bouncing angle plus noise (one step, counted in the
+    cell of the contact position). A contact within ``STEP_TOL`` of h counts as a full
+    forward step (the robot then bumps at the start of the next step), as
+    :func:`bouncesim.runs.execute.execute` counts it on a Robot.
 
     Parameters
     ----------
@@ -470,20 +489,12 @@ class KinematicBatch:
         self.pos = self.cells.centres[p].copy()
         self.heading = (k * self.cells.delta_deg).astype(float)
         self._u = self._u_of = None      # cached unit headings, refreshed on turns
-        x0, y0 = env.origin
-        self._x0, self._y0 = x0, y0
-        self._grid = self.cells.index_grid
-        self._rows, self._cols = self._grid.shape
 
     def cell_of(self, pos: np.ndarray) -> np.ndarray:
-        """Position cell p of each point (n, 2), or -1 outside the free cells."""
-        h = self.cells.h
-        i = np.floor((pos[:, 0] - self._x0) / h).astype(np.int64)
-        j = np.floor((pos[:, 1] - self._y0) / h).astype(np.int64)
-        ok = (i >= 0) & (i < self._cols) & (j >= 0) & (j < self._rows)
-        out = np.full(len(pos), -1, dtype=np.int64)
-        out[ok] = self._grid[j[ok], i[ok]]
-        return out
+        """Position cell p of each point (n, 2), or -1 outside the free cells
+        (:meth:`planners.cells.CellSpace.cell_of_point`).
+        """
+        return self.cells.cell_of_point(pos)
 
     def step(self, angles_deg, noise: NoiseModel | None = None
              ) -> tuple[np.ndarray, np.ndarray]:
@@ -507,9 +518,7 @@ class KinematicBatch:
                              for (x, y), (a, b) in zip(self.pos.tolist(), u.tolist())])
         else:
             free = self.local.cast(self.pos, u)
-        free -= CONTACT_GAP
-        move = np.clip(free, 0.0, self.h, out=free)
-        bumped = move < self.h - STEP_TOL
+        move, bumped = step(drive_distance(free), self.h)     # docs/model.md §9
         counted = self.cell_of(self.pos)
         self.pos += move[:, None] * u
         if bumped.any():

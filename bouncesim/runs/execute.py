@@ -50,16 +50,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from envs import UserError
+from envs.motion import STEP_TOL, step
 from planners.cells import CellSpace
 from planners.plan import Plan, PolicyMix
 
 from ..robots.base import Robot, RobotError
 from .trace import Trace
 
-__all__ = ["execute", "PlanRun", "MixRun", "Deviation", "STEP_TOL"]
-
-STEP_TOL = 1e-6
-"""[m] in a coverage step, a bump within this of the full step length h completes the step."""
+__all__ = ["execute", "PlanRun", "MixRun", "Deviation"]
 
 
 @dataclass(frozen=True)
@@ -117,6 +115,7 @@ class PlanRun:
     trace: Trace
 
     def to_json(self) -> dict:
+        """The run as plain JSON types (non-finite numbers as None)."""
         def num(v):
             return None if v is None else round(float(v), 6)
         return {"plan": str(self.plan), "success": self.success, "reason": self.reason,
@@ -358,7 +357,8 @@ def _time_up(robot: Robot, t0: float, max_time: float | None) -> str:
 # ============================================================================ plans
 class _PlanRunner:
     """The plan half of :func:`execute` (docs/model.md §8): for every segment (n zeros,
-    angle) drive until a bump, log a deviation, back off, turn."""
+    angle) drive until a bump, log a deviation, back off, turn.
+    """
 
     finished = "plan finished"
 
@@ -468,7 +468,8 @@ class _PlanRunner:
 class _MixRunner:
     """The mix half of :func:`execute` (docs/model.md §8-9): epochs of ``epoch`` steps, each
     with one angle drawn with probabilities α; a step drives h by the clock or until a bump,
-    and on a bump turns by the epoch's angle. Visits are counted per step."""
+    and on a bump turns by the epoch's angle. Visits are counted per step.
+    """
 
     finished = "finished"
 
@@ -502,16 +503,13 @@ class _MixRunner:
         robot, speed, back_off, rng = self.robot, self.speed, self.back_off, self.rng
         angles, alpha, epoch, max_stuck = self.angles, self.alpha, self.epoch, self.max_stuck
         record_trace, epoch_angles, counts = self.record_trace, self.epoch_angles, self.counts
-        h = self.cells.h
-        x0, y0 = self.cells.env.origin
-        grid = self.cells.index_grid
-        rows, cols = grid.shape
+        cells = self.cells
+        h = cells.h
 
         def count(pose) -> None:
             if pose is None:
                 return
-            i, j = math.floor((pose[0] - x0) / h), math.floor((pose[1] - y0) / h)
-            p = int(grid[j, i]) if 0 <= i < cols and 0 <= j < rows else -1
+            p = int(cells.cell_of_point(pose[:2])[0])
             if p < 0:
                 self.dropped += 1
             else:
@@ -530,7 +528,9 @@ class _MixRunner:
             pose0 = robot.true_pose()
             ev = robot.drive_for(speed, h / speed)
             travelled = speed * ev.elapsed
-            if not ev.bumped or travelled >= h - STEP_TOL:
+            # the step rule (docs/model.md §9): a drive the bumper did not stop had h free
+            _, bump_step = step(travelled if ev.bumped else math.inf, h)
+            if not bump_step:
                 count(pose0)
                 stuck = 0
                 if record_trace:

@@ -4,10 +4,10 @@ The paper's step model (:mod:`planners.coverage.step`) snaps the robot to a cell
 every step, so at fine headings a robot 20° off an axis never drifts across rows. The event
 model keeps the continuous geometry where it matters: the robot's state is observed only at
 its contacts with the walls, and the flight from one contact to the next is an exact straight
-line cast against the walls (the same caster, with the same contact conventions, as the
-kinematic twin). Only the contact *point* is binned (by arc length along the C-space
-boundary); the heading stays exact on the Δ = 360°/K grid (starts are cell-centre headings
-θ_k and every turn φ + δ is a multiple of Δ).
+line cast against the walls (the same caster, contact conventions and step rule as the
+kinematic twin: :mod:`envs.motion`). Only the contact *point* is binned (by arc length along
+the C-space boundary); the heading stays exact on the Δ = 360°/K grid (starts are
+cell-centre headings θ_k and every turn φ + δ is a multiple of Δ).
 
 The definition and its approximations are docs/model.md §10; its measured accuracy is in
 ``docs/model_continuous.md``.
@@ -49,11 +49,17 @@ import shapely
 from shapely.geometry.polygon import orient
 
 from envs import UserError
-from envs.raycast import CONTACT_GAP, STEP_TOL, casters, unit
+from envs.motion import CONTACT_GAP, casters, drive_distance, flight_steps, unit
 
 from ..cells import CellSpace
-from ..markov import (ChainAnalysis, _assemble, absorption_probabilities, check_stochastic,
-                     closed_classes, stationary_distributions)
+from ..markov import (
+    ChainAnalysis,
+    _assemble,
+    absorption_probabilities,
+    check_stochastic,
+    closed_classes,
+    stationary_distributions,
+)
 from ..timeshare import DelayChain
 from .base import AngleCoverage, cached_build
 from .noise import TurnNoise
@@ -220,7 +226,8 @@ class Boundary:
         """Ring points (n, 2) at fraction ``frac`` ∈ [0, 1] along each bin, moved 1e-9 m
         into the free side (where the twin's robot stops: ``CONTACT_GAP`` short of the
         contact), so that a contact on a cell border is counted in the free cell. With
-        ``return_segment`` also the ring segment of each point."""
+        ``return_segment`` also the ring segment of each point.
+        """
         bins = np.asarray(bins, dtype=np.int64)
         ring = self.ring_of_bin[bins]
         s = (bins - self.ring_first_bin[ring] + np.asarray(frac, dtype=float)) \
@@ -250,28 +257,15 @@ def _point_seg_dist(p, a, b) -> np.ndarray:
 
 
 # ============================================================================ flights
-def flight_steps(dist, h: float) -> np.ndarray:
-    """Forward steps of a flight of free length ``dist`` [m] under the twin's step rule.
-
-    A step is a forward step while at least h − STEP_TOL of free distance remains
-    (docs/model.md §9, :class:`bouncesim.robots.kinematic.KinematicBatch`), so a flight of D gives
-    floor((D + STEP_TOL)/h) forward steps and then one bump step at the contact.
-
-    >>> flight_steps([0.0, 0.34, 0.3399995, 0.68 - 2e-6, 1.0], 0.34).tolist()
-    [0, 1, 1, 1, 2]
-    """
-    d = np.asarray(dist, dtype=float)
-    return np.floor((d + STEP_TOL) / h).astype(np.int64)
-
-
+# flight_steps (the step rule along a flight) lives in envs.motion, re-exported here.
 def _cast(caster, pos, u) -> np.ndarray:
-    """Free flight length [m] (contact distance − CONTACT_GAP, clipped at 0), chunked."""
+    """Free flight length [m] (:func:`envs.motion.drive_distance` of the cast), chunked."""
     out = np.empty(len(pos))
     for s in range(0, len(pos), _CHUNK):
         out[s:s + _CHUNK] = caster.cast(pos[s:s + _CHUNK], u[s:s + _CHUNK])
     if not np.all(np.isfinite(out)):
         raise UserError("a flight never meets a wall: the environment is not closed.")
-    return np.maximum(out - CONTACT_GAP, 0.0)
+    return drive_distance(out)
 
 
 def _step_cells(cs: CellSpace, start, u, n_fwd, dist, owner, weight):
@@ -394,7 +388,8 @@ class EventModel:
 
     def delay_chain(self) -> DelayChain:
         """The model as a :class:`planners.timeshare.DelayChain`: the sampled flights with
-        their steps (forward steps + the bump step), the flight rewards and the first landing."""
+        their steps (forward steps + the bump step), the flight rewards and the first landing.
+        """
         src, dst, delay, w = self.flights
         return DelayChain(src=src, dst=dst, delay=delay, weight=w, reward=self.reward,
                           start=self.start_pre)

@@ -4,13 +4,14 @@ Every configuration cell (p, k) is represented by a deterministic stratified lat
 sample poses: m × m points spread over the position cell's square (those where the robot
 fits; the cell centre if none does) times ``theta_samples`` headings spread over
 [θ_k − Δ/2, θ_k + Δ/2]. Each sample makes one exact continuous step with the kinematic
-twin's rule (forward h when at least h − STEP_TOL is free, else a move to contact and a
-turn by φ + δ with the docs/model.md §7 noise) and is mapped to the configuration cell it ends in;
-the fractions give the row of (p, k) in a sparse N × N chain, analysed with
-:mod:`planners.markov` (uniform start over the N configurations, as docs/model.md §7). Coverage
-counts steps where the twin counts them: a forward step in its start cell, a bump step in
-the cell of the contact point (steps in no free cell are dropped; a sample that ends in a
-cell that is not free is sent to the nearest free cell for the chain).
+twin's rule (:func:`envs.motion.step`: forward h when at least h − STEP_TOL is free, else a
+move to contact and a turn by φ + δ with the docs/model.md §7 noise) and is mapped to the
+configuration cell it ends in; the fractions give the row of (p, k) in a sparse N × N chain,
+analysed with :mod:`planners.markov` (uniform start over the N configurations, as
+docs/model.md §7). Coverage counts steps where the twin counts them: a forward step in its
+start cell, a bump step in the cell of the contact point (steps in no free cell are
+dropped; a sample that ends in a cell that is not free is sent to the nearest free cell for
+the chain).
 
 This is the established route for continuous dynamics; it re-randomises the position inside
 the cell at every step, which the event model avoids (``docs/model_continuous.md``).
@@ -26,7 +27,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from envs import UserError
-from envs.raycast import CONTACT_GAP, STEP_TOL, casters, unit
+from envs.motion import casters, drive_distance, step, unit
 
 from ..cells import CellSpace
 from ..markov import analyse_chain
@@ -110,8 +111,7 @@ class SampledModel:
         free_d = np.empty(len(xy))
         for s in range(0, len(xy), 65536):
             free_d[s:s + 65536] = local.cast(xy[s:s + 65536], u[s:s + 65536])
-        move = np.clip(free_d - CONTACT_GAP, 0.0, h)
-        bump = move < h - STEP_TOL
+        move, bump = step(drive_distance(free_d), h)          # the twin's step rule
         end = xy + move[:, None] * u
         dest = cs.cell_of_point(end)
         counted = np.where(bump, dest, p)

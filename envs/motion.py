@@ -1,22 +1,27 @@
-"""Exact ray casts of a moving disk against wall segments (pure geometry, numpy only).
+"""The motion layer: how a disk robot moves, stops and is counted (docs/model.md §3-5, §9).
 
-The robot is a disk of radius r whose centre moves inside the C-space (E eroded by r). A
-straight drive is a ray cast against the walls *grown into capsules*: the disk centred at c
-touches a wall segment AB exactly when dist(c, AB) = r, so the first contact along the ray
-c + t u is the first entry of the ray into one of the capsules {p : dist(p, AB) <= r}. Each
-capsule is the union of a rectangle (the segment's two offset sides) and two disks (its end
-points), so the entry distance has a closed form (no polygonal approximation of the rounded
-corners, unlike ``env.cspace``).
+Pure geometry on numpy, the bottom layer under the planners (the step model, the sampled and
+event coverage models) and the simulators (the kinematic twin, the executor's step counting),
+so that model and simulation see bitwise the same flights, steps and cells. One home each:
 
-- :class:`WallCaster`: all walls, vectorised over rays x walls (and a scalar path).
-- :class:`LocalCaster`: only the walls near each ray origin, exact for short rays.
-- :func:`casters`: both, cached per environment.
-- :func:`unit`: the unit heading vectors every user of the casters shares.
+- the contact constants ``CONTACT_GAP``, ``BUMP_RANGE``, ``STEP_TOL``, ``APPROACH_MIN``,
+  ``GRAZE_TOL`` (docs/model.md §9);
+- :func:`unit` / :func:`unit_rad`: unit heading vectors, axis headings exact;
+- :class:`WallCaster` (all walls, vectorised over rays x walls, and a scalar path),
+  :class:`LocalCaster` (only the walls near each ray origin, exact for short rays) and
+  :func:`casters` (both, cached per environment): exact ray casts of the disk;
+- :func:`drive_distance`: how far a drive goes before a contact stops it;
+- :func:`step`: the step rule of docs/model.md §9 (the step's length and whether it is a bump
+  step), and :func:`flight_steps`, the same rule along a straight flight;
+- :func:`grid_index`: point → grid cell (docs/model.md §3).
 
-The constants are the contact conventions of the kinematic twin
-(:mod:`bouncesim.robots.kinematic`, which re-exports everything here) and of the continuous
-coverage models (:mod:`planners.coverage.event`, :mod:`planners.coverage.sampled`): one
-implementation, so model and simulation see bitwise the same flights.
+Ray casts. The robot is a disk of radius r whose centre moves inside the C-space (E eroded by
+r). A straight drive is a ray cast against the walls *grown into capsules*: the disk centred
+at c touches a wall segment AB exactly when dist(c, AB) = r, so the first contact along the
+ray c + t u is the first entry of the ray into one of the capsules {p : dist(p, AB) <= r}.
+Each capsule is the union of a rectangle (the segment's two offset sides) and two disks (its
+end points), so the entry distance has a closed form (no polygonal approximation of the
+rounded corners, unlike ``env.cspace``).
 
 - A drive stops ``CONTACT_GAP`` = 1e-9 m (along the ray) before the computed contact.
 - A side is hit only when the motion approaches its line (rate > 1e-12 per metre), a wall
@@ -26,6 +31,11 @@ implementation, so model and simulation see bitwise the same flights.
 >>> full, local = casters(envs.load("lab"))
 >>> round(float(full.cast([[0.51, 0.51]], unit([90.0]))[0]), 6)    # 2.04 - 0.17 - 0.51
 1.36
+>>> length, bump = step(drive_distance(np.array([1.36, 0.2, 0.34 - 5e-7])), 0.34)
+>>> length.round(4).tolist(), bump.tolist()       # the last one ends 5e-7 m short of h
+([0.34, 0.2, 0.34], [False, True, False])
+>>> grid_index([[0.5, 0.1], [0.34, 0.34], [-0.1, 0.2]], (0.0, 0.0), 0.34, (6, 6)).tolist()
+[1, 7, -1]
 """
 
 from __future__ import annotations
@@ -37,8 +47,9 @@ import numpy as np
 
 from .environment import Environment
 
-__all__ = ["WallCaster", "LocalCaster", "casters", "unit", "CONTACT_GAP", "BUMP_RANGE",
-           "STEP_TOL", "APPROACH_MIN", "GRAZE_TOL"]
+__all__ = ["WallCaster", "LocalCaster", "casters", "unit", "unit_rad", "drive_distance",
+           "step", "flight_steps", "grid_index", "CONTACT_GAP", "BUMP_RANGE", "STEP_TOL",
+           "APPROACH_MIN", "GRAZE_TOL"]
 
 CONTACT_GAP = 1e-9
 """[m] a drive stops this far (along the ray) short of the exact contact."""
@@ -55,18 +66,107 @@ _APPROACH_MIN = APPROACH_MIN
 _GRAZE_TOL = GRAZE_TOL
 
 
-def unit(heading_deg) -> np.ndarray:
-    """Unit heading vector(s) (..., 2) of heading(s) [deg]; |components| < 1e-12 snap to 0
-    so that axis-aligned headings are exact (cos 90° would otherwise be 6e-17)."""
-    th = np.radians(np.asarray(heading_deg, dtype=float))
+# ============================================================================ headings
+def unit_rad(theta_rad) -> np.ndarray:
+    """Unit heading vector(s) (..., 2) of heading(s) [rad]; |components| < 1e-12 snap to 0
+    so that axis-aligned headings are exact (cos 90° would otherwise be 6e-17).
+    """
+    th = np.asarray(theta_rad, dtype=float)
     u = np.stack([np.cos(th), np.sin(th)], axis=-1)
     u[np.abs(u) < 1e-12] = 0.0
     return u
 
 
+def unit(heading_deg) -> np.ndarray:
+    """Unit heading vector(s) (..., 2) of heading(s) [deg] (:func:`unit_rad`).
+
+    >>> unit([0.0, 90.0, 225.0]).round(6).tolist()
+    [[1.0, 0.0], [0.0, 1.0], [-0.707107, -0.707107]]
+    """
+    return unit_rad(np.radians(np.asarray(heading_deg, dtype=float)))
+
+
+# ============================================================================ steps
+def drive_distance(contact):
+    """[m] how far a drive goes along a ray whose exact contact is ``contact`` [m] away: it
+    stops ``CONTACT_GAP`` short, max(t − CONTACT_GAP, 0) (inf when nothing is ahead).
+    A Python float stays a float (the scalar path of one robot); arrays are vectorised.
+    """
+    if isinstance(contact, (float, int)):
+        return max(contact - CONTACT_GAP, 0.0)
+    return np.maximum(np.asarray(contact, dtype=float) - CONTACT_GAP, 0.0)
+
+
+def step(free, h: float):
+    """The step rule (docs/model.md §9): one step drives h by the clock or until a bump.
+
+    Parameters
+    ----------
+    free : float or array   distance [m] the robot can drive before a contact stops it
+                            (:func:`drive_distance` of the cast; inf when nothing is ahead)
+    h : float               step length [m]
+
+    Returns
+    -------
+    length : the step's drive [m], min(max(free, 0), h)
+    bump : True for a bump step (length < h − STEP_TOL: the move to contact, then the turn);
+           False for a forward step (a drive ending within STEP_TOL short of h leaves the robot
+           touching the wall; it bumps at the start of the next step)
+
+    >>> step(0.3399995, 0.34)[1], step(0.339998, 0.34)[1], step(float("inf"), 0.34)
+    (False, True, (0.34, False))
+    """
+    length = np.clip(free, 0.0, h)
+    bump = length < h - STEP_TOL
+    if np.ndim(length) == 0:
+        return float(length), bool(bump)
+    return length, bump
+
+
+def flight_steps(free, h: float) -> np.ndarray:
+    """Forward steps of a straight flight with ``free`` [m] to drive, under :func:`step`.
+
+    The flight is floor(free/h) whole steps, plus one more when the remainder passes the step
+    rule (at least h − STEP_TOL of it free); then comes one bump step at the contact. This is
+    floor((free + STEP_TOL)/h) up to rounding at that threshold.
+
+    >>> flight_steps([0.0, 0.34, 0.3399995, 0.68 - 2e-6, 1.0], 0.34).tolist()
+    [0, 1, 1, 1, 2]
+    """
+    d = np.asarray(free, dtype=float)
+    whole = np.floor(d / h)
+    _, bump = step(d - whole * h, h)
+    return (whole + np.logical_not(bump)).astype(np.int64)
+
+
+# ============================================================================ cells
+def grid_index(xy, origin, h: float, shape) -> np.ndarray:
+    """Flat index j·cols + i of the grid cell (i, j) holding each point, or −1 outside.
+
+    docs/model.md §3: i = floor((x − x0)/h), j = floor((y − y0)/h); a point on a cell border
+    belongs to the cell above / to the right of it.
+
+    Parameters
+    ----------
+    xy : (n, 2) points [m]
+    origin : (x0, y0) [m]   the grid's lower-left corner
+    h : float               cell size [m]
+    shape : (rows, cols)    the grid's shape
+    """
+    pts = np.asarray(xy, dtype=float).reshape(-1, 2)
+    x0, y0 = origin
+    rows, cols = shape
+    i = np.floor((pts[:, 0] - x0) / h).astype(np.int64)
+    j = np.floor((pts[:, 1] - y0) / h).astype(np.int64)
+    ok = (i >= 0) & (i < cols) & (j >= 0) & (j < rows)
+    return np.where(ok, j * cols + i, -1)
+
+
+# ============================================================================ ray casts
 def _cast_scalar(sides, verts, r, r2, graze, x, y, ux, uy, within=None):
     """The capsule ray cast for one disk over lists of sides (Ax, Ay, ex, ey, L) and corners
-    (Vx, Vy): the contact distance, or with ``within`` the wall points touched within it."""
+    (Vx, Vy): the contact distance, or with ``within`` the wall points touched within it.
+    """
     best = math.inf
     hits = [] if within is not None else None
     for Ax, Ay, ex, ey, L in sides:
@@ -298,7 +398,8 @@ class LocalCaster:
     def cast_one(self, x: float, y: float, ux: float, uy: float,
                  within: float | None = None):
         """Scalar :meth:`cast` for one disk: exact below ``max_dist`` (else >= it); with
-        ``within`` <= ``max_dist``, the wall points touched within that distance."""
+        ``within`` <= ``max_dist``, the wall points touched within that distance.
+        """
         i = min(max(int((x - self.x0) / self.g), 0), self.nx - 1)
         j = min(max(int((y - self.y0) / self.g), 0), self.ny - 1)
         sides, verts = self._scalar_lists
@@ -307,6 +408,7 @@ class LocalCaster:
         return _cast_scalar(sides[f], verts[f], c.r, c._r2, c._graze, x, y, ux, uy, within)
 
     def fine_cell(self, pos: np.ndarray) -> np.ndarray:
+        """Index of the fine grid cell of each (n, 2) position (clipped to the grid)."""
         i = np.clip(((pos[:, 0] - self.x0) / self.g).astype(np.int64), 0, self.nx - 1)
         j = np.clip(((pos[:, 1] - self.y0) / self.g).astype(np.int64), 0, self.ny - 1)
         return j * self.nx + i
@@ -345,6 +447,7 @@ class LocalCaster:
 @lru_cache(maxsize=32)
 def casters(env: Environment, step: float | None = None) -> tuple[WallCaster, LocalCaster]:
     """The (cached) full and local casters of an environment; local range ``step`` [m]
-    (default the cell size)."""
+    (default the cell size).
+    """
     full = WallCaster(env.wall_segments, env.robot_radius)
     return full, LocalCaster(full, env.cell_size if step is None else step)
