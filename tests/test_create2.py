@@ -37,6 +37,8 @@ from bouncesim.runs.execute import execute
 from planners.cells import CellSpace
 from planners.navigation import Navigator
 
+from .alarm import alarm
+
 pytest.importorskip("serial")
 
 SCALE = 2.0
@@ -44,18 +46,9 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 # ---------------------------------------------------------------- helpers
-@contextlib.contextmanager
 def deadline(seconds: float):
     """Fail (instead of hanging) when the block takes longer than ``seconds`` of wall time."""
-    def on_alarm(signum, frame):
-        raise TimeoutError(f"the test took longer than {seconds} s: a hang")
-    old = signal.signal(signal.SIGALRM, on_alarm)
-    signal.setitimer(signal.ITIMER_REAL, seconds)
-    try:
-        yield
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, old)
+    return alarm(seconds)
 
 
 @contextlib.contextmanager

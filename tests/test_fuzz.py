@@ -16,7 +16,6 @@ import contextlib
 import io
 import json
 import os
-import signal
 import tempfile
 from pathlib import Path
 from unittest import mock
@@ -44,6 +43,7 @@ from planners.navigation import Navigator
 from planners.plan import Plan, PolicyMix
 
 from . import strategies as S
+from .alarm import alarm
 
 _COMMON = dict(deadline=None, print_blob=True,
                suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large,
@@ -63,17 +63,9 @@ class Hang(AssertionError):
     """An example ran longer than the time guard."""
 
 
-@contextlib.contextmanager
 def time_guard(seconds: float = TIMEOUT):
-    def alarm(signum, frame):
-        raise Hang(f"the example ran longer than {seconds:g} s (a hang)")
-    old = signal.signal(signal.SIGALRM, alarm)
-    signal.setitimer(signal.ITIMER_REAL, seconds)
-    try:
-        yield
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, old)
+    """A hang of an example fails it (a wall-clock alarm, generous: 30 s by default)."""
+    return alarm(seconds, Hang, "the example")
 
 
 def assert_sentence(msg: str) -> None:

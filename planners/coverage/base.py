@@ -24,13 +24,13 @@ import scipy.sparse as sp
 from ..cells import CellSpace
 from ..markov import ChainAnalysis
 from ..timeshare import DelayChain
-from .noise import TurnNoise
+from .noise import NoiseView, TurnNoise
 
 __all__ = ["AngleCoverage", "CoverageModel", "cached_build", "clear_cache"]
 
 
 @dataclass(frozen=True, eq=False)
-class AngleCoverage:
+class AngleCoverage(NoiseView):
     """Predicted long-run coverage of one bouncing angle under one model.
 
     Attributes
@@ -58,16 +58,6 @@ class AngleCoverage:
     seconds: float = 0.0
     settings: Any = None
     steps_per_flight: float = 1.0
-
-    @property
-    def eps(self) -> float:
-        """Error range ε of the rotation noise [deg]."""
-        return self.noise.eps_deg
-
-    @property
-    def r(self) -> float:
-        """Reliability r of the rotation noise (probability of an exact turn)."""
-        return self.noise.r
 
     @property
     def groups(self) -> tuple:

@@ -13,7 +13,7 @@ from scipy.optimize import minimize
 
 from ..metrics import tv_distance
 from ..plan import PolicyMix
-from .noise import TurnNoise
+from .noise import NoiseView, TurnNoise
 
 __all__ = ["MixFit", "MixDesign", "solve_mix"]
 
@@ -143,7 +143,7 @@ def solve_mix(A: ArrayLike, b: ArrayLike) -> MixFit:
 
 
 @dataclass(frozen=True, eq=False)
-class MixDesign:
+class MixDesign(NoiseView):
     """A policy mix designed on a coverage model: per-angle coverage, target, α and the
     :class:`PolicyMix` to execute.
 
@@ -179,16 +179,6 @@ class MixDesign:
         """The designed mix as the executor takes it (angles, α, ε, r)."""
         return PolicyMix(self.angles, tuple(self.alpha.tolist()), self.noise.eps_deg,
                          self.noise.r)
-
-    @property
-    def eps(self) -> float:
-        """Error range ε of the rotation noise [deg]."""
-        return self.noise.eps_deg
-
-    @property
-    def r(self) -> float:
-        """Reliability r of the rotation noise (probability of an exact turn)."""
-        return self.noise.r
 
     @property
     def A(self) -> np.ndarray:

@@ -34,7 +34,7 @@ from envs import UserError
 
 from ..cells import angle_steps
 
-__all__ = ["R_RESOLUTION", "TurnNoise", "as_commands"]
+__all__ = ["NoiseView", "R_RESOLUTION", "TurnNoise", "as_commands"]
 
 
 def as_commands(commanded, n: int | None) -> np.ndarray:
@@ -169,3 +169,19 @@ def _quanta_of(eps_deg: float, delta_deg: float) -> int:
         raise UserError(f"error range eps = {eps_deg:g}° is not a multiple of the "
                         f"orientation step {delta_deg:g}°.")
     return int(round(m))
+
+
+class NoiseView:
+    """``eps`` and ``r`` of a record that holds its rotation noise as ``noise``."""
+
+    noise: TurnNoise
+
+    @property
+    def eps(self) -> float:
+        """Error range ε of the rotation noise [deg]."""
+        return self.noise.eps_deg
+
+    @property
+    def r(self) -> float:
+        """Reliability r of the rotation noise (probability of an exact turn)."""
+        return self.noise.r
