@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+from dataclasses import asdict
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -11,7 +12,11 @@ from bouncesim.runs.metadata import git_revision, versions
 from envs import UserError
 from planners.coverage import MODELS, check_model
 
-__all__ = ["add_models_arg", "experiment_parser", "output_dir", "write_config"]
+__all__ = ["EXECUTION_FIELDS", "add_models_arg", "experiment_parser", "output_dir",
+           "recorded", "write_config"]
+
+EXECUTION_FIELDS = ("out", "workers", "dask_local", "dask", "progress")
+"""Config fields that say where and how a sweep runs, not what it computes."""
 
 
 def experiment_parser(name: str, description: str, default_seed: int = 0
@@ -39,6 +44,15 @@ def add_models_arg(p: argparse.ArgumentParser, default: str, what: str) -> None:
     p.add_argument("--models", type=_model_list, default=default, metavar="M1,M2,...",
                    help=f"comma-separated coverage models ({', '.join(MODELS)}): {what} "
                    f"(default {default})")
+
+
+def recorded(config) -> dict:
+    """A frozen experiment Config as the dict a sweep stores and compares on resume.
+
+    ``dataclasses.asdict`` without :data:`EXECUTION_FIELDS`: the output folder, the executor
+    and the progress bar may change between a run and its resumption.
+    """
+    return {k: v for k, v in asdict(config).items() if k not in EXECUTION_FIELDS}
 
 
 def output_dir(path: Path) -> Path:

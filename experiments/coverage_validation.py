@@ -48,6 +48,7 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -60,13 +61,14 @@ from bouncesim.robots.noise import noise_for_mix
 from bouncesim.runs.execute import execute
 from bouncesim.runs.executors import add_executor_args, make_executor
 from bouncesim.runs.sweep import run_sweep
-from experiments.common import add_models_arg, experiment_parser, output_dir
+from experiments.common import add_models_arg, experiment_parser, output_dir, recorded
 from planners.cells import CellSpace
 from planners.coverage import TurnNoise, design_mix, model_for, timeshared_coverage
 from planners.metrics import tv_distance
 from planners.plan import PolicyMix
 
-__all__ = ["main", "simulate", "predict", "tv_table", "draw_figures", "ANGLES", "EPS", "R"]
+__all__ = ["ANGLES", "EPS", "R", "Config", "draw_figures", "main", "predict", "run", "simulate",
+           "tv_table"]
 
 NAME = "coverage_validation"
 ANGLES = (30.0, 75.0, 315.0)
@@ -244,8 +246,110 @@ def draw_figures(out: Path) -> list[Path]:
 
 
 # ----------------------------------------------------------------------------- main
+@dataclass(frozen=True)
+class Config:
+    """Parameters of one coverage_validation run (``config.json`` minus the execution fields).
+
+    Attributes
+    ----------
+    envs : tuple of str       environments
+    models : tuple of str     coverage models to predict with
+    orientations : int        K
+    twin_steps : int          twin steps per estimate
+    twin_robots : int         robots in one twin batch
+    pybullet_steps : int      steps of one PyBullet run, 0 to skip
+    pybullet_runs : int       PyBullet runs per estimate, each from its own random start
+    twin_burn_in : int        twin steps per robot run before counting starts
+    pybullet_envs : tuple     environments run in PyBullet
+    epoch : int               steps per epoch when a mix is time-shared
+    speed : float             PyBullet drive speed [m/s]
+    quick : bool              CI budget; ``run`` then sends only 75° to PyBullet
+    seed : int                root seed of the sweep
+    out : Path                output folder
+    workers, dask_local, dask : the executor (see ``add_executor_args``)
+    progress : bool           show a progress bar
+    """
+
+    envs: tuple[str, ...] = ENVS
+    models: tuple[str, ...] = ("step",)
+    orientations: int = 360
+    twin_steps: int = 2_000_000
+    twin_robots: int = 200
+    pybullet_steps: int = 1000
+    pybullet_runs: int = 4
+    twin_burn_in: int = 40_000
+    pybullet_envs: tuple[str, ...] = ENVS
+    epoch: int = 1000
+    speed: float = 0.3
+    quick: bool = False
+    seed: int = 0
+    out: Path = Path("results") / NAME
+    workers: int | None = None
+    dask_local: int | None = None
+    dask: str | None = None
+    progress: bool = True
+
+
+def run(config: Config) -> Path:
+    """Predict, simulate and compare; writes the CSVs, figures and config.json.
+
+    Returns the output folder.
+    """
+    q = config.quick
+    K = config.orientations
+    out = output_dir(config.out)
+
+    pred_rows, alpha_rows, trials = [], [], []
+    for name in config.envs:
+        cs = CellSpace(envs.load(name, orientations=K))
+        policies = []
+        for model in config.models:
+            pr = predict(cs, model, config.epoch)
+            alpha_rows += [{"env": name, "model": model, "angle": _num(a), "alpha": float(al),
+                            "seconds": pr["seconds"]} for a, al in zip(ANGLES, pr["alpha"])]
+            for label, qv in pr["q"].items():
+                pred_rows.append(pd.DataFrame({"env": name, "model": model, "policy": label,
+                                               "p": np.arange(cs.P), "q": qv,
+                                               "q_sum": pr["q_sum"][label]}))
+                policies.append(label)
+        for label in dict.fromkeys(policies):
+            for rep in (0, 1):
+                trials.append({"env": name, "orientations": K, "policy": label,
+                               "backend": "twin", "steps": config.twin_steps,
+                               "robots": config.twin_robots, "epoch": config.epoch,
+                               "speed": config.speed, "replicate": rep, "run": 0,
+                               "burn_in": config.twin_burn_in})
+                if (config.pybullet_steps > 0 and name in config.pybullet_envs
+                        and (not q or label == "75")):
+                    trials += [{**trials[-1], "backend": "pybullet",
+                                "steps": config.pybullet_steps, "run": i, "burn_in": 0}
+                               for i in range(config.pybullet_runs)]
+    preds = pd.concat(pred_rows, ignore_index=True)
+    preds.to_csv(out / "predictions.csv", index=False, float_format="%.12g")
+    pd.DataFrame(alpha_rows).to_csv(out / "alpha.csv", index=False)
+    record = {"experiment": NAME, **recorded(config), "angles": list(ANGLES), "eps": EPS,
+              "r": R, "cell_size": "catalogue default"}
+    runs = run_sweep(simulate, trials, config.seed, out, record, make_executor(config),
+                     progress=config.progress, name="runs")
+    hist = []
+    for r in runs.itertuples():
+        c = np.array(r.counts.split(), dtype=np.int64)
+        hist.append(pd.DataFrame({"env": r.env, "policy": r.policy, "backend": r.backend,
+                                  "replicate": r.replicate, "run": r.run,
+                                  "p": np.arange(c.size), "count": c}))
+    pd.concat(hist, ignore_index=True).to_csv(out / "histograms.csv", index=False)
+    tv = tv_table(runs, preds)
+    tv.to_csv(out / "tv.csv", index=False, float_format="%.4f")
+    draw_figures(out)
+    with pd.option_context("display.width", 160, "display.max_columns", 20):
+        print(tv.assign(policy=tv.policy.str.replace(r"mix:.*", "mix", regex=True))
+              .to_string(index=False, float_format=lambda x: f"{x:.3f}"))
+    print(f"wrote {out}")
+    return out
+
+
 def main(argv=None) -> int:
-    """Parse the command line and run the experiment; exit status."""
+    """Parse the command line into a :class:`Config` and :func:`run` it (exit status)."""
     p = experiment_parser(NAME, __doc__.split("\n\n")[0])
     p.add_argument("--envs", default=None,
                    help=f"comma-separated environments (default {','.join(ENVS)}; quick: lab,fig1)")
@@ -276,63 +380,22 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
     q = args.quick
     env_names = (args.envs or ("lab,fig1" if q else ",".join(ENVS))).split(",")
-    models = args.models
-    K = args.orientations or (72 if q else 360)
-    twin_steps = args.twin_steps or (100_000 if q else 2_000_000)
-    pb_steps = args.pybullet_steps if args.pybullet_steps is not None else (60 if q else 1000)
-    pb_runs = args.pybullet_runs or (1 if q else 4)
-    burn_in = args.twin_burn_in if args.twin_burn_in is not None else (2000 if q else 40_000)
-    pb_envs = (args.pybullet_envs or ("lab" if q else ",".join(env_names))).split(",")
-    out = output_dir(args.out)
-
-    pred_rows, alpha_rows, trials = [], [], []
-    for name in env_names:
-        cs = CellSpace(envs.load(name, orientations=K))
-        policies = []
-        for model in models:
-            pr = predict(cs, model, args.epoch)
-            alpha_rows += [{"env": name, "model": model, "angle": _num(a), "alpha": float(al),
-                            "seconds": pr["seconds"]} for a, al in zip(ANGLES, pr["alpha"])]
-            for label, qv in pr["q"].items():
-                pred_rows.append(pd.DataFrame({"env": name, "model": model, "policy": label,
-                                               "p": np.arange(cs.P), "q": qv,
-                                               "q_sum": pr["q_sum"][label]}))
-                policies.append(label)
-        for label in dict.fromkeys(policies):
-            for rep in (0, 1):
-                trials.append({"env": name, "orientations": K, "policy": label,
-                               "backend": "twin", "steps": twin_steps,
-                               "robots": args.twin_robots, "epoch": args.epoch,
-                               "speed": args.speed, "replicate": rep, "run": 0,
-                               "burn_in": burn_in})
-                if pb_steps > 0 and name in pb_envs and (not q or label == "75"):
-                    trials += [{**trials[-1], "backend": "pybullet", "steps": pb_steps,
-                                "run": i, "burn_in": 0} for i in range(pb_runs)]
-    preds = pd.concat(pred_rows, ignore_index=True)
-    preds.to_csv(out / "predictions.csv", index=False, float_format="%.12g")
-    pd.DataFrame(alpha_rows).to_csv(out / "alpha.csv", index=False)
-    config = {"experiment": NAME, "seed": args.seed, "quick": q, "envs": env_names,
-              "models": models, "orientations": K, "angles": list(ANGLES), "eps": EPS, "r": R,
-              "cell_size": "catalogue default", "twin_steps": twin_steps,
-              "twin_robots": args.twin_robots, "pybullet_steps": pb_steps,
-              "pybullet_runs": pb_runs, "twin_burn_in": burn_in,
-              "pybullet_envs": pb_envs, "epoch": args.epoch, "speed": args.speed}
-    runs = run_sweep(simulate, trials, args.seed, out, config, make_executor(args),
-                     progress=not args.no_progress, name="runs")
-    hist = []
-    for r in runs.itertuples():
-        c = np.array(r.counts.split(), dtype=np.int64)
-        hist.append(pd.DataFrame({"env": r.env, "policy": r.policy, "backend": r.backend,
-                                  "replicate": r.replicate, "run": r.run,
-                                  "p": np.arange(c.size), "count": c}))
-    pd.concat(hist, ignore_index=True).to_csv(out / "histograms.csv", index=False)
-    tv = tv_table(runs, preds)
-    tv.to_csv(out / "tv.csv", index=False, float_format="%.4f")
-    draw_figures(out)
-    with pd.option_context("display.width", 160, "display.max_columns", 20):
-        print(tv.assign(policy=tv.policy.str.replace(r"mix:.*", "mix", regex=True))
-              .to_string(index=False, float_format=lambda x: f"{x:.3f}"))
-    print(f"wrote {out}")
+    config = Config(
+        envs=tuple(env_names), models=tuple(args.models),
+        orientations=args.orientations or (72 if q else 360),
+        twin_steps=args.twin_steps or (100_000 if q else 2_000_000),
+        twin_robots=args.twin_robots,
+        pybullet_steps=(args.pybullet_steps if args.pybullet_steps is not None
+                        else (60 if q else 1000)),
+        pybullet_runs=args.pybullet_runs or (1 if q else 4),
+        twin_burn_in=(args.twin_burn_in if args.twin_burn_in is not None
+                      else (2000 if q else 40_000)),
+        pybullet_envs=tuple((args.pybullet_envs or ("lab" if q else ",".join(env_names)))
+                            .split(",")),
+        epoch=args.epoch, speed=args.speed, quick=q, seed=args.seed, out=args.out,
+        workers=args.workers, dask_local=args.dask_local, dask=args.dask,
+        progress=not args.no_progress)
+    run(config)
     return 0
 
 
