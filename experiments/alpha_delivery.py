@@ -26,6 +26,7 @@ headline figure ``alpha_delivery.png`` (drawn from the CSV files alone).
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -34,13 +35,13 @@ import pandas as pd
 import envs
 from bouncesim.runs.executors import add_executor_args, make_executor
 from bouncesim.runs.sweep import run_sweep
-from experiments.common import add_models_arg, experiment_parser, output_dir
+from experiments.common import add_models_arg, experiment_parser, output_dir, recorded
 from experiments.coverage_validation import ANGLES, EPS, R, policy_label, simulate
 from planners.cells import CellSpace
 from planners.coverage import TurnNoise, design_mix, model_for, solve_mix, uniform_target
 from planners.metrics import tv_distance
 
-__all__ = ["main", "draw_figure"]
+__all__ = ["Config", "draw_figure", "main", "run"]
 
 NAME = "alpha_delivery"
 ENV = "complex"
@@ -51,14 +52,14 @@ def _counts(rows) -> np.ndarray:
     return sum(np.array(c.split(), dtype=float) for c in rows["counts"])
 
 
-def _trials(label, policy, K, args, twin_steps, pb_steps, pb_runs):
+def _trials(label, policy, K, config, twin_steps, pb_steps, pb_runs):
     out = []
     for rep in (0, 1):
         base = {"label": label, "env": ENV, "orientations": K, "policy": policy,
-                "robots": args.twin_robots, "epoch": args.epoch, "speed": args.speed,
+                "robots": config.twin_robots, "epoch": config.epoch, "speed": config.speed,
                 "replicate": rep}
         out.append({**base, "backend": "twin", "steps": twin_steps, "run": 0,
-                    "burn_in": args.twin_burn_in})
+                    "burn_in": config.twin_burn_in})
         if pb_steps > 0:
             out += [{**base, "backend": "pybullet", "steps": pb_steps, "run": i, "burn_in": 0}
                     for i in range(pb_runs)]
@@ -108,33 +109,55 @@ def draw_figure(out: Path) -> Path:
     return save_figure(fig, out / "alpha_delivery.png", dpi=110)
 
 
-def main(argv=None) -> int:
-    """Parse the command line and run the experiment; exit status."""
-    p = experiment_parser(NAME, __doc__.split("\n\n")[0])
-    add_models_arg(p, "step,sampled,event", "each designs its own mix")
-    p.add_argument("--orientations", type=int, default=None, help="K (default 360; quick 72)")
-    p.add_argument("--twin-steps", type=int, default=None,
-                   help="twin steps per estimate (default 2e6; quick 2e5)")
-    p.add_argument("--twin-robots", type=int, default=200, help="robots per twin batch")
-    p.add_argument("--pybullet-steps", type=int, default=None,
-                   help="steps per PyBullet run, 0 to skip (default 2000; quick 60)")
-    p.add_argument("--pybullet-runs", type=int, default=None,
-                   help="PyBullet runs per estimate from random starts (default 4; quick 1)")
-    p.add_argument("--twin-burn-in", type=int, default=None,
-                   help="twin steps per robot before counting (default 20000; quick 2000)")
-    p.add_argument("--epoch", type=int, default=1000, help="steps per epoch (default 1000)")
-    p.add_argument("--speed", type=float, default=0.3, help="PyBullet speed [m/s]")
-    add_executor_args(p)
-    args = p.parse_args(argv)
-    q = args.quick
-    K = args.orientations or (72 if q else 360)
-    twin_steps = args.twin_steps or (200_000 if q else 2_000_000)
-    pb_steps = args.pybullet_steps if args.pybullet_steps is not None else (60 if q else 2000)
-    pb_runs = args.pybullet_runs or (1 if q else 4)
-    if args.twin_burn_in is None:
-        args.twin_burn_in = 2000 if q else 20_000
-    models = args.models
-    out = output_dir(args.out)
+@dataclass(frozen=True)
+class Config:
+    """Parameters of one alpha_delivery run (``config.json`` minus the execution fields).
+
+    Attributes
+    ----------
+    models : tuple of str     coverage models, each designs its own mix
+    orientations : int        K
+    twin_steps : int          twin steps per estimate
+    twin_robots : int         robots per twin batch
+    pybullet_steps : int      steps per PyBullet run, 0 to skip
+    pybullet_runs : int       PyBullet runs per estimate from random starts
+    twin_burn_in : int        twin steps per robot before counting
+    epoch : int               steps per epoch
+    speed : float             PyBullet speed [m/s]
+    quick : bool              recorded; ``main`` turns it into the smaller budget
+    seed : int                root seed (the oracle's sweep uses seed + 1)
+    out : Path                output folder
+    workers, dask_local, dask : the executor (see ``add_executor_args``)
+    progress : bool           show a progress bar
+    """
+
+    models: tuple[str, ...] = ("step", "sampled", "event")
+    orientations: int = 360
+    twin_steps: int = 2_000_000
+    twin_robots: int = 200
+    pybullet_steps: int = 2000
+    pybullet_runs: int = 4
+    twin_burn_in: int = 20_000
+    epoch: int = 1000
+    speed: float = 0.3
+    quick: bool = False
+    seed: int = 0
+    out: Path = Path("results") / NAME
+    workers: int | None = None
+    dask_local: int | None = None
+    dask: str | None = None
+    progress: bool = True
+
+
+def run(config: Config) -> Path:
+    """Design each model's α and execute it, and the oracle's; writes CSVs, figure, config.
+
+    Returns the output folder.
+    """
+    models = config.models
+    K, twin_steps = config.orientations, config.twin_steps
+    pb_steps, pb_runs = config.pybullet_steps, config.pybullet_runs
+    out = output_dir(config.out)
     cs = CellSpace(envs.load(ENV, orientations=K))
     b = uniform_target(cs)
 
@@ -147,20 +170,15 @@ def main(argv=None) -> int:
         promised[m] = tv_distance(mixes[m], b)
         alpha_rows += [{"label": m, "angle": int(a), "alpha": float(x), "seconds": secs}
                        for a, x in zip(ANGLES, res.alpha)]
-        trials += _trials(m, policy_label(ANGLES, res.alpha), K, args, twin_steps, pb_steps,
+        trials += _trials(m, policy_label(ANGLES, res.alpha), K, config, twin_steps, pb_steps,
                           pb_runs)
     # per-angle twin histograms, for the oracle α
     for a in ANGLES:
-        trials += [t for t in _trials(f"angle {int(a)}", f"{int(a)}", K, args, twin_steps, 0, 0)]
-    config = {"experiment": NAME, "seed": args.seed, "quick": q, "env": ENV, "orientations": K,
-              "angles": list(ANGLES), "eps": EPS, "r": R, "models": models,
-              "target": "uniform over position cells", "twin_steps": twin_steps,
-              "twin_robots": args.twin_robots, "twin_burn_in": args.twin_burn_in,
-              "pybullet_steps": pb_steps,
-              "pybullet_runs": pb_runs, "epoch": args.epoch, "speed": args.speed}
-    ex = make_executor(args)
-    runs = run_sweep(simulate, trials, args.seed, out, config, ex,
-                     progress=not args.no_progress, name="runs")
+        trials += [t for t in _trials(f"angle {int(a)}", f"{int(a)}", K, config, twin_steps, 0, 0)]
+    record = {"experiment": NAME, **recorded(config), "env": ENV, "angles": list(ANGLES),
+              "eps": EPS, "r": R, "target": "uniform over position cells"}
+    runs = run_sweep(simulate, trials, config.seed, out, record, make_executor(config),
+                     progress=config.progress, name="runs")
     twin = runs[runs.backend == "twin"]
     A_twin = np.column_stack([_counts(twin[twin.label == f"angle {int(a)}"]) for a in ANGLES])
     A_twin = A_twin / A_twin.sum(axis=0)
@@ -169,11 +187,11 @@ def main(argv=None) -> int:
                    for a, x in zip(ANGLES, oracle.alpha)]
     promised["oracle"] = tv_distance(A_twin @ oracle.alpha, b)
     mixes["oracle"] = A_twin @ oracle.alpha
-    oracle_trials = _trials("oracle", policy_label(ANGLES, oracle.alpha), K, args, twin_steps,
+    oracle_trials = _trials("oracle", policy_label(ANGLES, oracle.alpha), K, config, twin_steps,
                             pb_steps, pb_runs)
-    runs2 = run_sweep(simulate, oracle_trials, args.seed + 1, out / "oracle",
-                      {**config, "oracle_alpha": oracle.alpha.tolist()}, make_executor(args),
-                      progress=not args.no_progress, name="runs")
+    runs2 = run_sweep(simulate, oracle_trials, config.seed + 1, out / "oracle",
+                      {**record, "oracle_alpha": oracle.alpha.tolist()},
+                      make_executor(config), progress=config.progress, name="runs")
     allruns = pd.concat([runs, runs2], ignore_index=True)
     pd.DataFrame(alpha_rows).to_csv(out / "alpha.csv", index=False)
     rows = []
@@ -196,6 +214,41 @@ def main(argv=None) -> int:
           .to_string(float_format=lambda x: f"{x:.3f}"))
     print(delivery.to_string(index=False, float_format=lambda x: f"{x:.3f}"))
     print(f"wrote {out}")
+    return out
+
+
+def main(argv=None) -> int:
+    """Parse the command line into a :class:`Config` and :func:`run` it (exit status)."""
+    p = experiment_parser(NAME, __doc__.split("\n\n")[0])
+    add_models_arg(p, "step,sampled,event", "each designs its own mix")
+    p.add_argument("--orientations", type=int, default=None, help="K (default 360; quick 72)")
+    p.add_argument("--twin-steps", type=int, default=None,
+                   help="twin steps per estimate (default 2e6; quick 2e5)")
+    p.add_argument("--twin-robots", type=int, default=200, help="robots per twin batch")
+    p.add_argument("--pybullet-steps", type=int, default=None,
+                   help="steps per PyBullet run, 0 to skip (default 2000; quick 60)")
+    p.add_argument("--pybullet-runs", type=int, default=None,
+                   help="PyBullet runs per estimate from random starts (default 4; quick 1)")
+    p.add_argument("--twin-burn-in", type=int, default=None,
+                   help="twin steps per robot before counting (default 20000; quick 2000)")
+    p.add_argument("--epoch", type=int, default=1000, help="steps per epoch (default 1000)")
+    p.add_argument("--speed", type=float, default=0.3, help="PyBullet speed [m/s]")
+    add_executor_args(p)
+    args = p.parse_args(argv)
+    q = args.quick
+    config = Config(
+        models=tuple(args.models), orientations=args.orientations or (72 if q else 360),
+        twin_steps=args.twin_steps or (200_000 if q else 2_000_000),
+        twin_robots=args.twin_robots,
+        pybullet_steps=(args.pybullet_steps if args.pybullet_steps is not None
+                        else (60 if q else 2000)),
+        pybullet_runs=args.pybullet_runs or (1 if q else 4),
+        twin_burn_in=(args.twin_burn_in if args.twin_burn_in is not None
+                      else (2000 if q else 20_000)),
+        epoch=args.epoch, speed=args.speed, quick=q, seed=args.seed, out=args.out,
+        workers=args.workers, dask_local=args.dask_local, dask=args.dask,
+        progress=not args.no_progress)
+    run(config)
     return 0
 
 
