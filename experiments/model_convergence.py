@@ -26,6 +26,7 @@ knob and against compute time, drawn from the CSV alone).
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -34,13 +35,13 @@ import pandas as pd
 import envs
 from bouncesim.runs.executors import add_executor_args, make_executor
 from bouncesim.runs.sweep import run_sweep
-from experiments.common import experiment_parser, output_dir, write_config
+from experiments.common import experiment_parser, output_dir, recorded, write_config
 from experiments.coverage_validation import ANGLES, EPS, R, simulate
 from planners.cells import CellSpace
 from planners.coverage import TurnNoise, model_for
 from planners.metrics import tv_distance
 
-__all__ = ["main", "LADDER", "QUICK_LADDER", "draw_figure", "predict_q"]
+__all__ = ["LADDER", "QUICK_LADDER", "Config", "draw_figure", "main", "predict_q", "run"]
 
 NAME = "model_convergence"
 
@@ -117,23 +118,45 @@ def draw_figure(out: Path) -> Path:
     return save_figure(fig, out / "convergence.png", dpi=100)
 
 
-def main(argv=None) -> int:
-    """Parse the command line and run the experiment; exit status."""
-    p = experiment_parser(NAME, __doc__.split("\n\n")[0])
-    p.add_argument("--envs", default=None, help="comma-separated (default lab,complex)")
-    p.add_argument("--steps", type=int, default=None,
-                   help="twin steps per angle and seed (default 2e6; quick 2e5)")
-    p.add_argument("--burn-in", type=int, default=None,
-                   help="twin steps per robot before counting (default 20000; quick 2000)")
-    add_executor_args(p)
-    args = p.parse_args(argv)
-    q = args.quick
-    env_names = (args.envs or ("lab" if q else "lab,complex")).split(",")
+@dataclass(frozen=True)
+class Config:
+    """Parameters of one model_convergence run (``config.json`` minus the execution fields).
+
+    Attributes
+    ----------
+    envs : tuple of str       environments
+    twin_steps : int          twin steps per angle and seed (``--steps``)
+    twin_burn_in : int        twin steps per robot before counting (``--burn-in``)
+    quick : bool              the short ladder (QUICK_LADDER) at K = 72
+    seed : int                root seed of the twin sweep and of the sampled predictions
+    out : Path                output folder
+    workers, dask_local, dask : the executor (see ``add_executor_args``)
+    progress : bool           show progress bars
+    """
+
+    envs: tuple[str, ...] = ("lab", "complex")
+    twin_steps: int = 2_000_000
+    twin_burn_in: int = 20_000
+    quick: bool = False
+    seed: int = 0
+    out: Path = Path("results") / NAME
+    workers: int | None = None
+    dask_local: int | None = None
+    dask: str | None = None
+    progress: bool = True
+
+
+def run(config: Config) -> Path:
+    """Every rung of the ladder against the twin; writes convergence.csv/.png, config.json.
+
+    Returns the output folder.
+    """
+    q = config.quick
+    env_names = config.envs
     ladder = QUICK_LADDER if q else LADDER
     base_K = 72 if q else 360
-    steps = args.steps or (200_000 if q else 2_000_000)
-    burn_in = args.burn_in if args.burn_in is not None else (2000 if q else 20_000)
-    out = output_dir(args.out)
+    steps, burn_in = config.twin_steps, config.twin_burn_in
+    out = output_dir(config.out)
 
     # every (env, K, h) the ladder needs, and the twin reference runs for it
     rungs = []
@@ -152,22 +175,20 @@ def main(argv=None) -> int:
                "backend": "twin", "steps": steps, "robots": 200, "epoch": 1, "speed": 0.3,
                "replicate": rep, "burn_in": burn_in}
               for e, K, h in spaces for a in ANGLES for rep in (0, 1)]
-    config = {"experiment": NAME, "seed": args.seed, "quick": q, "envs": env_names,
-              "angles": list(ANGLES), "eps": EPS, "r": R, "twin_steps": steps,
-              "twin_burn_in": burn_in,
-              "ladder": [[m, k, list(v), f] for m, k, v, f in ladder]}
-    runs = run_sweep(simulate, trials, args.seed, out / "twin", config, make_executor(args),
-                     progress=not args.no_progress, name="runs")
+    record = {"experiment": NAME, **recorded(config), "angles": list(ANGLES), "eps": EPS,
+              "r": R, "ladder": [[m, k, list(v), f] for m, k, v, f in ladder]}
+    runs = run_sweep(simulate, trials, config.seed, out / "twin", record,
+                     make_executor(config), progress=config.progress, name="runs")
     hist = {}
     for r in runs.itertuples():
         hist[(r.env, int(r.orientations), float(r.cell_size), r.policy, int(r.replicate))] = \
             np.array(r.counts.split(), dtype=float)
 
     rows = []
-    rng_root = np.random.SeedSequence(args.seed)
+    rng_root = np.random.SeedSequence(config.seed)
     from tqdm import tqdm
     for i, (env_name, model, knob, v, K, h, settings) in enumerate(
-            tqdm(rungs, desc="predictions", disable=args.no_progress)):
+            tqdm(rungs, desc="predictions", disable=not config.progress)):
         cs = CellSpace(envs.load(env_name, cell_size=h, orientations=K))
         rng = np.random.default_rng(np.random.SeedSequence(rng_root.entropy, spawn_key=(i,)))
         t0 = time.perf_counter()
@@ -185,11 +206,34 @@ def main(argv=None) -> int:
         rows.append(row)
     table = pd.DataFrame(rows)
     table.to_csv(out / "convergence.csv", index=False, float_format="%.5g")
-    write_config(out, config)
+    write_config(out, record)
     draw_figure(out)
     print(table.drop(columns=["settings"]).to_string(index=False,
                                                      float_format=lambda x: f"{x:.3g}"))
     print(f"wrote {out}")
+    return out
+
+
+
+
+def main(argv=None) -> int:
+    """Parse the command line into a :class:`Config` and :func:`run` it (exit status)."""
+    p = experiment_parser(NAME, __doc__.split("\n\n")[0])
+    p.add_argument("--envs", default=None, help="comma-separated (default lab,complex)")
+    p.add_argument("--steps", type=int, default=None,
+                   help="twin steps per angle and seed (default 2e6; quick 2e5)")
+    p.add_argument("--burn-in", type=int, default=None,
+                   help="twin steps per robot before counting (default 20000; quick 2000)")
+    add_executor_args(p)
+    args = p.parse_args(argv)
+    q = args.quick
+    config = Config(
+        envs=tuple((args.envs or ("lab" if q else "lab,complex")).split(",")),
+        twin_steps=args.steps or (200_000 if q else 2_000_000),
+        twin_burn_in=args.burn_in if args.burn_in is not None else (2000 if q else 20_000),
+        quick=q, seed=args.seed, out=args.out, workers=args.workers,
+        dask_local=args.dask_local, dask=args.dask, progress=not args.no_progress)
+    run(config)
     return 0
 
 
