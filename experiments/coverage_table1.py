@@ -26,6 +26,7 @@ Outputs (under ``--out``, default results/coverage_table1/):
 from __future__ import annotations
 
 import time
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
@@ -36,7 +37,7 @@ from experiments.common import add_models_arg, experiment_parser, output_dir, wr
 from planners.cells import CellSpace
 from planners.coverage import TurnNoise, design_mix, model_for, solve_mix, uniform_target
 
-__all__ = ["main", "PAPER_ALPHA", "draw_figures"]
+__all__ = ["PAPER_ALPHA", "Config", "draw_figures", "main", "run"]
 
 NAME = "coverage_table1"
 ANGLES = (30.0, 75.0, 315.0)
@@ -146,17 +147,33 @@ def compare(table: pd.DataFrame, column: str = "alpha") -> list[str]:
     return lines
 
 
-def main(argv=None) -> int:
-    """Parse the command line and run the experiment; exit status."""
-    ap = experiment_parser(NAME, "Policy mix over 30°, 75°, 315° on the complex environment "
-                           "(the paper's Table I) with Figs. 9-11 analogues.")
-    add_models_arg(ap, "step", "each model after the paper's step model adds a column "
-                   "alpha_<model> to table1.csv (e.g. step,event)")
-    args = ap.parse_args(argv)
-    models = args.models
+@dataclass(frozen=True)
+class Config:
+    """Parameters of one coverage_table1 run (written to ``config.json``).
+
+    Attributes
+    ----------
+    models : tuple of str     the paper's step model first; each other adds alpha_<model>
+    quick : bool              K = 72 instead of 360
+    seed : int                recorded only: the computation is deterministic
+    out : Path                output folder
+    """
+
+    models: tuple[str, ...] = ("step",)
+    quick: bool = False
+    seed: int = 0
+    out: Path = Path("results") / NAME
+
+
+def run(config: Config) -> Path:
+    """Table I and Figs. 9-11 analogues: the CSVs, the figures and config.json.
+
+    Returns the output folder.
+    """
+    models = config.models
     noise = TurnNoise(EPS, R)
-    K = 72 if args.quick else 360
-    out = output_dir(args.out)
+    K = 72 if config.quick else 360
+    out = output_dir(config.out)
     env = envs.load(ENV, orientations=K)
     cs = CellSpace(env)
     t0 = time.perf_counter()
@@ -183,7 +200,7 @@ def main(argv=None) -> int:
     sentences = compare(table)
     sentences_conf = compare(table, "alpha_configurations")
     write_config(out, {
-        "experiment": NAME, "seed": args.seed, "quick": args.quick,
+        "experiment": NAME, **asdict(config),
         "note": "deterministic: the seed is recorded but not used",
         "params": {"env": ENV, "K": K, "P": cs.P, "N": cs.N, "angles": list(ANGLES),
                    "eps_deg": EPS, "r": R, "target": "uniform over position cells"},
@@ -216,6 +233,17 @@ def main(argv=None) -> int:
     for s in sentences_conf:
         print("  " + s)
     print(f"wrote {out}/")
+    return out
+
+
+def main(argv=None) -> int:
+    """Parse the command line into a :class:`Config` and :func:`run` it (exit status)."""
+    ap = experiment_parser(NAME, "Policy mix over 30°, 75°, 315° on the complex environment "
+                           "(the paper's Table I) with Figs. 9-11 analogues.")
+    add_models_arg(ap, "step", "each model after the paper's step model adds a column "
+                   "alpha_<model> to table1.csv (e.g. step,event)")
+    args = ap.parse_args(argv)
+    run(Config(models=tuple(args.models), quick=args.quick, seed=args.seed, out=args.out))
     return 0
 
 

@@ -214,8 +214,6 @@ def run(config: Config) -> Path:
     return out
 
 
-
-
 def main(argv=None) -> int:
     """Parse the command line into a :class:`Config` and :func:`run` it (exit status)."""
     p = experiment_parser(NAME, __doc__.split("\n\n")[0])
