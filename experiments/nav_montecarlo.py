@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import sys
 import time
+from dataclasses import dataclass, replace
 from functools import lru_cache
 from pathlib import Path
 
@@ -40,9 +41,8 @@ from planners.plan import Plan
 from .common import experiment_parser, output_dir
 from .nav_fig3_physics import TWIN_GLANCE_DEG, make_robot
 
-__all__ = ["nav_trial", "sample_pairs", "build_trials", "wilson", "summarise", "draw",
-           "draw_by_length",
-           "heading_class", "LENGTH_BINS", "main"]
+__all__ = ["LENGTH_BINS", "Config", "build_trials", "draw", "draw_by_length", "heading_class",
+           "main", "nav_trial", "run", "sample_pairs", "summarise", "wilson"]
 
 ENVS = ("lab", "complex")
 ANGLES = (45.0, 90.0, 135.0)
@@ -302,8 +302,116 @@ def draw_by_length(runs_csv: Path, path: Path, backend: str = "kinematic") -> No
 
 
 # ============================================================================ main
+@dataclass(frozen=True)
+class Config:
+    """Parameters of one nav_montecarlo run (``main`` fills the budget from FULL or QUICK).
+
+    Attributes
+    ----------
+    pairs : int               pairs per environment
+    physics_pairs : int       of those, pairs also run in PyBullet (0 for none)
+    reps : int                noisy repetitions per pair and level in the twin
+    physics_reps : int        noisy repetitions per pair and level in PyBullet
+    sigmas : tuple of float   Gaussian rotation noise σ [deg]
+    model_r : tuple of float  r of the docs/model.md §7 noise at ε = Δ
+    envs : tuple of str       environments
+    restart : bool            delete the output folder's earlier sweep instead of resuming it
+    plot_only : bool          redraw the figures and summaries from an existing runs.csv
+    quick : bool              recorded; ``main`` turns it into the QUICK budget
+    seed : int                root seed (pair sampling and the sweep)
+    out : Path                output folder
+    workers, dask_local, dask : the executor (see ``add_executor_args``)
+    progress : bool           show a progress bar
+    """
+
+    pairs: int = FULL["pairs"]
+    physics_pairs: int = FULL["physics_pairs"]
+    reps: int = FULL["reps"]
+    physics_reps: int = FULL["physics_reps"]
+    sigmas: tuple[float, ...] = FULL["sigmas"]
+    model_r: tuple[float, ...] = FULL["model_r"]
+    envs: tuple[str, ...] = ENVS
+    restart: bool = False
+    plot_only: bool = False
+    quick: bool = False
+    seed: int = 0
+    out: Path = Path("results") / "nav_montecarlo"
+    workers: int | None = None
+    dask_local: int | None = None
+    dask: str | None = None
+    progress: bool = True
+
+
+def run(config: Config) -> Path:
+    """Sample the pairs, run (or resume) the sweep, write the summaries and figures.
+
+    With ``plot_only``, redraw from an existing runs.csv. Raises :class:`envs.UserError` for
+    a bad budget, a missing runs.csv or a different earlier sweep; returns the output folder.
+    """
+    out = output_dir(config.out)
+    if config.plot_only:
+        if not (out / "runs.csv").exists():
+            raise envs.UserError(f"{out / 'runs.csv'} does not exist; run the sweep first.")
+        _report(out, pd.read_csv(out / "runs.csv"))
+        return out
+    for key in ("pairs", "reps"):
+        if getattr(config, key) < 1:
+            raise envs.UserError(f"--{key} must be at least 1, got {getattr(config, key)}.")
+    if config.physics_pairs > 0:
+        try:
+            import pybullet  # noqa: F401
+        except ImportError:
+            print("nav_montecarlo: pybullet is not installed; running the twin only.")
+            config = replace(config, physics_pairs=0)
+    budget = {key: getattr(config, key) for key in FULL}
+    names = list(config.envs)
+    pair_rng = np.random.default_rng(np.random.SeedSequence([config.seed, 1]))
+    t0 = time.perf_counter()
+    pairs = pd.concat([sample_pairs(name, budget["pairs"], pair_rng) for name in names],
+                      ignore_index=True)
+    plan_s = time.perf_counter() - t0
+    trials = build_trials(pairs, budget)
+    if config.restart:
+        for f in ("runs.jsonl", "runs.csv", "config.json"):
+            (out / f).unlink(missing_ok=True)
+    # the keys of this dict are the sweep's identity: earlier result folders resume with it
+    record = {"experiment": "nav_montecarlo", "seed": config.seed, "quick": config.quick,
+              "envs": names, "angles": list(ANGLES), "w1": W1, "w2": W2,
+              "discretisation": "catalogue defaults (0.34 m cells, K = 8, Δ = 45°)",
+              "pairs_per_env": budget["pairs"],
+              "physics_pairs_per_env": budget["physics_pairs"],
+              "gauss_sigmas_deg": list(budget["sigmas"]),
+              "model_noise": {"eps_deg": "Δ = 360°/K of the environment (45° at K = 8, "
+                              "the smallest non-zero ε the model allows)",
+                              "r": list(budget["model_r"])},
+              "reps_twin": budget["reps"], "reps_pybullet": budget["physics_reps"],
+              "exact_levels_run_once": True,
+              "twin_glance_deg": TWIN_GLANCE_DEG,
+              "twin_glance_note": "the twin's bumper ignores contacts more than 80° from "
+              "the heading, like the PyBullet body's bumper arc (as experiments.nav_fig3)",
+              "executor": {"speed_m_s": 0.2, "back_off_m": 0.0},
+              "pair_sampling": "uniform without replacement over reachable ordered pairs "
+              "(start != goal), numpy default_rng(SeedSequence([seed, 1])), per "
+              "environment in order; PyBullet runs the first physics_pairs of them",
+              "success": "final position in the goal cell and heading within ±Δ/2 "
+              "(docs/model.md §8)",
+              "confidence_intervals": "95 % Wilson score (scipy.stats.binomtest)",
+              "length_bins": [str(b) for b in LENGTH_BINS]}
+    sweep = Sweep(nav_trial, trials, config.seed, out, record, name="runs")
+    executor = make_executor(config)
+    print(f"nav_montecarlo: {len(pairs)} pairs ({plan_s:.1f} s planning), "
+          f"{len(trials)} trials")
+    result = sweep.run(executor, progress=config.progress)
+    ex = result.executor
+    where = f" on {ex['kind']} with {ex['workers']} worker(s)" if "workers" in ex else ""
+    print(f"ran {result.n_run} trials ({result.n_resumed} resumed from the journal) in "
+          f"{result.wall_s:.1f} s{where}")
+    _report(out, result.table)
+    return out
+
+
 def main(argv=None) -> int:
-    """Parse the command line and run the experiment; exit status."""
+    """Parse the command line into a :class:`Config` and :func:`run` it (exit status)."""
     p = experiment_parser("nav_montecarlo", __doc__.splitlines()[0])
     p.add_argument("--pairs", type=int, default=None,
                    help="pairs per environment (default 300; 12 with --quick)")
@@ -319,73 +427,19 @@ def main(argv=None) -> int:
                    help="redraw the figure and summaries from an existing runs.csv")
     add_executor_args(p)
     args = p.parse_args(argv)
-    out = output_dir(args.out)
-    if args.plot_only:
-        if not (out / "runs.csv").exists():
-            print(f"nav_montecarlo: error: {out / 'runs.csv'} does not exist; run the "
-                  f"sweep first.", file=sys.stderr)
-            return 2
-        _report(out, pd.read_csv(out / "runs.csv"))
-        return 0
     budget = dict(QUICK if args.quick else FULL)
     for key in ("pairs", "physics_pairs", "reps"):
         if getattr(args, key) is not None:
             budget[key] = getattr(args, key)
+    config = Config(**budget, envs=tuple(s.strip() for s in args.envs.split(",") if s.strip()),
+                    restart=args.restart, plot_only=args.plot_only, quick=args.quick,
+                    seed=args.seed, out=args.out, workers=args.workers,
+                    dask_local=args.dask_local, dask=args.dask, progress=not args.no_progress)
     try:
-        for key in ("pairs", "reps"):
-            if budget[key] < 1:
-                raise envs.UserError(f"--{key} must be at least 1, got {budget[key]}.")
-        if budget["physics_pairs"] > 0:
-            try:
-                import pybullet  # noqa: F401
-            except ImportError:
-                print("nav_montecarlo: pybullet is not installed; running the twin only.")
-                budget["physics_pairs"] = 0
-        names = [s.strip() for s in args.envs.split(",") if s.strip()]
-        pair_rng = np.random.default_rng(np.random.SeedSequence([args.seed, 1]))
-        t0 = time.perf_counter()
-        pairs = pd.concat([sample_pairs(name, budget["pairs"], pair_rng) for name in names],
-                          ignore_index=True)
-        plan_s = time.perf_counter() - t0
-        trials = build_trials(pairs, budget)
-        if args.restart:
-            for f in ("runs.jsonl", "runs.csv", "config.json"):
-                (out / f).unlink(missing_ok=True)
-        config = {"experiment": "nav_montecarlo", "seed": args.seed, "quick": args.quick,
-                  "envs": names, "angles": list(ANGLES), "w1": W1, "w2": W2,
-                  "discretisation": "catalogue defaults (0.34 m cells, K = 8, Δ = 45°)",
-                  "pairs_per_env": budget["pairs"],
-                  "physics_pairs_per_env": budget["physics_pairs"],
-                  "gauss_sigmas_deg": list(budget["sigmas"]),
-                  "model_noise": {"eps_deg": "Δ = 360°/K of the environment (45° at K = 8, "
-                                  "the smallest non-zero ε the model allows)",
-                                  "r": list(budget["model_r"])},
-                  "reps_twin": budget["reps"], "reps_pybullet": budget["physics_reps"],
-                  "exact_levels_run_once": True,
-                  "twin_glance_deg": TWIN_GLANCE_DEG,
-                  "twin_glance_note": "the twin's bumper ignores contacts more than 80° from "
-                  "the heading, like the PyBullet body's bumper arc (as experiments.nav_fig3)",
-                  "executor": {"speed_m_s": 0.2, "back_off_m": 0.0},
-                  "pair_sampling": "uniform without replacement over reachable ordered pairs "
-                  "(start != goal), numpy default_rng(SeedSequence([seed, 1])), per "
-                  "environment in order; PyBullet runs the first physics_pairs of them",
-                  "success": "final position in the goal cell and heading within ±Δ/2 "
-                  "(docs/model.md §8)",
-                  "confidence_intervals": "95 % Wilson score (scipy.stats.binomtest)",
-                  "length_bins": [str(b) for b in LENGTH_BINS]}
-        sweep = Sweep(nav_trial, trials, args.seed, out, config, name="runs")
-        executor = make_executor(args)
-        print(f"nav_montecarlo: {len(pairs)} pairs ({plan_s:.1f} s planning), "
-              f"{len(trials)} trials")
-        result = sweep.run(executor, progress=not args.no_progress)
+        run(config)
     except envs.UserError as exc:
         print(f"nav_montecarlo: error: {exc}", file=sys.stderr)
         return 2
-    ex = result.executor
-    where = f" on {ex['kind']} with {ex['workers']} worker(s)" if "workers" in ex else ""
-    print(f"ran {result.n_run} trials ({result.n_resumed} resumed from the journal) in "
-          f"{result.wall_s:.1f} s{where}")
-    _report(out, result.table)
     return 0
 
 
