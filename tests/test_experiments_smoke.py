@@ -8,7 +8,15 @@ import json
 import pandas as pd
 import pytest
 
-from experiments import allpairs_fig7, nav_fig3
+from experiments import (
+    allpairs_fig7,
+    alpha_delivery,
+    coverage_table1,
+    coverage_validation,
+    model_convergence,
+    nav_fig3,
+    nav_montecarlo,
+)
 
 
 def _config(out):
@@ -47,6 +55,19 @@ def test_configs_are_frozen():
         cfg = mod.Config()
         with pytest.raises(dataclasses.FrozenInstanceError):
             cfg.seed = 1
+
+
+@pytest.mark.parametrize("mod", [alpha_delivery, coverage_table1, coverage_validation,
+                                 model_convergence, nav_montecarlo],
+                         ids=lambda m: m.__name__.rsplit(".", 1)[-1])
+def test_config_is_frozen_and_help_exits_0(mod, capsys):
+    cfg = mod.Config()
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        cfg.seed = 1
+    hash(cfg)                                   # tuples, not lists: the Config is hashable
+    with pytest.raises(SystemExit) as stop:
+        mod.main(["--help"])
+    assert stop.value.code == 0 and "--quick" in capsys.readouterr().out
 
 
 def test_bad_angles_exit_2(tmp_path, capsys):
