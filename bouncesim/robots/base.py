@@ -57,7 +57,7 @@ class RobotSpec:
 
 
 CREATE2 = RobotSpec()
-"""The iRobot Create 2 (see shared CREATE2_OI.md)."""
+"""The iRobot Create 2 (figures from its Open Interface specification)."""
 
 
 @dataclass(frozen=True)

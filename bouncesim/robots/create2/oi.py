@@ -4,7 +4,7 @@ Everything here is a pure function of bytes (or a small state machine fed with b
 hardware adapter (:mod:`bouncesim.robots.create2.adapter`) and the emulator
 (:mod:`bouncesim.robots.create2.emulator`) share one implementation of the protocol, and the
 tests check it against the worked examples of iRobot's "Create 2 Open Interface Specification"
-(the facts are collected in the project's CREATE2_OI notes).
+(docs/readme_hardware.md says how the adapter uses them).
 
 - Commands: :func:`encode_drive`, :func:`encode_drive_direct`, :func:`encode_sensors`,
   :func:`encode_query_list`, :func:`encode_stream`, :func:`encode_pause_resume` and the
