@@ -35,7 +35,7 @@ import pandas as pd
 import envs
 from bouncesim.runs.executors import add_executor_args, make_executor
 from bouncesim.runs.sweep import run_sweep
-from experiments.common import add_models_arg, experiment_parser, output_dir, recorded
+from experiments.common import SweepOptions, add_models_arg, experiment_parser, output_dir, recorded
 from experiments.coverage_validation import ANGLES, EPS, R, policy_label, simulate
 from planners.cells import CellSpace
 from planners.coverage import TurnNoise, design_mix, model_for, solve_mix, uniform_target
@@ -110,7 +110,7 @@ def draw_figure(out: Path) -> Path:
 
 
 @dataclass(frozen=True)
-class Config:
+class Config(SweepOptions):
     """Parameters of one alpha_delivery run (``config.json`` minus the execution fields).
 
     Attributes
@@ -143,10 +143,6 @@ class Config:
     quick: bool = False
     seed: int = 0
     out: Path = Path("results") / NAME
-    workers: int | None = None
-    dask_local: int | None = None
-    dask: str | None = None
-    progress: bool = True
 
 
 def run(config: Config) -> Path:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
-from dataclasses import asdict
+from dataclasses import asdict, dataclass, fields
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -15,7 +15,25 @@ from planners.coverage import MODELS, check_model
 __all__ = ["EXECUTION_FIELDS", "add_models_arg", "experiment_parser", "output_dir",
            "recorded", "write_config"]
 
-EXECUTION_FIELDS = ("out", "workers", "dask_local", "dask", "progress")
+
+
+@dataclass(frozen=True)
+class SweepOptions:
+    """How a sweep experiment runs, not what it computes: the base of their ``Config``s.
+
+    Attributes
+    ----------
+    workers, dask_local, dask : the executor (see ``add_executor_args``)
+    progress : bool           show a progress bar
+    """
+
+    workers: int | None = None
+    dask_local: int | None = None
+    dask: str | None = None
+    progress: bool = True
+
+
+EXECUTION_FIELDS = ("out",) + tuple(f.name for f in fields(SweepOptions))
 """Config fields that say where and how a sweep runs, not what it computes."""
 
 

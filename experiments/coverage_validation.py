@@ -61,7 +61,7 @@ from bouncesim.robots.noise import noise_for_mix
 from bouncesim.runs.execute import execute
 from bouncesim.runs.executors import add_executor_args, make_executor
 from bouncesim.runs.sweep import run_sweep
-from experiments.common import add_models_arg, experiment_parser, output_dir, recorded
+from experiments.common import SweepOptions, add_models_arg, experiment_parser, output_dir, recorded
 from planners.cells import CellSpace
 from planners.coverage import TurnNoise, design_mix, model_for, timeshared_coverage
 from planners.metrics import tv_distance
@@ -247,7 +247,7 @@ def draw_figures(out: Path) -> list[Path]:
 
 # ----------------------------------------------------------------------------- main
 @dataclass(frozen=True)
-class Config:
+class Config(SweepOptions):
     """Parameters of one coverage_validation run (``config.json`` minus the execution fields).
 
     Attributes
@@ -284,10 +284,6 @@ class Config:
     quick: bool = False
     seed: int = 0
     out: Path = Path("results") / NAME
-    workers: int | None = None
-    dask_local: int | None = None
-    dask: str | None = None
-    progress: bool = True
 
 
 def run(config: Config) -> Path:

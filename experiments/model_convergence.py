@@ -35,7 +35,7 @@ import pandas as pd
 import envs
 from bouncesim.runs.executors import add_executor_args, make_executor
 from bouncesim.runs.sweep import run_sweep
-from experiments.common import experiment_parser, output_dir, recorded, write_config
+from experiments.common import SweepOptions, experiment_parser, output_dir, recorded, write_config
 from experiments.coverage_validation import ANGLES, EPS, R, simulate
 from planners.cells import CellSpace
 from planners.coverage import TurnNoise, model_for
@@ -119,7 +119,7 @@ def draw_figure(out: Path) -> Path:
 
 
 @dataclass(frozen=True)
-class Config:
+class Config(SweepOptions):
     """Parameters of one model_convergence run (``config.json`` minus the execution fields).
 
     Attributes
@@ -140,10 +140,6 @@ class Config:
     quick: bool = False
     seed: int = 0
     out: Path = Path("results") / NAME
-    workers: int | None = None
-    dask_local: int | None = None
-    dask: str | None = None
-    progress: bool = True
 
 
 def run(config: Config) -> Path:
