@@ -222,8 +222,10 @@ class BounceEnv(gymnasium.Env):
         self._trail.append(after[:2])
         return obs, before, after
 
-    def _count(self, before, after) -> None:
-        """Add the flight's counted steps to the visit histogram (docs/model.md §9-10)."""
+    def _count(self, before, after) -> int:
+        """Add the flight's counted steps to the visit histogram (docs/model.md §9-10);
+        returns the position cell of the contact (−1: none).
+        """
         x, y, deg = before
         u = unit(np.array([deg]))[0]            # the twin's unit vectors, axes exact
         length = math.hypot(after[0] - x, after[1] - y)
@@ -233,11 +235,14 @@ class BounceEnv(gymnasium.Env):
         p = self.cells.cell_of_point(pts)
         np.add.at(self._visits, p[p >= 0], 1)
         self._dropped += int((p < 0).sum())
+        return int(p[-1])
 
-    def _info(self, pose) -> dict[str, Any]:
+    def _info(self, pose, p: int | None = None) -> dict[str, Any]:
         x, y, deg = pose
-        info: dict[str, Any] = {"pose": (float(x), float(y), float(deg)),
-                                "config": self.cells.config_of_pose(x, y, deg),
+        if p is None:
+            p = int(self.cells.cell_of_point([[x, y]])[0])
+        z = int(self.cells.z(p, self.cells.orientation_of(deg))) if p >= 0 else -1
+        info: dict[str, Any] = {"pose": (float(x), float(y), float(deg)), "config": z,
                                 "steps": self._steps}
         if self.task == "navigate":
             info["is_success"] = self._reached
@@ -297,11 +302,10 @@ class BounceEnv(gymnasium.Env):
                                 "another start.")
         else:
             raise UserError(f"no start found whose first flight misses goal {self._goal}.")
-        if self.task == "cover":
-            self._count(before, after)
+        p = self._count(before, after) if self.task == "cover" else None
         if self.render_mode == "human":
             self.render()
-        return obs, self._info(after)
+        return obs, self._info(after, p)
 
     def step(self, action):
         """One bounce: turn by Φ[action] (with the turn noise), drive until the bumper closes."""
@@ -317,16 +321,16 @@ class BounceEnv(gymnasium.Env):
             self._reached = flight_reaches(before[:2], after[:2], before[2], self.cells,
                                            self._goal)
             reward = 1.0 if self._reached else -self.step_cost
-            terminated = self._reached
+            terminated, p = self._reached, None
         else:
-            self._count(before, after)
+            p = self._count(before, after)
             tv = tv_distance(self._visits, self.target) if self._visits.any() else 1.0
             reward, self._tv = self._tv - tv, tv
             terminated = False
         truncated = not terminated and self._steps >= self.max_steps
         if self.render_mode == "human":
             self.render()
-        return obs, float(reward), terminated, truncated, self._info(after)
+        return obs, float(reward), terminated, truncated, self._info(after, p)
 
     def render(self):
         """``rgb_array``: an (H, W, 3) uint8 picture of the room, the flights and the robot;

@@ -252,3 +252,21 @@ def test_import_bouncesim_leaves_gymnasium_alone_and_a_missing_extra_is_one_sent
                          check=True).stdout.strip()
     assert out == ("bouncesim.gym needs gymnasium, the optional extra gym: "
                    "pip install 'bouncesim[gym]'.")
+
+
+def test_gym_policies_experiment_writes_its_tables_and_figure(tmp_path):
+    import pandas as pd
+
+    from experiments import gym_policies
+    assert gym_policies.main(["--quick", "--episodes", "4", "--out", str(tmp_path)]) == 0
+    runs = pd.read_csv(tmp_path / "episodes.csv")
+    assert len(runs) == 4 * 3 * 2 and set(runs["policy"]) == {"random", "planner"}
+    # returns are +1 at the goal and -0.01 for every other bounce
+    expected = np.where(runs["success"], 1.0 - 0.01 * (runs["bounces"] - 1),
+                        -0.01 * runs["bounces"])
+    np.testing.assert_allclose(runs["return"], expected, atol=1e-9)
+    summary = pd.read_csv(tmp_path / "summary.csv")
+    assert ((summary["ci_low"] <= summary["success_rate"])
+            & (summary["success_rate"] <= summary["ci_high"])).all()
+    assert (tmp_path / "policies.png").stat().st_size > 0
+    assert (tmp_path / "config.json").exists()
