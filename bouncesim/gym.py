@@ -66,6 +66,7 @@ from planners.cells import CellSpace
 from planners.coverage.targets import load_target, uniform_target
 from planners.metrics import tv_distance
 
+from .robots.base import CREATE2
 from .robots.factory import make_robot
 from .robots.noise import NoiseModel, parse_noise
 
@@ -89,7 +90,9 @@ def flight_reaches(start_xy, end_xy, heading_deg: float, cells: CellSpace, goal:
     >>> cs = CellSpace(envs.load("lab"))
     >>> flight_reaches((2.89, 0.17), (0.17, 0.17), 180.0, cs, cs.z(0, 4))   # west, row 0
     True
-    >>> flight_reaches((2.89, 0.17), (0.34, 0.17), 180.0, cs, cs.z(0, 4))   # stops at the border
+    >>> flight_reaches((2.89, 0.17), (0.34, 0.17), 180.0, cs, cs.z(0, 4))   # at its right border
+    False
+    >>> flight_reaches((2.89, 0.17), (0.34, 0.17), 180.0, cs, cs.z(1, 4))   # cell 1's left border
     True
     >>> flight_reaches((2.89, 0.17), (0.35, 0.17), 180.0, cs, cs.z(0, 4))   # short of it
     False
@@ -105,7 +108,8 @@ def flight_reaches(start_xy, end_xy, heading_deg: float, cells: CellSpace, goal:
     lo = np.array([cx - h / 2, cy - h / 2])
     hi = lo + h
     a = np.asarray(start_xy, dtype=float)
-    d = np.asarray(end_xy, dtype=float) - a
+    b = np.asarray(end_xy, dtype=float)
+    d = b - a
     t0, t1 = 0.0, 1.0                       # Liang-Barsky clip of the segment to the square
     for i in range(2):
         if d[i] == 0.0:
@@ -118,7 +122,10 @@ def flight_reaches(start_xy, end_xy, heading_deg: float, cells: CellSpace, goal:
         return False
     # the clipped part may only touch the square's right or top border, which belongs to the
     # neighbouring cell: its midpoint decides with the §3 point -> cell rule
-    mid = a + 0.5 * (t0 + t1) * d
+    def at(t: float) -> np.ndarray:         # the end points exactly, not a + d rounded
+        return a if t == 0.0 else b if t == 1.0 else a + t * d
+
+    mid = 0.5 * (at(t0) + at(t1))
     return int(cells.cell_of_point([mid])[0]) == p
 
 
@@ -173,6 +180,9 @@ class BounceEnv(gymnasium.Env):
         if not math.isfinite(self.step_cost):
             raise UserError(f"the step cost must be a finite number, got {step_cost}.")
         self.speed = float(speed)
+        if not (math.isfinite(self.speed) and 0 < self.speed <= CREATE2.max_wheel_speed):
+            raise UserError(f"speed must lie in (0, {CREATE2.max_wheel_speed:g}] m/s, got "
+                            f"{speed}.")
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise UserError(f"unknown render mode {render_mode!r}; use None, human or "
                             "rgb_array.")
