@@ -352,7 +352,8 @@ class BounceEnv(gymnasium.Env):
         if self.render_mode == "rgb_array":
             from matplotlib.backends.backend_agg import FigureCanvasAgg
             from matplotlib.figure import Figure
-            fig = Figure(figsize=(4, 4), dpi=80)
+            x0, y0, x1, y1 = self.room.bounds
+            fig = Figure(figsize=(5, 0.6 + 4.4 * (y1 - y0) / (x1 - x0)), dpi=80)
             FigureCanvasAgg(fig)
         else:
             import matplotlib.pyplot as plt
@@ -381,6 +382,7 @@ class BounceEnv(gymnasium.Env):
             import matplotlib.pyplot as plt
             plt.pause(1.0 / self.metadata["render_fps"])
             return None
+        fig.tight_layout()
         fig.canvas.draw()
         return np.asarray(fig.canvas.buffer_rgba())[:, :, :3].copy()
 
