@@ -169,10 +169,10 @@ def run(config: Config) -> Path:
     probe = BounceEnv(room, "navigate", angles=config.angles)
     eps = sample_episodes(probe, nav, config.episodes, np.random.default_rng(ep_seq))
     rows = []
-    for level, noise in enumerate(config.noises):
+    for noise, seq in zip(config.noises, pol_seq.spawn(len(config.noises))):
         env = BounceEnv(room, "navigate", angles=config.angles, noise=noise,
                         max_steps=config.max_steps, step_cost=config.step_cost)
-        rng = np.random.default_rng(pol_seq.spawn(len(config.noises))[level])
+        rng = np.random.default_rng(seq)          # the random policy's actions at this level
         for i, ep in enumerate(eps):
             for policy in POLICIES:
                 rows.append({"noise": noise, "episode": i, **episode(env, ep, policy, rng)})
