@@ -25,6 +25,7 @@ COMMAND_MODULES = [
     "bouncesim.commands.coverage",
     "bouncesim.commands.run_plan",
     "bouncesim.commands.emulator",
+    "bouncesim.commands.import_map",
 ]
 
 EPILOG = """\
