@@ -13,6 +13,7 @@ import json
 import math
 
 import numpy as np
+import pandas as pd
 import pytest
 import shapely
 from PIL import Image
@@ -305,3 +306,14 @@ def test_catalogue_studio_is_reproduced_by_its_script(tmp_path):
     env = envs.load("studio")
     assert iou(env.free_space, room()) >= 0.98
     assert hausdorff(env.free_space, room()) <= 0.06
+
+
+def test_accuracy_experiment_quick(tmp_path):
+    from experiments import import_accuracy
+    assert import_accuracy.main(["--quick", "--out", str(tmp_path)]) == 0
+    df = pd.read_csv(tmp_path / "accuracy.csv")
+    assert json.loads((tmp_path / "config.json").read_text())["quick"] is True
+    assert set(df["tracer"]) == set(import_accuracy.TRACERS)
+    assert len(df) == len(import_accuracy.SHAPES) * 2 * len(import_accuracy.TRACERS)
+    ours = df[(df["tracer"] == "marching+refit") & (df["noise"] == 0)]
+    assert (ours["iou"] >= 0.99).all() and (ours["hausdorff_px"] <= 1.5).all()
