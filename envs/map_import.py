@@ -177,6 +177,12 @@ def build_env(omap: OccupancyMap, *, robot_radius: float = 0.17, cell_size: floa
     h = suggest_cell_size(robot_radius) if cell_size is None else float(cell_size)
     if not (math.isfinite(h) and h > 0):
         raise UserError(f"the cell size must be a positive number of metres, got {h!r}.")
+    if tolerance is not None and not (math.isfinite(tolerance) and tolerance >= 0):
+        raise UserError(f"the tolerance must be a non-negative number of metres, "
+                        f"got {tolerance!r}.")
+    if isinstance(min_area, bool) or not isinstance(min_area, int) or min_area < 0:
+        raise UserError(f"the minimum speck area must be a whole number of pixels >= 0, "
+                        f"got {min_area!r}.")
     region, filled = clean(omap.free, min_area)
     res = omap.resolution
     poly = trace(region, res, omap.origin, tolerance)

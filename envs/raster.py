@@ -106,6 +106,8 @@ def read_image(path: str | Path) -> np.ndarray:
     except (UnidentifiedImageError, OSError, ValueError, SyntaxError) as exc:
         reason = getattr(exc, "strerror", None) or "not an image Pillow can read"
         raise UserError(f"cannot read the map image {path} ({reason}).") from None
+    if arr.dtype.kind == "i" and arr.size and arr.min() >= 0 and arr.max() <= 65535:
+        arr = arr.astype(np.uint16)          # Pillow opens 16-bit greys as 32-bit integers
     if arr.ndim not in (2, 3) or min(arr.shape[:2]) < 1:
         raise UserError(f"the map image {path} is not a 2-D image.")
     return arr
@@ -218,7 +220,10 @@ def _read_yaml(path: Path) -> OccupancyMap:
     occ_t, free_t = _num(data, "occupied_thresh", path.name), _num(data, "free_thresh", path.name)
     mode = str(data.get("mode", "trinary"))
     img_path = path.parent / str(data["image"])
-    free, occ = threshold(read_image(img_path), negate=bool(data["negate"]),
+    negate = data["negate"]
+    if negate not in (0, 1):                 # 0, 1, true or false (YAML booleans are 0/1)
+        raise UserError(f"{path.name}: negate must be 0 or 1, got {negate!r}.")
+    free, occ = threshold(read_image(img_path), negate=bool(negate),
                           occupied_thresh=occ_t, free_thresh=free_t, mode=mode)
     o = tuple(float(v) for v in org)
     return OccupancyMap(free, occ, res, (o + (0.0,))[:3], path.name)

@@ -317,3 +317,22 @@ def test_accuracy_experiment_quick(tmp_path):
     assert len(df) == len(import_accuracy.SHAPES) * 2 * len(import_accuracy.TRACERS)
     ours = df[(df["tracer"] == "marching+refit") & (df["noise"] == 0)]
     assert (ours["iou"] >= 0.99).all() and (ours["hausdorff_px"] <= 1.5).all()
+
+
+def test_sixteen_bit_images_and_bad_values(tmp_path, capsys):
+    # a 16-bit PGM is scaled by 65535: 60000 is free (p = 0.084), 30000 unknown, 0 occupied
+    img = np.zeros((40, 40), np.uint16)
+    img[5:35, 5:35] = 60000
+    img[15:20, 15:20] = 30000
+    yaml_path = write_ros(tmp_path, img, name="deep")
+    env = envs.Environment.from_dict(build_env(read_map(yaml_path))[0])
+    expected = box(0.25, 0.25, 1.75, 1.75).difference(box(0.75, 1.0, 1.0, 1.25))
+    assert iou(env.free_space, expected) >= 0.99
+    out = str(tmp_path / "env.json")
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(yaml_path.read_text().replace("negate: 0", 'negate: "no"'))
+    for argv, words in [([str(bad)], "negate must be 0 or 1"),
+                        ([str(yaml_path), "--tolerance", "-1"], "tolerance"),
+                        ([str(yaml_path), "--min-area", "-1"], "speck area")]:
+        rc, err = _err(capsys, ["import-map", *argv, "--out", out])
+        assert rc == 2 and len(err) == 1 and words in err[0], err
