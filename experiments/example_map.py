@@ -12,6 +12,7 @@ The helpers (:func:`rasterize`, :func:`salt_and_pepper`, :func:`write_ros_map`) 
 
     python -m experiments.example_map            # rewrites envs/catalog/{studio.json,maps/}
     python -m experiments.example_map --out DIR  # DIR/studio.json, DIR/maps/studio.*
+    python -m experiments.example_map --figure docs/figures/import_studio.png
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ from envs import CATALOG_DIR
 from envs.map_import import build_env, env_json
 from envs.raster import read_map
 
-__all__ = ["FREE", "OCCUPIED", "UNKNOWN", "Config", "main", "rasterize", "room", "run",
+__all__ = ["FREE", "OCCUPIED", "UNKNOWN", "Config", "draw", "main", "rasterize", "room", "run",
            "salt_and_pepper", "write_ros_map"]
 
 FREE, OCCUPIED, UNKNOWN = 254, 0, 205      # what ROS map_saver writes
@@ -114,6 +115,35 @@ def run(config: Config) -> dict:
     return data
 
 
+def draw(folder: Path, name: str, png: Path) -> Path:
+    """The map image with the imported walls (red) over the original polygon (blue, dashed)."""
+    import matplotlib.pyplot as plt
+    from PIL import Image
+
+    import envs
+    from envs.raster import read_map
+    omap = read_map(folder / "maps" / f"{name}.yaml")
+    img = np.asarray(Image.open(folder / "maps" / f"{name}.pgm"))
+    x0, y0, _ = omap.origin
+    h, w = img.shape
+    env = envs.load(folder / f"{name}.json")
+    fig, ax = plt.subplots(figsize=(6.4, 5.0))
+    ax.imshow(img, cmap="gray", vmin=0, vmax=255, interpolation="nearest",
+              extent=(x0, x0 + w * omap.resolution, y0, y0 + h * omap.resolution))
+    for ring in [room().exterior, *room().interiors]:
+        ax.plot(*np.asarray(ring.coords).T, "--", color="tab:blue", lw=1.2)
+    for poly in (env.boundary, *env.obstacles):
+        ax.plot(*np.asarray(poly.exterior.coords).T, "-", color="tab:red", lw=1.0)
+    ax.plot([], [], "--", color="tab:blue", label="polygon the map was drawn from")
+    ax.plot([], [], "-", color="tab:red", label="imported walls")
+    ax.set(xlabel="x [m]", ylabel="y [m]", title=f"{name}: {omap.resolution:g} m pixels")
+    ax.legend(loc="lower right", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(png, dpi=120)
+    plt.close(fig)
+    return png
+
+
 def main(argv: list[str] | None = None) -> int:
     """Command line: ``--seed`` and ``--out`` (default: the catalogue folder)."""
     p = argparse.ArgumentParser(prog="python -m experiments.example_map",
@@ -121,8 +151,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seed", type=int, default=Config.seed, help="noise seed")
     p.add_argument("--out", type=Path, default=CATALOG_DIR,
                    help="folder for NAME.json and maps/ (default: the catalogue)")
+    p.add_argument("--figure", type=Path, default=None, metavar="PNG",
+                   help="also draw the map with the imported walls into PNG")
     args = p.parse_args(argv)
     data = run(Config(seed=args.seed, out=args.out))
+    if args.figure:
+        draw(Path(args.out), data["name"], args.figure)
     print(f"wrote {Path(args.out) / (data['name'] + '.json')} and its map")
     return 0
 
