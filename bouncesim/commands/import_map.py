@@ -50,7 +50,7 @@ def register(sub) -> None:
                    help="put the walls on the cell grid: the free space becomes the cells "
                    "at least half free (the step model's walls, docs/model.md §5)")
     p.add_argument("--tolerance", type=float, default=None, metavar="M",
-                   help=f"simplification tolerance [m] (default {TOLERANCE_PX:g} pixels)")
+                   help=f"simplification tolerance [m] (default {TOLERANCE_PX:g} x the pixel size)")
     p.add_argument("--min-area", type=int, default=4, metavar="PIXELS",
                    help="fill not-free specks of at most this many pixels inside the free "
                    "region (default 4)")
