@@ -7,8 +7,8 @@ unknown 205, a 0.15 m wall band, 0.5 % salt-and-pepper noise from ``--seed``), t
 it with the same code as ``bouncesim import-map`` into ``envs/catalog/studio.json``, so
 ``envs.load("studio")`` works. Run again, it rewrites the same bytes.
 
-The helpers (:func:`rasterize`, :func:`salt_and_pepper`, :func:`write_ros_map`) also serve
-:mod:`experiments.import_accuracy`.
+The studio polygon (:func:`room`) is also one of :mod:`experiments.import_accuracy`'s
+shapes.
 
     python -m experiments.example_map            # rewrites envs/catalog/{studio.json,maps/}
     python -m experiments.example_map --out DIR  # DIR/studio.json, DIR/maps/studio.*
