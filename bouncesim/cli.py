@@ -25,10 +25,11 @@ COMMAND_MODULES = [
     "bouncesim.commands.coverage",
     "bouncesim.commands.run_plan",
     "bouncesim.commands.emulator",
+    "bouncesim.commands.import_map",
 ]
 
 EPILOG = """\
-ENV is a catalogue name (lab, fig1, complex) or a path to a JSON/YAML env file.
+ENV is a catalogue name (lab, fig1, complex, studio) or a path to a JSON/YAML env file.
 Angles are in degrees and must be multiples of 360/K (K = orientations).
 
 examples:
