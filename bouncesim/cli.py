@@ -13,7 +13,12 @@ import importlib
 import os
 import sys
 
-from bouncesim.commands.common import check_outputs, remove_created
+from bouncesim.commands.common import (
+    check_outputs,
+    discard_warnings,
+    flush_warnings,
+    remove_created,
+)
 from bouncesim.robots.base import RobotError
 from envs import UserError
 
@@ -100,9 +105,11 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     created: list = []                          # output folders made by the check
     code = 1
+    discard_warnings()
     try:
         check_outputs(args, created)            # every output path, before any work
         code = int(args.func(args) or 0)
+        flush_warnings()                        # those the command did not print yet
     except UserError as exc:
         print(f"bouncesim: error: {exc}", file=sys.stderr)
         code = 2
@@ -113,6 +120,7 @@ def main(argv: list[str] | None = None) -> int:
         print("bouncesim: interrupted.", file=sys.stderr)
         code = 130
     finally:
+        discard_warnings()                      # an error is one line: no warning before it
         if code != 0:
             remove_created(created)             # no empty folder left by a failed command
     return code

@@ -8,7 +8,7 @@ import time
 import numpy as np
 import pandas as pd
 
-from .common import add_env_args, add_output, check_fits, max_memory, writable_path
+from .common import add_env_args, add_output, check_fits, flush_warnings, max_memory, writable_path
 from .plan import add_planner_args, make_navigator
 
 __all__ = ["histogram_frame", "register", "run"]
@@ -40,6 +40,7 @@ def run(args) -> int:
     limit = max_memory(args)
     check_fits(args, nav.cells, nav.angles, task="allpairs")
     out = writable_path(args.out, "--out", folder=True)
+    flush_warnings()
     t0 = time.perf_counter()
     ap = nav.all_pairs(max_memory=limit)
     elapsed = time.perf_counter() - t0

@@ -1,6 +1,11 @@
 """Argument helpers shared by the sub-commands: ENV and its overrides, output paths
 (declared with :func:`add_output`, all checked by :func:`check_outputs` before a command
-starts), map warnings (printed once, when ENV is loaded) and progress lines, both on stderr.
+starts), warnings and progress lines (both on stderr).
+
+Warnings (:func:`warn`: the map's diagnostics when ENV is loaded, memory notes) wait until
+the inputs are valid: a command prints them with :func:`flush_warnings` just before its long
+work, and ``bouncesim.cli.main`` prints any left at the end. A command that fails with a
+user error prints its one error line only.
 """
 
 from __future__ import annotations
@@ -22,7 +27,9 @@ from planners.resources import check_memory, max_grid_cells, memory_warning, par
 
 __all__ = ["add_env_args", "add_output", "check_fits", "check_outputs", "load_env",
            "make_cells", "make_rng", "max_memory", "parse_angles", "print_json", "progress",
-           "remove_created", "warn", "writable_path"]
+           "remove_created", "warn", "writable_path", "flush_warnings", "discard_warnings"]
+
+_PENDING: list[str] = []            # warnings not printed yet (see the module docstring)
 
 
 def add_env_args(p: argparse.ArgumentParser) -> None:
@@ -57,8 +64,23 @@ def load_env(args: argparse.Namespace, warnings: bool = True) -> envs.Environmen
 
 
 def warn(message: str) -> None:
-    """Print ``bouncesim: warning: <message>`` on stderr (stdout stays machine-readable)."""
-    print(f"bouncesim: warning: {message}", file=sys.stderr, flush=True)
+    """Queue ``bouncesim: warning: <message>`` for stderr (stdout stays machine-readable);
+    a message already queued or printed by this command is not repeated.
+    """
+    line = f"bouncesim: warning: {message}"
+    if line not in _PENDING:
+        _PENDING.append(line)
+
+
+def flush_warnings() -> None:
+    """Print the queued warnings on stderr, once: call it just before the long work."""
+    while _PENDING:
+        print(_PENDING.pop(0), file=sys.stderr, flush=True)
+
+
+def discard_warnings() -> None:
+    """Forget the queued warnings (a command failed before its work started)."""
+    _PENDING.clear()
 
 
 def progress(args: argparse.Namespace):

@@ -38,6 +38,7 @@ from .common import (
     add_env_args,
     add_output,
     check_fits,
+    flush_warnings,
     load_env,
     make_cells,
     parse_angles,
@@ -159,6 +160,7 @@ def run(args) -> int:
                settings=settings)
     if args.out is not None:
         writable_path(args.out, "--out", folder=True)
+    flush_warnings()
     model = model_for(cs, args.model, settings)
     result = design_mix(model, angles, noise, target=target, space=args.target_space,
                         progress=_progress(len(angles)))

@@ -8,7 +8,7 @@ import argparse
 
 from bouncesim.robots import KINDS, make_robot
 from bouncesim.robots.noise import parse_noise
-from bouncesim.runs.execute import execute
+from bouncesim.runs.execute import check_speed, execute
 from envs import UserError
 from planners.navigation import Navigator
 
@@ -16,6 +16,7 @@ from .common import (
     add_env_args,
     add_output,
     check_fits,
+    flush_warnings,
     load_env,
     make_cells,
     make_rng,
@@ -155,11 +156,12 @@ def run(args) -> int:
         return EXIT_NO_PATH
     rng = make_rng(args.seed)
     say = progress(args)
-    options = _robot_options(args)
-    if say:
-        say(f"running {len(route.plan.segments())} segment(s) on the {args.robot} robot")
-    robot = make_robot(args.robot, env, noise=noise, rng=rng, **options)
+    robot = make_robot(args.robot, env, noise=noise, rng=rng, **_robot_options(args))
     with robot:
+        check_speed(args.speed, robot)          # the last user error before the robot moves
+        flush_warnings()
+        if say:
+            say(f"running {len(route.plan.segments())} segment(s) on the {args.robot} robot")
         result = execute(route.plan, robot, start=start, goal=goal, cells=cells,
                          speed=args.speed, back_off=args.back_off,
                          on_segment=say and (lambda seg: say(str(seg))))

@@ -57,7 +57,7 @@ from planners.plan import Plan, PolicyMix
 from ..robots.base import Robot, RobotError
 from .trace import Trace
 
-__all__ = ["execute", "PlanRun", "MixRun", "Deviation", "SegmentDone"]
+__all__ = ["check_speed", "execute", "PlanRun", "MixRun", "Deviation", "SegmentDone"]
 
 
 @dataclass(frozen=True)
@@ -231,7 +231,8 @@ def _place(robot: Robot, pose) -> bool:
         return False
 
 
-def _check_speed(speed: float, robot: Robot) -> float:
+def check_speed(speed: float, robot: Robot) -> float:
+    """``speed`` [m/s] as a float; :class:`UserError` unless 0 < speed <= the robot's maximum."""
     speed = float(speed)
     vmax = robot.spec.max_wheel_speed
     if not (math.isfinite(speed) and 0 < speed <= vmax):
@@ -340,7 +341,7 @@ def execute(policy, robot: Robot, *, start=None, cells: CellSpace | None = None,
             raise UserError(f"{type(robot).__name__} knows no environment: pass "
                             f"cells=CellSpace(env) for the room it is in.")
         cells = CellSpace(env)
-    speed = _check_speed(speed, robot)
+    speed = check_speed(speed, robot)
     back_off = float(back_off)
     if back_off < 0 or not math.isfinite(back_off):
         raise UserError(f"back-off must be a non-negative distance in metres, got {back_off:g}.")
