@@ -157,6 +157,15 @@ def test_warnings_print_once_on_stderr_and_info_lists_them(env_file, capsys):
     assert set(CHECKS) >= {w["code"] for w in info["warnings"]}
 
 
+def test_a_user_error_is_one_line_even_on_a_map_with_warnings(env_file, capsys):
+    path = env_file(two_rooms(1))
+    code, out, err = run(["plan", path, "--angles", "100", "--start", "0", "--goal", "1"],
+                         capsys)
+    assert code == 2 and out == ""
+    (line,) = err.splitlines()               # the warning waits for valid inputs
+    assert line.startswith("bouncesim: error: ") and "100" in line
+
+
 # ============================================================================ output paths
 class WorkStarted(AssertionError):
     pass
@@ -272,7 +281,11 @@ def test_progress_lines_per_segment_on_stderr_and_quiet(capsys):
     result = json.loads(out)                 # stdout: exactly one JSON object
     assert code == 0 and result["success"]
     n = len(Plan.parse(result["plan"]).segments())
-    seg = [ln for ln in err.splitlines() if ln.startswith("segment ")]
+    lines = err.splitlines()
+    # lab's robot-wide bottom corridor is warned about before the robot moves
+    assert lines.index(warnings_in(err)[0]) < lines.index(
+        f"running {n} segment(s) on the kinematic robot")
+    seg = [ln for ln in lines if ln.startswith("segment ")]
     assert [ln.split(":")[0] for ln in seg] == [f"segment {i}/{n}" for i in range(1, n + 1)]
     # the long drive of the plan (8 zeros along the bottom wall: 8 cells = 2.72 m)
     assert any("drive 2.72 m" in ln for ln in seg)
