@@ -58,8 +58,10 @@ the target b.
 Writes to --out: coverage.csv (columns angle,p,i,j,x,y,q; angle = each bouncing angle, "mix"
 for A alpha and "target" for b, over position cells), alpha.json (angles, alpha, residual =
 ||A alpha - b||_2 not squared, tv = 0.5 ||A alpha - b||_1, and per angle the persistent
-groups, their sizes and the transient fraction), heatmap_angle_<A>.png per angle and
-heatmap_mix_vs_target.png. With --target-space configurations also
+groups, their sizes in the model's states (see "states") and in position cells
+("group_cells", comparable across models) and the transient fraction of the states),
+heatmap_angle_<A>.png per angle and heatmap_mix_vs_target.png. With --target-space
+configurations also
 coverage_configurations.csv (angle,z,p,k,pi).
 
 A x alpha assumes every epoch of the executed mix reaches its angle's limiting distribution.
