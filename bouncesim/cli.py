@@ -46,10 +46,10 @@ examples:
   bouncesim allpairs fig1 --angles 45,90,135 --out results/allpairs_fig1
 
 Output paths (--out, --trace, --record) are checked before any work. Warnings about the map
-(walls off the cell grid, cells smaller than the robot, passages no wider than it) and
-progress lines go to stderr as "bouncesim: warning: ..."; stdout keeps the results.
-Exit status: 0 done, 2 a user error (one sentence), 3 no plan, 4 a robot run that failed
-(with rotation noise an expected outcome, not a bug).
+(walls off the cell grid, cells smaller than the robot, passages no wider than it) go to
+stderr as "bouncesim: warning: ...", as do run-plan's progress lines; stdout keeps the
+results. Exit status: 0 done, 2 a user error (one sentence), 3 no plan, 4 a robot run that
+failed (with rotation noise an expected outcome, not a bug). More: docs/readme_cli.md.
 """
 
 
