@@ -53,7 +53,7 @@ def max_memory(args: argparse.Namespace) -> int:
 def load_env(args: argparse.Namespace, warnings: bool = True) -> envs.Environment:
     """ENV with the overrides; a grid too large for --max-memory is refused before it is
     built. With ``warnings``, the map's diagnostics (:func:`envs.diagnostics.diagnose`) are
-    printed on stderr.
+    queued with :func:`warn`.
     """
     env = envs.load(args.env, cell_size=args.cell_size, orientations=args.orientations,
                     max_grid_cells=max_grid_cells(max_memory(args)))
@@ -65,7 +65,7 @@ def load_env(args: argparse.Namespace, warnings: bool = True) -> envs.Environmen
 
 def warn(message: str) -> None:
     """Queue ``bouncesim: warning: <message>`` for stderr (stdout stays machine-readable);
-    a message already queued or printed by this command is not repeated.
+    a message already queued is not repeated.
     """
     line = f"bouncesim: warning: {message}"
     if line not in _PENDING:

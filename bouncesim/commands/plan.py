@@ -14,6 +14,7 @@ from planners.navigation import Navigator
 from .common import (
     add_env_args,
     check_fits,
+    flush_warnings,
     load_env,
     make_cells,
     max_memory,
@@ -141,6 +142,7 @@ def run(args) -> int:
                      parse_config(args.goal, cells, "goal"))]
     else:       # every row is checked before any planning; an error names its line
         resolved = [_resolve_row(row, cells, args.pairs) for row in _read_pairs(args.pairs)]
+    flush_warnings()
     missing = 0
     for s, g in resolved:
         route = nav.plan(s, g)
