@@ -10,11 +10,12 @@ from __future__ import annotations
 import argparse
 from dataclasses import asdict
 
-from envs import UserError
+from envs import Environment, UserError
+from envs.diagnostics import diagnose
 from envs.map_import import build_env, env_json
 from envs.raster import TOLERANCE_PX, read_map
 
-from .common import print_json, writable_path
+from .common import add_output, print_json, warn
 
 __all__ = ["format_report", "register", "run"]
 
@@ -33,7 +34,7 @@ def register(sub) -> None:
         "--out scan.json --json",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("map", metavar="MAP", help="a ROS map YAML, or an image (PGM, PNG, ...)")
-    p.add_argument("--out", required=True, metavar="ENV.json", help="env file to write")
+    add_output(p, "--out", required=True, metavar="ENV.json", help="env file to write")
     p.add_argument("--resolution", type=float, default=None, metavar="M",
                    help="pixel size [m] of a plain image (a YAML gives its own)")
     p.add_argument("--origin", default=None, metavar="X,Y[,YAW]",
@@ -87,13 +88,15 @@ def format_report(report) -> str:
 
 def run(args) -> int:
     """Run ``bouncesim import-map``: read, convert, write the env file; exit status."""
-    out = writable_path(args.out)
+    out = args.out                          # checked before the work (add_output)
     omap = read_map(args.map, resolution=args.resolution, origin=_origin(args.origin),
                     negate=args.negate)
     data, report = build_env(omap, robot_radius=args.robot_radius, cell_size=args.cell_size,
                              orientations=args.orientations, snap_walls=args.snap,
                              tolerance=args.tolerance, min_area=args.min_area, name=args.name)
     out.write_text(env_json(data))
+    for w in diagnose(Environment.from_dict(data)):
+        warn(w.message)
     if args.json:
         print_json({"out": str(out), **asdict(report)})
     else:
