@@ -105,6 +105,9 @@ def register(sub) -> None:
     p.add_argument("--trace", metavar="FILE.csv", default=None,
                    help="write the run's event trace as CSV")
     p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--plot", metavar="FILE.png|.svg", default=None,
+                   help="draw the planned path (cell centres) and the executed path on the "
+                   "map")
     p.set_defaults(func=run)
 
 
@@ -136,6 +139,8 @@ def run(args) -> int:
         writable_path(args.trace, "--trace")
     if args.record:
         writable_path(args.record, "--record")
+    if args.plot:
+        _check_plot(args.plot)
     route = nav.plan(start, goal)
     if route is None:
         if args.json:
@@ -152,6 +157,8 @@ def run(args) -> int:
                          speed=args.speed, back_off=args.back_off)
     if args.trace:
         result.trace.to_csv(args.trace)
+    if args.plot:
+        _plot(args.plot, env, cells, route, result)
     # hardware: the plan ran to its end but nothing can tell whether the goal was reached
     unknown = result.final_pose is None and result.reason.startswith("plan finished")
     if args.json:
@@ -193,3 +200,24 @@ def _robot_options(args) -> dict:
         raise UserError(f"--robot emulator takes --port pty or tcp, got {args.port!r}.")
     return {**options, "transport": transport, "time_scale": args.time_scale,
             "faults": args.fault, "lockstep": args.lockstep}
+
+
+def _check_plot(path) -> None:
+    """--plot: a writable .png or .svg file, checked before the run."""
+    from pathlib import Path
+    if Path(path).suffix.lower() not in (".png", ".svg"):
+        raise UserError(f"--plot must end in .png or .svg, got {Path(path).name!r}.")
+    writable_path(path, "--plot")
+
+
+def _plot(path, env, cells, route, result) -> None:
+    """--plot: the planned route against the executed trace (a hardware run has no poses)."""
+    from bouncesim.plots import plan_vs_executed, save_figure
+    if not any(r.x == r.x for r in result.trace.rows):     # NaN poses only: hardware
+        print("bouncesim: note: --plot skipped, the robot reports no poses.")
+        return
+    status = "success" if result.success else "failure"
+    title = (f"{env.name}: {route.start} → {route.goal}, plan {route.plan}; executed: "
+             f"{status}")
+    save_figure(plan_vs_executed(env, cells, route.path, result.trace, goal=result.goal_pose,
+                                 title=title), path, dpi=150)
