@@ -178,10 +178,11 @@ def draw_pose(ax: Axes, pose: Sequence[float], kind: str = "start", label: str |
 
 
 def draw_cell_ids(ax: Axes, cells: Any, kind: str = "positions",
-                  fontsize: float | None = None) -> list:
+                  fontsize: float | None = None, halo: bool = False) -> list:
     """Write the id of every cell on ``ax``: the position id p at each cell centre, or (kind
     ``configurations``) the K configuration ids z = k·P + p around it, each towards its
-    heading 360° k / K. The font size follows the cell size on the page unless given.
+    heading 360° k / K. The font size follows the cell size on the page unless given;
+    ``halo`` outlines the digits in white (readable on a heatmap, slower to draw).
 
     Returns the list of Text artists (P of them, or N).
     """
@@ -196,7 +197,7 @@ def draw_cell_ids(ax: Axes, cells: Any, kind: str = "positions",
         share = 0.8 if kind == "positions" else 0.27
         fontsize = float(np.clip(share * cell_pt / (0.62 * digits), 2.0, 10.0))
     from matplotlib import patheffects
-    halo = [patheffects.withStroke(linewidth=2.2, foreground="white")]
+    halo = [patheffects.withStroke(linewidth=2.2, foreground="white")] if halo else None
     texts = []
     c = cells.centres
     if kind == "positions":

@@ -236,7 +236,7 @@ def build_figure(args, env, cells):
     else:
         draw_env(ax, env, cells)
     if args.ids:
-        draw_cell_ids(ax, cells, args.ids)
+        draw_cell_ids(ax, cells, args.ids, halo=q is not None)
         what.append("position ids p" if args.ids == "positions" else
                     f"configuration ids z = k·{cells.P} + p")
     if route is not None:
