@@ -291,3 +291,57 @@ def test_route_legend_has_start_and_goal():
     ax.legend()
     assert [t.get_text() for t in ax.get_legend().get_texts()] == ["planned", "start", "goal"]
     plt.close(fig)
+
+
+# ----------------------------------------------------------------------------- recordings
+def test_recording_captions_follow_the_plan_segments():
+    from bouncesim.robots.pybullet.video import Recorder
+    from bouncesim.runs.trace import Trace
+    from planners.plan import Plan
+    tr = Trace()                     # a run of "135° 135° 0": bump, turn, bump, turn, 1 step
+    tr.add(0.0, (2.55, 0.17, 90.0), "start")
+    tr.add(0.0, (2.55, 0.17, 90.0), "bump", "left+right")
+    tr.add(1.8, (2.55, 0.17, 225.0), "turn", "135")
+    tr.add(1.8, (2.55, 0.17, 225.0), "bump", "left")
+    tr.add(3.6, (2.55, 0.17, 0.0), "turn", "135")
+    tr.add(5.3, (2.89, 0.17, 0.0), "stop", "plan finished")
+    rec = Recorder("x.gif", 0.1, 640, LAB.env.bounds, 0.3)
+    rec.times = [10.5, 12.0, 14.2, 15.3]                  # robot clock; the run began at 10
+    rec.annotate_plan(Plan.parse("135° 135° 0"), tr, goal=(2.89, 0.17, 0.0), t0=10.0)
+    assert [rec.caption(i) for i in range(4)] == [
+        "t = 0.5 s   segment 1/3: 135°", "t = 2.0 s   segment 2/3: 135°",
+        "t = 4.2 s   segment 3/3: 0", "t = 5.3 s   segment 3/3: 0"]
+    # the camera maps the room's corners to the frame, 0.15 m in from each side
+    cam = rec.camera
+    x0, y0, x1, y1 = LAB.env.bounds
+    (c0, c1), (r0, r1) = cam.to_pixels([x0, x1], [y0, y1])
+    s = cam.pixels_per_metre
+    assert c0 == pytest.approx(cam.width - c1) and r1 == pytest.approx(cam.height - r0)
+    assert (c1 - c0) / s == pytest.approx(x1 - x0) and (r0 - r1) / s == pytest.approx(y1 - y0)
+
+
+@pytest.mark.slow
+@pytest.mark.physics
+def test_run_plan_record_gif_has_size_and_a_live_overlay(tmp_path, capsys):
+    pytest.importorskip("pybullet")
+    import imageio.v3 as iio
+    out = tmp_path / "run.gif"
+    rc = main(["run-plan", "lab", "--angles", "90,135", "--start", "103", "--goal", "8",
+               "--robot", "pybullet", "--record", str(out)])
+    assert rc == 0
+    frames = iio.imread(out, index=None)
+    n, H, W, _ = frames.shape
+    assert W == 640 and H > 640 * 2.34 / 3.36           # the room's aspect plus a caption
+    assert n > 30                                        # a ~7 s run at 10 frames per second
+    map_h = int(round(640 * 2.34 / 3.36)) // 2 * 2
+    strip = frames[:, map_h:].astype(int)
+    # the caption (clock, segment) changes while the run goes on
+    changed = [np.abs(strip[i] - strip[0]).max() > 0 for i in (n // 3, 2 * n // 3, n - 1)]
+    assert all(changed)
+    assert (frames[:, map_h:] < 60).all(axis=-1).any()   # dark caption text on white
+
+    def orange(img):
+        r, g, b = (img[..., c].astype(int) for c in range(3))
+        return ((r > 200) & (abs(g - 127) < 40) & (b < 80)).sum()
+    # the path so far: no orange line in the first frame, some in the last
+    assert orange(frames[n - 1, :map_h]) > orange(frames[0, :map_h]) + 20

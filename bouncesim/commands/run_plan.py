@@ -155,6 +155,12 @@ def run(args) -> int:
     with robot:
         result = execute(route.plan, robot, start=start, goal=goal, cells=cells,
                          speed=args.speed, back_off=args.back_off)
+        if getattr(robot, "recorder", None) is not None and len(result.trace):
+            # the video's overlay: goal, plan segment, and the run's clock (trace t = 0)
+            robot.recorder.annotate_plan(
+                route.plan, result.trace, goal=result.goal_pose,
+                t0=robot.clock() - result.trace[-1].t,
+                title=f"{env.name}: {start} → {goal} (green: goal, orange: path so far)")
     if args.trace:
         result.trace.to_csv(args.trace)
     if args.plot:
