@@ -80,10 +80,12 @@ def replay_plan(cells: CellSpace, plan: Plan, start: int) -> list[int]:
     """Configuration indices z visited when ``plan`` runs on the step model from ``start``
     (docs/model.md §5-6): a 0 steps forward, an angle needs a bump there and turns CCW.
 
+    A 90° turn adds 2 orientations (K = 8), i.e. 2 P = 96 to z; a step west along lab's
+    bottom row takes one from z:
+
     >>> import envs
-    >>> cs = CellSpace(envs.load("lab"))
-    >>> replay_plan(cs, Plan.parse("90° 00"), 8)[-1] == cs.forward[cs.forward[cs.rotate(8, 90)]]
-    True
+    >>> replay_plan(CellSpace(envs.load("lab")), Plan.parse("90° 90° 00000000 90° 90°"), 8)
+    [8, 104, 200, 199, 198, 197, 196, 195, 194, 193, 192, 288, 0]
     """
     z = int(start)
     path = [z]
