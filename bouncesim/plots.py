@@ -179,7 +179,8 @@ def draw_pose(ax: Axes, pose: Sequence[float], kind: str = "start", label: str |
 
 def draw_cell_ids(ax: Axes, cells: Any, kind: str = "positions",
                   fontsize: float | None = None, halo: bool = False) -> list:
-    """Write the id of every cell on ``ax``: the position id p at each cell centre, or (kind
+    """Write the id of every cell on ``ax``: the position id p in each cell's top-left corner
+    (the centre stays free for paths and poses), or (kind
     ``configurations``) the K configuration ids z = k·P + p around it, each towards its
     heading 360° k / K. The font size follows the cell size on the page unless given;
     ``halo`` outlines the digits in white (readable on a heatmap, slower to draw).
@@ -194,15 +195,16 @@ def draw_cell_ids(ax: Axes, cells: Any, kind: str = "positions",
     n = cells.P if kind == "positions" else cells.N
     digits = len(str(max(n - 1, 0)))
     if fontsize is None:
-        share = 0.8 if kind == "positions" else 0.27
-        fontsize = float(np.clip(share * cell_pt / (0.62 * digits), 2.0, 10.0))
+        share = 0.5 if kind == "positions" else 0.27
+        fontsize = float(np.clip(share * cell_pt / (0.62 * digits), 2.0, 9.0))
     from matplotlib import patheffects
     halo = [patheffects.withStroke(linewidth=2.2, foreground="white")] if halo else None
     texts = []
     c = cells.centres
     if kind == "positions":
+        d = 0.40 * cells.h             # top-left corner: the centre stays free for paths
         for p, (x, y) in enumerate(c):
-            texts.append(ax.text(x, y, str(p), ha="center", va="center", fontsize=fontsize,
+            texts.append(ax.text(x - d, y + d, str(p), ha="left", va="top", fontsize=fontsize,
                                  color="black", zorder=4, path_effects=halo))
         return texts
     r = 0.33 * cells.h
