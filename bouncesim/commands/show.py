@@ -29,11 +29,11 @@ FORMATS = (".png", ".svg")
 DESCRIPTION = """\
 Draw ENV's map and cell grid with, as the options ask: the cell ids (--ids: position id p in
 each cell's corner, or --ids configurations: z = k*P + p around each centre towards heading
-360 k/K), start and
-goal poses, a planned path (--plan: the JSON of `bouncesim plan --json`, or a file holding an
-observation string, replayed on the step model from --start), the executed trace of
-`run-plan --trace` over it, and a coverage heatmap (--coverage DIR: the coverage.csv of
-`bouncesim coverage --out DIR`, series --series). Writes one PNG or SVG (by the suffix).
+360 k/K), start and goal poses, a planned path (--plan: the JSON of `bouncesim plan --json`,
+or a file holding an observation string, replayed on the step model from --start), the
+executed trace of `run-plan --trace` over it, and a coverage heatmap (--coverage DIR: the
+coverage.csv of `bouncesim coverage --out DIR`, series --series). Writes one PNG or SVG (by
+the suffix).
 """
 
 EXAMPLES = """\
