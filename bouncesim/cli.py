@@ -32,6 +32,7 @@ COMMAND_MODULES = [
     "bouncesim.commands.allpairs",
     "bouncesim.commands.coverage",
     "bouncesim.commands.run_plan",
+    "bouncesim.commands.show",
     "bouncesim.commands.emulator",
     "bouncesim.commands.import_map",
 ]

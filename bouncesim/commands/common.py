@@ -91,14 +91,15 @@ def progress(args: argparse.Namespace):
 
 
 def add_output(p: argparse.ArgumentParser, *flags: str, folder: bool = False,
-               as_path: bool = True, **kw) -> argparse.Action:
+               as_path: bool = True, suffixes: tuple = (), **kw) -> argparse.Action:
     """Add an output option (a file, or with ``folder`` a folder) that
     :func:`check_outputs` checks before the command starts; its value is a Path
-    (``as_path``) or the string as given.
+    (``as_path``) or the string as given. With ``suffixes`` (e.g. ``(".png", ".svg")``) the
+    file name must end in one of them.
     """
     action = p.add_argument(*flags, **kw)
     outputs = p.get_default("_outputs") or ()
-    p.set_defaults(_outputs=(*outputs, (action.dest, flags[0], folder, as_path)))
+    p.set_defaults(_outputs=(*outputs, (action.dest, flags[0], folder, as_path, suffixes)))
     return action
 
 
@@ -108,13 +109,16 @@ def check_outputs(args: argparse.Namespace, created: list | None = None) -> list
     appends to ``created``) the folders it had to create, deepest first.
     """
     created = [] if created is None else created
-    for dest, flag, folder, as_path in getattr(args, "_outputs", ()):
+    for dest, flag, folder, as_path, suffixes in getattr(args, "_outputs", ()):
         value = getattr(args, dest, None)
         if value is None:
             continue
         if not str(value).strip():
             raise UserError(f"{flag} needs a {'folder' if folder else 'file'} name.")
         path = Path(value)
+        if suffixes and path.suffix.lower() not in suffixes:
+            raise UserError(f"{flag} must end in {' or '.join(suffixes)}, "
+                            f"got {path.name!r}.")
         base = path if folder else path.parent
         missing = [q for q in (base, *base.parents) if not q.exists()]
         try:

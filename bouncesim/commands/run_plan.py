@@ -24,7 +24,6 @@ from .common import (
     parse_angles,
     print_json,
     progress,
-    writable_path,
 )
 from .plan import add_planner_args, parse_config
 
@@ -113,6 +112,9 @@ def register(sub) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--quiet", action="store_true",
                    help="no progress lines (one per plan segment, on stderr)")
+    add_output(p, "--plot", as_path=False, metavar="FILE.png|.svg", default=None,
+               suffixes=(".png", ".svg"),
+               help="draw the planned path (cell centres) and the executed path on the map")
     p.set_defaults(func=run)
 
 
@@ -141,10 +143,6 @@ def run(args) -> int:
         raise UserError("--noise is for simulated robots; a real Create 2 brings its own.")
     if args.robot in ("create2", "emulator") and (args.gui or args.record):
         raise UserError("--gui and --record need --robot pybullet.")
-    if args.trace:
-        writable_path(args.trace, "--trace")
-    if args.record:
-        writable_path(args.record, "--record")
     route = nav.plan(start, goal)
     if route is None:
         if args.json:
@@ -165,8 +163,16 @@ def run(args) -> int:
         result = execute(route.plan, robot, start=start, goal=goal, cells=cells,
                          speed=args.speed, back_off=args.back_off,
                          on_segment=say and (lambda seg: say(str(seg))))
+        if getattr(robot, "recorder", None) is not None and len(result.trace):
+            # the video's overlay: goal, plan segment, and the run's clock (trace t = 0)
+            robot.recorder.annotate_plan(
+                route.plan, result.trace, goal=result.goal_pose,
+                t0=robot.clock() - result.trace[-1].t,
+                title=f"{env.name}: {start} → {goal} (green: goal, orange: path so far)")
     if args.trace:
         result.trace.to_csv(args.trace)
+    if args.plot:
+        _plot(args.plot, env, cells, route, result)
     # hardware: the plan ran to its end but nothing can tell whether the goal was reached
     unknown = result.final_pose is None and result.reason.startswith("plan finished")
     if args.json:
@@ -211,3 +217,16 @@ def _robot_options(args) -> dict:
         raise UserError(f"--robot emulator takes --port pty or tcp, got {args.port!r}.")
     return {**options, "transport": transport, "time_scale": args.time_scale,
             "faults": args.fault, "lockstep": args.lockstep}
+
+
+def _plot(path, env, cells, route, result) -> None:
+    """--plot: the planned route against the executed trace (a hardware run has no poses)."""
+    from bouncesim.plots import plan_vs_executed, save_figure
+    if not any(r.x == r.x for r in result.trace.rows):     # NaN poses only: hardware
+        print("bouncesim: note: --plot skipped, the robot reports no poses.")
+        return
+    status = "success" if result.success else "failure"
+    title = (f"{env.name}: {route.start} → {route.goal}, plan {route.plan}; executed: "
+             f"{status}")
+    save_figure(plan_vs_executed(env, cells, route.path, result.trace, goal=result.goal_pose,
+                                 title=title), path, dpi=150)
