@@ -14,7 +14,9 @@ it never feeds back into control. The room is the robot's (``robot.env``), or th
   the clock and stops. A run's length is the distance the step model moves in n steps at the
   current heading (:meth:`planners.cells.CellSpace.run_length`: n·h along an axis, n·√2·h
   along a diagonal at K = 8), known from the start heading and the angles before it.
-  Returns a :class:`PlanRun`.
+  An exact plan (:mod:`planners.exact`, docs/model.md §13) runs by its angles instead: drive
+  until a bump and turn, for every angle, then drive its final length by the clock; its
+  expected flights only log deviations (more than h/4 off). Returns a :class:`PlanRun`.
 - A :class:`~planners.plan.PolicyMix` is time-shared: epochs of ``epoch`` steps, each with one
   angle drawn with probabilities α; a step drives h by the clock or until a bump, and on a
   bump turns by the epoch's angle (the robot's own noise model perturbs the turn). Returns a
@@ -62,12 +64,14 @@ __all__ = ["execute", "PlanRun", "MixRun", "Deviation"]
 
 @dataclass(frozen=True)
 class Deviation:
-    """A bump more than one cell length early or late (docs/model.md §8).
+    """A bump more than one cell length early or late (docs/model.md §8); for an exact plan
+    more than h/4, the contact-bin length (§13).
 
     Attributes
     ----------
-    segment : int        index into ``plan.segments()``
-    expected : float     planned travel: the run's length in the step model [m]
+    segment : int        index into ``plan.segments()`` (exact plans: the flight's index)
+    expected : float     planned travel: the run's length in the step model, or the exact
+                         plan's expected flight [m]
     travelled : float    speed x elapsed time [m]
     kind : str           'early' or 'late'
     t : float            robot clock at the bump [s]
@@ -380,30 +384,50 @@ class _PlanRunner:
         self.deviations: list[Deviation] = []
         self.bumps = 0
         self.completed = False
-        self.label = str(plan)
+        self.label = plan.exact_text()
         _place(robot, self.start_pose)
+
+    def _segments(self) -> list[tuple]:
+        """(zeros or None, expected flight [m] or None, angle or None) per segment: an exact
+        plan runs by its angles (its expected flights only log deviations) and ends with its
+        final drive; a step plan by its observation string (lengths from the cell space).
+        """
+        plan = self.plan
+        if not plan.is_exact:
+            return [(n, None, a) for n, a in plan.segments()]
+        segs = [(None, f, a) for f, a in zip(plan.flights_m, plan.turns)]
+        if plan.final_m > 0:
+            segs.append((None, plan.final_m, None))
+        return segs
 
     def loop(self, trace: Trace, t0: float, max_time: float | None) -> str:
         robot, cells, speed, h = self.robot, self.cells, self.speed, self.cells.h
-        segs = self.plan.segments()
-        for i, (zeros, angle) in enumerate(segs):
+        segs = self._segments()
+        tol = h / 4 if self.plan.is_exact else h                 # deviation threshold [m]
+        for i, (zeros, flight, angle) in enumerate(segs):
             late = _time_up(robot, t0, max_time)
             if late:
                 return late
-            expected = cells.run_length(self.k, zeros)      # the step model's distance [m]
+            if flight is None:
+                expected = cells.run_length(self.k, zeros)  # the step model's distance [m]
+            else:
+                expected = flight                           # the exact planner's flight [m]
             if angle is None:                               # trailing zeros: drive and stop
                 ev = robot.drive_for(speed, expected / speed)
                 travelled = speed * ev.elapsed
                 if ev.bumped and travelled < expected - STEP_TOL:  # not just touching at the end
                     self.bumps += 1
                     trace.add(robot.clock() - t0, robot.true_pose(), "bump", _side(ev))
-                    if expected - travelled > h:
+                    if expected - travelled > tol:
                         dev = Deviation(i, expected, travelled, "early", robot.clock() - t0)
                         self.deviations.append(dev)
                         trace.add(dev.t, robot.true_pose(), "deviation",
                                   f"early: {travelled:.3f} m of {expected:.3f} m")
                 continue
-            limit = min(self.max_factor * (zeros + 2) * h, self.cap)
+            if flight is None:
+                limit = min(self.max_factor * (zeros + 2) * h, self.cap)
+            else:
+                limit = min(self.max_factor * (flight + 2 * h), self.cap)
             ev = robot.drive_until_bump(speed, limit / speed)
             travelled = speed * ev.elapsed
             if not ev.bumped:
@@ -412,7 +436,7 @@ class _PlanRunner:
                 return f"no bump within {limit:.2f} m (segment {i + 1} of {len(segs)})"
             self.bumps += 1
             trace.add(robot.clock() - t0, robot.true_pose(), "bump", _side(ev))
-            if abs(travelled - expected) > h:
+            if abs(travelled - expected) > tol:
                 kind = "early" if travelled < expected else "late"
                 dev = Deviation(i, expected, travelled, kind, robot.clock() - t0)
                 self.deviations.append(dev)
