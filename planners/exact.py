@@ -22,8 +22,8 @@ the wall) and its heading after the turn. Flights are the exact ray casts of the
 Examples
 --------
 A 4 × 3 cell room (h = 0.34 m, K = 8): from the centre of cell (0, 0) facing east to cell
-(3, 2) facing north. The robot drives east to the wall (0.85 m), turns 90° and drives north
-through the goal cell, stopping at its centre after 0.68 m:
+(3, 2) facing north. The robot drives east to the wall (1.02 m less the 1e-9 m contact gap),
+turns 90° and drives north to the goal cell's centre, where it touches the north wall:
 
 >>> from envs import Environment
 >>> from planners.cells import CellSpace
@@ -33,7 +33,7 @@ through the goal cell, stopping at its centre after 0.68 m:
 >>> nav = ExactNavigator(cs, [90, 135])
 >>> route = nav.plan(cs.z(0, 0), cs.z(11, 2))
 >>> route.plan.exact_text(), round(route.cost, 6)
-('000 90° 00 | flights 1.02 m | final 0.68 m', 6.0)
+('000 90° 00 | flights 1.019999999 m | final 0.679999999 m', 6.0)
 """
 
 from __future__ import annotations

@@ -52,6 +52,11 @@ def _num(x: float) -> int | float:
     return int(round(x)) if abs(x - round(x)) < 1e-9 else x
 
 
+def _metres(v: float) -> str:
+    """A length [m] to 1e-9 m (the contact gap) without trailing zeros."""
+    return f"{float(v):.9f}".rstrip("0").rstrip(".")
+
+
 def _length(v, what: str) -> float:
     try:
         f = float(v)
@@ -182,8 +187,8 @@ class Plan:
         if self.flights_m is None:
             return str(self)
         head = "" if not self.labels else str(self)
-        flights = " ".join(f"{v:.6g}" for v in self.flights_m)
-        return (f"{head} | flights {flights} m | final {self.final_m:.6g} m".replace(
+        flights = " ".join(_metres(v) for v in self.flights_m)
+        return (f"{head} | flights {flights} m | final {_metres(self.final_m)} m".replace(
             "flights  m", "flights m")).strip()
 
     def to_json(self) -> dict:
