@@ -6,16 +6,17 @@ the contact point on the C-space boundary (where the robot stops, ``CONTACT_GAP`
 the wall) and its heading after the turn. Flights are the exact ray casts of the motion layer
 (:mod:`envs.motion`, the kinematic twin's casts), so every plan replays exactly.
 
-- Search: uniform-cost (Dijkstra) over states (contact bin × heading × current angle); the
-  contact bins are the event model's (:class:`planners.coverage.event.Boundary`, arc-length
-  bins of h/4 by default). Each state keeps the exact pose of its best arrival. Label-setting
-  in cost bands: every state whose cost is below the smallest unsettled cost plus the
-  smallest edge weight is final, so a whole band is expanded with one vectorised ray cast.
+- Search: uniform-cost (Dijkstra, A* towards a single goal) over states (contact bin ×
+  heading × current angle); the contact bins are the event model's
+  (:class:`planners.coverage.event.Boundary`, arc-length bins of h/4 by default). Each state
+  keeps the exact pose of its best arrival. Dial's buckets as wide as the smallest edge
+  weight: the lowest bucket is final as a whole, so it is expanded with one vectorised ray
+  cast (and all pairs run 256 starts in one index space).
 - Cost: w1 per step-equivalent of travel (flight length / h) and per same-angle bump, w2 per
   change of angle; the first bump costs min(w1, w2) (any start angle, as in §6).
 - Goal: after the last turn the heading equals the goal heading and the flight passes through
   the goal cell; the plan ends with a final drive (``final_m``) by the clock to the point of
-  that flight's chord through the cell deepest inside the cell.
+  that flight's chord through the cell nearest the cell's centre.
 - Candidates: :meth:`ExactNavigator.plans` lists every goal arrival within a cost slack of
   the best (one per final state), for a reliability layer that ranks near-optimal plans.
 
@@ -38,6 +39,7 @@ turns 90° and drives north to the goal cell's centre, where it touches the nort
 
 from __future__ import annotations
 
+import heapq
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -160,6 +162,12 @@ def chords(cells: CellSpace, pos, u, dist):
     off = np.abs(pos[fi] + t[:, None] * u[fi] - centre)
     best = h / 2 - off.max(axis=1)
     return fi, cell, t, best
+
+
+def _box_distance(pts, box) -> np.ndarray:
+    """[m] distance from each point (n, 2) to the axis-aligned box (lo, hi)."""
+    d = np.maximum(np.maximum(box[0] - pts, pts - box[1]), 0.0)
+    return np.hypot(d[:, 0], d[:, 1])
 
 
 def _origin(cells: CellSpace) -> np.ndarray:
@@ -313,18 +321,20 @@ class ExactNavigator:
             gp, gk = (int(v) for v in cs.pk(goal))
             glo = _origin(cs) + cs.cells_ij[gp] * cs.h
             gbox = (glo, glo + cs.h)
-        open_ = roots.copy()
-        while open_.size:
-            c_open = cost[open_]
-            if goal is not None and float(c_open.min()) > gcost[goal] + slack:
+        # Dial's bucket queue on key = cost + a lower bound of the cost still to come (A*;
+        # 0 without a goal), buckets of the smallest edge weight: the lowest non-empty
+        # bucket is final as a whole (every edge adds at least wmin to the key)
+        key = np.zeros(B * SS)
+        buckets: dict = {0: [roots]}
+        heap = [0]
+        while heap:
+            j = heapq.heappop(heap)
+            band = np.unique(np.concatenate(buckets.pop(j)))
+            band = band[~done[band] & (np.floor(key[band] / wmin) == j)]
+            if band.size == 0:
+                continue
+            if goal is not None and j * wmin > gcost[goal] + slack:
                 break
-            # each tree settles its own band (the trees are independent)
-            o_src = open_ // SS
-            cmin = np.full(B, np.inf)
-            order = np.argsort(c_open)[::-1]
-            cmin[o_src[order]] = c_open[order]          # the smallest written last
-            inband = c_open < cmin[o_src] + wmin
-            band, open_ = open_[inband], open_[~inband]
             done[band] = True
             src_i, local = np.divmod(band, SS)
             ks = np.where(local == S, k0[src_i], kstate[local])
@@ -374,13 +384,22 @@ class ExactNavigator:
             tgt, new, row, b = tgt[firsts], new[firsts], row[firsts], b[firsts]
             better = ~done[tgt] & (new < cost[tgt] - _IMPROVE)
             tgt, new, row, b = tgt[better], new[better], row[better], b[better]
-            fresh = np.isinf(cost[tgt])
             cost[tgt] = new
             pred[tgt] = band[row]
             pos[tgt] = land[row]
             used[tgt] = used[band[row]] | (1 << b)
-            if fresh.any():
-                open_ = np.concatenate([open_, tgt[fresh]])
+            key[tgt] = new + (0.0 if goal is None else
+                              w1 / h * _box_distance(land[row], gbox))
+            if tgt.size:
+                bj = np.floor(key[tgt] / wmin).astype(np.int64)
+                order = np.argsort(bj, kind="stable")
+                bj, tg = bj[order], tgt[order]
+                cut = np.flatnonzero(np.diff(bj)) + 1
+                for jj, part in zip(bj[np.r_[0, cut]].tolist(), np.split(tg, cut)):
+                    if jj not in buckets:
+                        buckets[jj] = []
+                        heapq.heappush(heap, jj)
+                    buckets[jj].append(part)
         arrivals = [(c, st, t, z % N) for c, st, t, z in arrivals]
         return (cost, pred, pos, flight, used, gcost.reshape(B, N), gstate.reshape(B, N),
                 gt.reshape(B, N), arrivals)
@@ -433,11 +452,11 @@ class ExactNavigator:
         return [self._route(tree, s, g, c, st, t) for c, st, t, _ in rows]
 
     def all_pairs(self, max_memory=None, progress=None) -> ExactAllPairs:
-        """Every ordered pair: one full search per start, 64 starts at a time (the analogue
+        """Every ordered pair: one full search per start, 256 starts at a time (the analogue
         of Algorithm 2). ``max_memory`` is accepted for the shape of
         :meth:`planners.navigation.Navigator.all_pairs` (the search keeps about 50 bytes
-        per contact state and start of a batch); ``progress(done, total)`` is called after
-        every batch.
+        per contact state and start of a batch, about 0.2 GB on ``complex``);
+        ``progress(done, total)`` is called after every batch.
         """
         return ExactAllPairs(self, progress=progress)
 
@@ -451,7 +470,7 @@ class ExactAllPairs:
     angles_used : (N, N) int8  distinct angles of the plan, −1 where unreachable or i == j
     """
 
-    def __init__(self, nav: ExactNavigator, batch: int = 64, progress=None) -> None:
+    def __init__(self, nav: ExactNavigator, batch: int = 256, progress=None) -> None:
         self.nav = nav
         N = nav.cells.N
         W = np.full((N, N), -1.0)

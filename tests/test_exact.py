@@ -9,17 +9,19 @@ from __future__ import annotations
 
 import json
 import math
-import subprocess
-import sys
 
 import numpy as np
+import pandas as pd
 import pytest
 from shapely.geometry import LineString, Point
 
 import envs
+from bouncesim.cli import main
 from bouncesim.robots import make_robot
 from bouncesim.runs.execute import execute
 from envs import Environment
+from experiments import nav_exact
+from experiments.nav_exact import PENTAGON
 from planners.cells import CellSpace
 from planners.exact import ExactNavigator, chords
 from planners.plan import Plan, PlanParseError
@@ -27,12 +29,6 @@ from planners.plan import Plan, PlanParseError
 from .conftest import room
 
 ANGLES = (45, 90, 135)
-PENTAGON = {
-    "name": "pentagon", "description": "a pentagon room with a hexagonal pillar",
-    "boundary": [[2.0, 0.0], [3.902, 1.382], [3.176, 3.618], [0.824, 3.618], [0.098, 1.382]],
-    "obstacles": [[[2.4, 1.7], [2.2, 2.046], [1.8, 2.046], [1.6, 1.7], [1.8, 1.354],
-                   [2.2, 1.354]]],
-    "robot_radius": 0.17, "discretization": {"cell_size": 0.34, "orientations": 8}}
 
 
 def _replay(env, cs, route):
@@ -248,17 +244,40 @@ def test_executor_runs_by_angles_and_logs_deviations():
     assert [(d.segment, d.kind) for d in run.deviations] == [(0, "early")]
 
 
-def test_cli_plan_exact_json_on_a_hand_written_env(tmp_path):
+def test_cli_plan_exact_json_on_a_hand_written_env(tmp_path, capsys):
     """`bouncesim plan ENV --planner exact --json` on an env file; its plan replays."""
     path = tmp_path / "pentagon.json"
     path.write_text(json.dumps(PENTAGON))
-    out = subprocess.run([sys.executable, "-m", "bouncesim.cli", "plan", str(path),
-                          "--angles", "45,90,135", "--start", "20", "--goal", "150",
-                          "--planner", "exact", "--json"], capture_output=True, text=True,
-                         check=True)
-    data = json.loads(out.stdout)
+    assert main(["plan", str(path), "--angles", "45,90,135", "--start", "20", "--goal",
+                 "150", "--planner", "exact", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
     assert data["planner"] == "exact" and len(data["flights_m"]) == len(data["angles"])
     plan = Plan.from_json(data)
     env = Environment.from_dict(PENTAGON)
     run = execute(plan, make_robot("kinematic", env), start=20, goal=150, cells=CellSpace(env))
     assert run.success
+
+
+def test_nav_exact_experiment_quick(tmp_path):
+    """The measurement runs end to end and writes its tables and figure."""
+    assert nav_exact.main(["--quick", "--pairs", "3", "--maps", "lab", "--out",
+                           str(tmp_path)]) == 0
+    summary = pd.read_csv(tmp_path / "summary.csv")
+    assert summary["pairs"].tolist() == [3] and summary["exact_found"].between(0, 1).all()
+    assert len(pd.read_csv(tmp_path / "pairs.csv")) == 3
+    assert (tmp_path / "success.png").stat().st_size > 0
+
+
+@pytest.mark.slow
+@pytest.mark.physics
+def test_exact_plan_succeeds_in_pybullet():
+    """An exact plan (pentagon room with a hexagonal pillar: walls off the grid) reaches its
+    goal in the PyBullet Create 2, noise-free, driven by bump and clock.
+    """
+    pytest.importorskip("pybullet")
+    env = Environment.from_dict(PENTAGON)
+    cs = CellSpace(env)
+    route = ExactNavigator(cs, ANGLES).plan(20, 150)
+    with make_robot("pybullet", env) as robot:
+        run = execute(route.plan, robot, start=20, goal=150, cells=cs)
+    assert run.success, run.reason
