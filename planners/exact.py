@@ -149,7 +149,8 @@ def chords(cells: CellSpace, pos, u, dist):
         ts.append(np.where(ok, t, dist[:, None]))
     T = np.sort(np.concatenate(ts, axis=1), axis=1)
     a, b = T[:, :-1], T[:, 1:]
-    fi, col = np.nonzero(b - a > 1e-12)
+    # a flight of length 0 (a bump at once) still has its start point: a chord of length 0
+    fi, col = np.nonzero((b - a > 1e-12) | (np.arange(a.shape[1]) == 0)[None])
     a, b = a[fi, col], b[fi, col]
     mid = pos[fi] + ((a + b) / 2)[:, None] * u[fi]
     cell = cells.cell_of_point(mid)
@@ -304,7 +305,7 @@ class ExactNavigator:
         pred = np.full(B * SS, -1, dtype=np.int64)
         pos = np.full((B * SS, 2), np.nan)
         flight = np.full(B * SS, np.nan)
-        used = np.zeros(B * SS, dtype=np.int64)
+        used = np.zeros(B * SS, dtype=np.int32)
         done = np.zeros(B * SS, dtype=bool)
         p0, k0 = cs.pk(starts)
         kstate = np.append(np.tile(np.repeat(np.arange(K), m), bd.n_bins), -1)

@@ -211,6 +211,26 @@ def test_chords_point_nearest_the_centre():
     assert p.tolist() == [0, 1, 2, 3]
     assert t == pytest.approx([0.0, 0.34, 0.68, 1.02])
     assert depth == pytest.approx([0.14] * 4)
+    # a flight of length 0 (the heading faces the wall it touches) keeps its start point
+    fi, p, t, depth = chords(cs, [[1.19, 0.17]], [[1.0, 0.0]], [0.0])
+    assert p.tolist() == [3] and t.tolist() == [0.0] and depth == pytest.approx([0.17])
+
+
+def test_goal_facing_the_wall_is_reached_by_a_last_bump():
+    """4 × 3 room, Φ = {270°}. From cell (0, 0) facing east to cell (3, 0) facing south, into
+    the wall: drive 1.02 m east to the wall (in the goal cell), turn 270° (south) and stop,
+    the robot touching the south wall: one flight, no final drive, cost 3 + 1.
+    """
+    cs = CellSpace(room(4, 3))
+    nav = ExactNavigator(cs, [270])
+    route = nav.plan(cs.z(0, 0), cs.z(3, 6))
+    assert route.plan.turns == (270,) and route.plan.final_m == 0.0
+    assert route.plan.flights_m == pytest.approx((1.02 - 1e-9,), abs=1e-12)
+    assert route.cost == pytest.approx(4.0, abs=1e-8)
+    assert _replay(cs.env, cs, route).success
+    # the same cell facing east: reached on the first flight, without a bump
+    route = nav.plan(cs.z(0, 0), cs.z(3, 0))
+    assert route.plan.turns == () and route.plan.final_m == pytest.approx(1.02 - 1e-9)
 
 
 # ----------------------------------------------------------------------------- plan format
