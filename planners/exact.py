@@ -6,12 +6,12 @@ the contact point on the C-space boundary (where the robot stops, ``CONTACT_GAP`
 the wall) and its heading after the turn. Flights are the exact ray casts of the motion layer
 (:mod:`envs.motion`, the kinematic twin's casts), so every plan replays exactly.
 
-- Search: uniform-cost (Dijkstra, A* towards a single goal) over states (contact bin ×
-  heading × current angle); the contact bins are the event model's
-  (:class:`planners.coverage.event.Boundary`, arc-length bins of h/4 by default). Each state
-  keeps the exact pose of its best arrival. Dial's buckets as wide as the smallest edge
-  weight: the lowest bucket is final as a whole, so it is expanded with one vectorised ray
-  cast (and all pairs run 256 starts in one index space).
+- Search: uniform-cost over states (contact bin × heading × current angle); the contact
+  bins are the event model's (:class:`planners.coverage.event.Boundary`, arc-length bins of
+  h/4 by default). Each state keeps the exact pose of its first settled arrival. A single
+  query is A* with scalar casts (a few hundred states); all pairs use Dial's buckets as wide
+  as the smallest edge weight: the lowest bucket is final as a whole, so it is expanded with
+  one vectorised ray cast over 256 starts' trees at once.
 - Cost: w1 per step-equivalent of travel (flight length / h) and per same-angle bump, w2 per
   change of angle; the first bump costs min(w1, w2) (any start angle, as in §6).
 - Goal: after the last turn the heading equals the goal heading and the flight passes through
@@ -247,6 +247,34 @@ class ExactNavigator:
         """The C-space boundary cut into contact bins (the event model's)."""
         return Boundary(self.cells.env, self.bin_length)
 
+    @cached_property
+    def _scalar_boundary(self) -> tuple:
+        bd = self.boundary
+        segs = [tuple(v) for v in np.column_stack(
+            [bd.A, bd.B - bd.A, bd.seg_len ** 2, bd.seg_len, bd.seg_s0, bd.seg_ring]).tolist()]
+        cand = [[int(c) for c in row if c >= 0] for row in bd._cand.tolist()]
+        return segs, cand, bd.ring_bin_length.tolist(), bd.ring_bins.tolist(), \
+            bd.ring_first_bin.tolist()
+
+    def _bin_of_scalar(self, x: float, y: float) -> int:
+        """:meth:`Boundary.bin_of` for one point in plain Python (the nearest candidate
+        segment of the point's fine grid cell; far points go to the vectorised lookup).
+        """
+        bd = self.boundary
+        segs, cand, blen, nbins, first = self._scalar_boundary
+        i = min(max(int((x - bd.x0) / bd.g), 0), bd.nx - 1)
+        j = min(max(int((y - bd.y0) / bd.g), 0), bd.ny - 1)
+        best, arc, ring = math.inf, 0.0, -1
+        for c in cand[j * bd.nx + i]:
+            ax, ay, ex, ey, ee, length, s0, r = segs[c]
+            t = min(max(((x - ax) * ex + (y - ay) * ey) / ee, 0.0), 1.0)
+            d = math.hypot(x - ax - t * ex, y - ay - t * ey)
+            if d < best:
+                best, arc, ring = d, s0 + t * length, int(r)
+        if ring < 0 or best > 2e-3:
+            return int(bd.bin_of([[x, y]])[0])
+        return first[ring] + min(int(arc / blen[ring]), nbins[ring] - 1)
+
     @property
     def n_states(self) -> int:
         """Contact states (bin × heading × angle), without the start."""
@@ -280,12 +308,89 @@ class ExactNavigator:
         records every arrival at the goal within ``slack`` of the best; without it, settles
         every reachable state and records the best arrival at every goal configuration.
         """
+        if goal is not None:
+            return self._search_one(int(start), int(goal), float(slack))
         out = self._search(np.array([int(start)]), goal, float(slack))
         gcost, gstate, gt = out[5:8]
         reached = np.flatnonzero(np.isfinite(gcost[0]))
         goals = {int(z): (float(gcost[0, z]), int(gstate[0, z]), float(gt[0, z]))
                  for z in reached}
         return ExactSearch(*out[:5], goals, out[8])
+
+    def _search_one(self, start: int, goal: int, slack: float) -> ExactSearch:
+        """A* from one start to one goal, one state at a time (heapq, scalar ray casts):
+        a single query settles a few hundred states, too few to pay for vectorising.
+
+        Same states, costs, bound and merging as :meth:`_search` (each state keeps its
+        first-settled, i.e. cheapest, arrival).
+        """
+        cs, K, m, h = self.cells, self.cells.K, self.m, self.cells.h
+        S = self.n_states
+        w1, w2 = self.w1, self.w2
+        first_bump = w1 if m == 1 else min(w1, w2)
+        steps = self._steps.tolist()
+        units = [tuple(float(v) for v in u) for u in cs.units]
+        gp, gk = (int(v) for v in cs.pk(goal))
+        glo = _origin(cs) + cs.cells_ij[gp] * h
+        gx0, gy0, gx1, gy1 = float(glo[0]), float(glo[1]), float(glo[0] + h), \
+            float(glo[1] + h)
+        bin_of = self._bin_of_scalar
+        cast = self.caster.cast_one
+
+        def bound(x: float, y: float) -> float:
+            dx = max(gx0 - x, x - gx1, 0.0)
+            dy = max(gy0 - y, y - gy1, 0.0)
+            return w1 / h * math.hypot(dx, dy)
+
+        cost = np.full(S + 1, np.inf)
+        pred = np.full(S + 1, -1, dtype=np.int64)
+        pos = np.full((S + 1, 2), np.nan)
+        flight = np.full(S + 1, np.nan)
+        used = np.zeros(S + 1, dtype=np.int64)
+        p0, k0 = (int(v) for v in cs.pk(start))
+        x0, y0 = (float(v) for v in cs.centres[p0])
+        # heap entries: (key, order, state, cost, x, y, k, angle index, predecessor, mask)
+        heap = [(0.0, 0, S, 0.0, x0, y0, k0, -1, -1, 0)]
+        order = 1
+        best = math.inf
+        arrivals: list = []
+        while heap:
+            key, _, st, c, x, y, k, a, pr, mask = heapq.heappop(heap)
+            if not math.isinf(cost[st]):
+                continue                                  # settled already
+            if key > best + slack:
+                break
+            cost[st], pred[st], pos[st], used[st] = c, pr, (x, y), mask
+            ux, uy = units[k]
+            t = cast(x, y, ux, uy)
+            if math.isinf(t):
+                raise UserError("a flight never meets a wall: the environment is not closed.")
+            D = 0.0 if t <= BUMP_RANGE else drive_distance(t)
+            flight[st] = D
+            if k == gk and min(x, x + D * ux) <= gx1 and max(x, x + D * ux) >= gx0 and \
+                    min(y, y + D * uy) <= gy1 and max(y, y + D * uy) >= gy0:
+                _, p, tt, depth = chords(cs, [[x, y]], [[ux, uy]], [D])
+                for pi, ti, di in zip(p.tolist(), tt.tolist(), depth.tolist()):
+                    if pi == gp and di >= self.min_depth:
+                        total = c + w1 * ti / h
+                        arrivals.append((total, st, ti, goal))
+                        if total < best - _IMPROVE:
+                            best, best_arrival = total, (total, st, ti)
+            lx, ly = x + D * ux, y + D * uy
+            lb = bin_of(lx, ly)
+            cf = c + w1 * D / h
+            hb = bound(lx, ly)
+            for b in range(m):
+                k2 = (k + steps[b]) % K
+                tgt = (lb * K + k2) * m + b
+                if not math.isinf(cost[tgt]):
+                    continue
+                c2 = cf + (first_bump if a < 0 else (w1 if a == b else w2))
+                heapq.heappush(heap, (c2 + hb, order, tgt, c2, lx, ly, k2, b, st,
+                                      mask | (1 << b)))
+                order += 1
+        goals = {goal: best_arrival} if math.isfinite(best) else {}
+        return ExactSearch(cost, pred, pos, flight, used, goals, arrivals)
 
     def _search(self, starts: np.ndarray, goal: int | None, slack: float) -> tuple:
         """The search from several starts at once (independent trees, one index space:
