@@ -147,7 +147,7 @@ def draw(summary_csv: Path, path: Path) -> None:
     import matplotlib.pyplot as plt
     d = pd.read_csv(summary_csv)
     x = np.arange(len(d))
-    fig, ax = plt.subplots(figsize=(7.5, 3.4))
+    fig, ax = plt.subplots(figsize=(7.5, 3.8))
     ax.bar(x - 0.2, d.step_success, 0.4, label="step model (paper)", color="#bbbbbb")
     ax.bar(x + 0.2, d.exact_success, 0.4, label="exact planner", color="#3b75af")
     for xi, v in zip(x, d.exact_success):
@@ -159,7 +159,8 @@ def draw(summary_csv: Path, path: Path) -> None:
     ax.set_ylabel("noise-free success in the twin")
     ax.set_title(f"Step-reachable pairs ({int(d.pairs.iloc[0])} per map), "
                  "Φ = {45°, 90°, 135°}, K = 8", fontsize=9)
-    ax.legend(fontsize=7, loc="lower right")
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=2)
+    fig.tight_layout()
     save_figure(fig, path, dpi=130)
 
 
