@@ -165,12 +165,6 @@ def chords(cells: CellSpace, pos, u, dist):
     return fi, cell, t, best
 
 
-def _box_distance(pts, box) -> np.ndarray:
-    """[m] distance from each point (n, 2) to the axis-aligned box (lo, hi)."""
-    d = np.maximum(np.maximum(box[0] - pts, pts - box[1]), 0.0)
-    return np.hypot(d[:, 0], d[:, 1])
-
-
 def _origin(cells: CellSpace) -> np.ndarray:
     o = getattr(cells, "_exact_origin", None)
     if o is None:
@@ -310,7 +304,7 @@ class ExactNavigator:
         """
         if goal is not None:
             return self._search_one(int(start), int(goal), float(slack))
-        out = self._search(np.array([int(start)]), goal, float(slack))
+        out = self._search(np.array([int(start)]))
         gcost, gstate, gt = out[5:8]
         reached = np.flatnonzero(np.isfinite(gcost[0]))
         goals = {int(z): (float(gcost[0, z]), int(gstate[0, z]), float(gt[0, z]))
@@ -392,7 +386,7 @@ class ExactNavigator:
         goals = {goal: best_arrival} if math.isfinite(best) else {}
         return ExactSearch(cost, pred, pos, flight, used, goals, arrivals)
 
-    def _search(self, starts: np.ndarray, goal: int | None, slack: float) -> tuple:
+    def _search(self, starts: np.ndarray) -> tuple:
         """The search from several starts at once (independent trees, one index space:
         source i owns states i·(S + 1) … i·(S + 1) + S, the last one its start). One cost
         band of all trees is settled per round (every state cheaper than the smallest
@@ -421,50 +415,28 @@ class ExactNavigator:
         gcost = np.full(B * N, np.inf)
         gstate = np.full(B * N, -1, dtype=np.int64)
         gt = np.full(B * N, np.nan)
-        arrivals: list = []
-        gp = gk = None
-        if goal is not None:
-            gp, gk = (int(v) for v in cs.pk(goal))
-            glo = _origin(cs) + cs.cells_ij[gp] * cs.h
-            gbox = (glo, glo + cs.h)
-        # Dial's bucket queue on key = cost + a lower bound of the cost still to come (A*;
-        # 0 without a goal), buckets of the smallest edge weight: the lowest non-empty
-        # bucket is final as a whole (every edge adds at least wmin to the key)
-        key = np.zeros(B * SS)
+        # Dial's bucket queue on the cost, buckets of the smallest edge weight: the lowest
+        # non-empty bucket is final as a whole (every edge adds at least wmin)
         buckets: dict = {0: [roots]}
         heap = [0]
         while heap:
             j = heapq.heappop(heap)
             band = np.unique(np.concatenate(buckets.pop(j)))
-            band = band[~done[band] & (np.floor(key[band] / wmin) == j)]
+            band = band[~done[band] & (np.floor(cost[band] / wmin) == j)]
             if band.size == 0:
                 continue
-            if goal is not None and j * wmin > gcost[goal] + slack:
-                break
             done[band] = True
             src_i, local = np.divmod(band, SS)
             ks = np.where(local == S, k0[src_i], kstate[local])
             D, u = self._flights(pos[band], ks)
             flight[band] = D
-            # goal arrivals along the flights (for one goal: only flights that may cross it)
-            sel = np.arange(band.size)
-            if goal is not None:
-                ends = pos[band] + D[:, None] * u
-                lo, hi = np.minimum(pos[band], ends), np.maximum(pos[band], ends)
-                sel = np.flatnonzero((ks == gk) & np.all(lo <= gbox[1], axis=1)
-                                     & np.all(hi >= gbox[0], axis=1))
-            fi, p, t, depth = chords(cs, pos[band][sel], u[sel], D[sel])
-            fi = sel[fi]
+            # goal arrivals along the flights
+            fi, p, t, depth = chords(cs, pos[band], u, D)
             ok = depth >= self.min_depth
-            if goal is not None:
-                ok &= p == gp
             fi, p, t = fi[ok], p[ok], t[ok]
             if fi.size:
                 total = cost[band][fi] + w1 * t / h
                 gz = src_i[fi] * N + ks[fi] * P + p
-                if goal is not None:
-                    arrivals.extend(zip(total.tolist(), band[fi].tolist(), t.tolist(),
-                                        gz.tolist()))
                 order = np.lexsort((total, gz))
                 gz, total, fi, t = gz[order], total[order], fi[order], t[order]
                 first = np.ones(gz.size, dtype=bool)
@@ -494,10 +466,8 @@ class ExactNavigator:
             pred[tgt] = band[row]
             pos[tgt] = land[row]
             used[tgt] = used[band[row]] | (1 << b)
-            key[tgt] = new + (0.0 if goal is None else
-                              w1 / h * _box_distance(land[row], gbox))
             if tgt.size:
-                bj = np.floor(key[tgt] / wmin).astype(np.int64)
+                bj = np.floor(cost[tgt] / wmin).astype(np.int64)
                 order = np.argsort(bj, kind="stable")
                 bj, tg = bj[order], tgt[order]
                 cut = np.flatnonzero(np.diff(bj)) + 1
@@ -506,9 +476,8 @@ class ExactNavigator:
                         buckets[jj] = []
                         heapq.heappush(heap, jj)
                     buckets[jj].append(part)
-        arrivals = [(c, st, t, z % N) for c, st, t, z in arrivals]
         return (cost, pred, pos, flight, used, gcost.reshape(B, N), gstate.reshape(B, N),
-                gt.reshape(B, N), arrivals)
+                gt.reshape(B, N), [])
 
     # ------------------------------------------------------------------ routes
     def _route(self, tree: ExactSearch, start: int, goal: int, c: float, state: int,
@@ -584,7 +553,7 @@ class ExactAllPairs:
         bits = np.array([bin(i).count("1") for i in range(1 << nav.m)], dtype=np.int8)
         for lo in range(0, N, batch):
             starts = np.arange(lo, min(N, lo + batch))
-            out = nav._search(starts, None, 0.0)
+            out = nav._search(starts)
             gcost, gstate = out[5], out[6]
             ok = np.isfinite(gcost)
             W[lo:lo + len(starts)][ok] = gcost[ok]
