@@ -4,6 +4,12 @@ A :class:`Plan` is a sequence of labels: 0 for a forward step of one cell, or a 
 angle [deg] for a bump followed by an in-place CCW turn by that angle (docs/model.md §6). It prints
 in the paper's form and parses from both that form and the plain one.
 
+An *exact* plan (docs/model.md §15, the exact planner of :mod:`planners.exact`) also carries
+the expected length of every flight before a bump (``flights_m``) and a final drive by the
+clock (``final_m``). Its labels are the paper's form with zeros = round(flight / h): exact
+along the axes, approximate off them (a diagonal step of the step model moves √2·h). Its
+text form appends the flights: ``00 90° 0 | flights 0.68 0.34 m | final 0.34 m``.
+
 Examples
 --------
 >>> p = Plan.parse("000000 135° 135° 00000 90°")
@@ -17,10 +23,18 @@ Examples
 '(empty plan)'
 >>> p.angles_used, p.steps, p.bumps
 (2, 11, 3)
+>>> e = Plan.exact([90, 135], [0.68, 0.0], 0.3, h=0.34)
+>>> str(e), e.turns
+('00 90° 135° 0', (90, 135))
+>>> e.exact_text()
+'00 90° 135° 0 | flights 0.68 0 m | final 0.3 m'
+>>> Plan.parse(e.exact_text()) == e
+True
 """
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass
 
@@ -38,11 +52,40 @@ def _num(x: float) -> int | float:
     return int(round(x)) if abs(x - round(x)) < 1e-9 else x
 
 
+def _metres(v: float) -> str:
+    """A length [m] to 1e-9 m (the contact gap) without trailing zeros."""
+    return f"{float(v):.9f}".rstrip("0").rstrip(".")
+
+
+def _length(v, what: str) -> float:
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        raise PlanParseError(f"{what} {v!r} is not a number.") from None
+    if not (math.isfinite(f) and f >= 0):
+        raise PlanParseError(f"{what} {v} is not a non-negative length in metres.")
+    return f
+
+
 @dataclass(frozen=True)
 class Plan:
-    """An observation string: 0 = forward step, angle [deg] = bump then turn CCW by it."""
+    """An observation string: 0 = forward step, angle [deg] = bump then turn CCW by it.
+
+    Attributes
+    ----------
+    labels : tuple        0 = forward step, else a bouncing angle [deg]
+    flights_m : tuple of float or None
+        Exact plans only: the expected length [m] of the flight before each bump (one per
+        angle, in order); None for a step-model plan.
+    final_m : float or None
+        Exact plans only: the final drive by the clock [m] after the last turn.
+    planner : str or None  'step', 'exact' or None (unknown, e.g. a hand-written plan)
+    """
 
     labels: tuple
+    flights_m: tuple | None = None
+    final_m: float | None = None
+    planner: str | None = None
 
     def __post_init__(self) -> None:
         labs = []
@@ -55,6 +98,42 @@ class Plan:
                 raise PlanParseError(f"plan label {v} is not 0 or an angle in (0°, 360°).")
             labs.append(_num(f))
         object.__setattr__(self, "labels", tuple(labs))
+        if (self.flights_m is None) != (self.final_m is None):
+            raise PlanParseError("an exact plan needs both its flights and its final drive.")
+        if self.flights_m is not None:
+            flights = tuple(_length(v, "flight length") for v in self.flights_m)
+            if len(flights) != self.bumps:
+                raise PlanParseError(f"an exact plan needs one flight length per angle: "
+                                     f"{len(flights)} flights for {self.bumps} angles.")
+            object.__setattr__(self, "flights_m", flights)
+            object.__setattr__(self, "final_m", _length(self.final_m, "final drive"))
+
+    @classmethod
+    def exact(cls, turns, flights_m, final_m: float, h: float, planner: str = "exact") -> Plan:
+        """An exact plan from its bouncing angles [deg] in order, the flight [m] before each
+        bump and the final drive [m]; the labels get zeros = round(flight / h) (h [m]: the
+        cell size), exact along the axes and approximate off them.
+        """
+        turns, flights = list(turns), list(flights_m)
+        if len(turns) != len(flights):
+            raise PlanParseError(f"an exact plan needs one flight length per angle: "
+                                 f"{len(flights)} flights for {len(turns)} angles.")
+        labels: list = []
+        for a, f in zip(turns, flights):
+            labels.extend([0] * int(round(_length(f, "flight length") / h)))
+            labels.append(a)
+        labels.extend([0] * int(round(_length(final_m, "final drive") / h)))
+        return cls(tuple(labels), tuple(flights), float(final_m), planner)
+
+    @property
+    def is_exact(self) -> bool:
+        """True when the plan carries exact flights (it runs by its angles, §15)."""
+        return self.flights_m is not None
+
+    @property
+    def turns(self) -> tuple:
+        """The bouncing angles [deg] in the order the robot turns them (repeats kept)."""
+        return tuple(v for v in self.labels if v != 0)
 
     # ------------------------------------------------------------------ parsing/printing
     @classmethod
@@ -67,6 +146,8 @@ class Plan:
         if isinstance(text, Plan):
             return text
         s = str(text).strip()
+        if "|" in s:
+            return cls._parse_exact(s)
         if s in {"", "(empty plan)"}:
             return cls(())
         labels: list = []
@@ -83,6 +164,51 @@ class Plan:
                 raise PlanParseError(
                     f"{tok!r} in plan {s!r} is neither a run of zeros nor an angle.") from None
         return cls(tuple(labels))
+
+    @classmethod
+    def _parse_exact(cls, s: str) -> Plan:
+        head, *parts = (t.strip() for t in s.split("|"))
+        base = cls.parse(head)
+        found: dict = {}
+        for part in parts:
+            m = re.fullmatch(r"(flights|final)\b(.*?)(?:\s*m)?", part)
+            if m is None or m.group(1) in found:
+                raise PlanParseError(f"{part!r} in plan {s!r} is not 'flights F1 F2 ... m' or "
+                                     "'final F m'.")
+            found[m.group(1)] = [t for t in re.split(r"[\s,]+", m.group(2)) if t]
+        if set(found) != {"flights", "final"} or len(found["final"]) != 1:
+            raise PlanParseError(f"exact plan {s!r} needs '| flights ... m | final F m'.")
+        return cls(base.labels, tuple(found["flights"]), found["final"][0], "exact")
+
+    def exact_text(self) -> str:
+        """The paper's form followed by the exact flights and the final drive [m] (for a
+        plan without flights, the paper's form alone).
+        """
+        if self.flights_m is None:
+            return str(self)
+        head = "" if not self.labels else str(self)
+        flights = " ".join(_metres(v) for v in self.flights_m)
+        return (f"{head} | flights {flights} m | final {_metres(self.final_m)} m".replace(
+            "flights  m", "flights m")).strip()
+
+    def to_json(self) -> dict:
+        """JSON fields of the plan: ``plan`` (labels), ``plan_text`` (the paper's form; zeros
+        = round(flight / h) for exact plans, approximate off the axes), ``planner``,
+        ``angles`` (the bouncing angles in order), ``flights_m`` and ``final_m`` (None for a
+        plan without exact flights).
+        """
+        return {"plan": self.to_list(), "plan_text": str(self), "planner": self.planner,
+                "angles": list(self.turns),
+                "flights_m": None if self.flights_m is None else list(self.flights_m),
+                "final_m": self.final_m}
+
+    @classmethod
+    def from_json(cls, data: dict) -> Plan:
+        """The plan of :meth:`to_json`'s fields (``plan`` labels, or ``plan_text``)."""
+        labels = data.get("plan")
+        base = cls.parse(data.get("plan_text") or "") if labels is None else cls(tuple(labels))
+        return cls(base.labels, data.get("flights_m"), data.get("final_m"),
+                   data.get("planner"))
 
     def __str__(self) -> str:
         if not self.labels:

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from envs import UserError
 from planners.cells import CellSpace
+from planners.exact import ExactNavigator, step_flights
 from planners.navigation import Navigator
 
 from .common import (
@@ -22,7 +23,8 @@ from .common import (
     print_json,
 )
 
-__all__ = ["add_planner_args", "make_navigator", "parse_config", "register", "run"]
+__all__ = ["add_planner_args", "make_navigator", "parse_config", "register", "route_json",
+           "run"]
 
 EXIT_NO_PATH = 3
 
@@ -71,15 +73,37 @@ def add_planner_args(p) -> None:
                    help="weight of a step or a same-angle bump (default 1)")
     p.add_argument("--w2", type=float, default=100.0,
                    help="weight of a bump that changes the angle (default 100)")
+    p.add_argument("--planner", choices=("step", "exact"), default="step",
+                   help="step: the paper's step model (docs/model.md §6, default); exact: "
+                   "plans over exact bump poses that a continuous robot follows (§15)")
 
 
-def make_navigator(args) -> Navigator:
-    """A :class:`~planners.navigation.Navigator` for the parsed environment, angles and weights."""
-    env = load_env(args)
-    nav = Navigator(make_cells(args, env), parse_angles(args.angles), args.w1, args.w2,
+def make_navigator(args, cells: CellSpace | None = None) -> Navigator | ExactNavigator:
+    """The navigator of ``--planner`` (:class:`~planners.navigation.Navigator` or
+    :class:`~planners.exact.ExactNavigator`) for the parsed environment, angles and weights;
+    the step planner's roadmap is refused above --max-memory before it is built.
+    """
+    if cells is None:
+        cells = make_cells(args, load_env(args))
+    if getattr(args, "planner", "step") == "exact":
+        return ExactNavigator(cells, parse_angles(args.angles), args.w1, args.w2)
+    nav = Navigator(cells, parse_angles(args.angles), args.w1, args.w2,
                     max_memory=max_memory(args))
-    check_fits(args, nav.cells, nav.angles, task="plan", searches=1)
+    check_fits(args, cells, nav.angles, task="plan", searches=1)
     return nav
+
+
+def route_json(route, cells: CellSpace) -> dict:
+    """A route as JSON with the plan fields of both planners: planner, angles (in order),
+    flights_m (expected flight lengths [m]) and final_m (the final drive [m]); for the step
+    model the flights are its runs' lengths (docs/model.md §8).
+    """
+    out = route.to_json()
+    if not route.plan.is_exact:
+        flights, final = step_flights(cells, route.start, route.plan)
+        out.update({"planner": "step", "angles": list(route.plan.turns),
+                    "flights_m": [round(f, 9) for f in flights], "final_m": round(final, 9)})
+    return out
 
 
 def register(sub) -> None:
@@ -92,7 +116,8 @@ def register(sub) -> None:
         "cell. Exit status 3 when a single query has no path.",
         epilog="examples:\n  bouncesim plan lab --angles 90,135 --start 8 --goal 0\n"
         "  bouncesim plan lab --angles 45,90,135 --start 2.55,0.17,90 --goal 8 --json\n"
-        "  bouncesim plan complex --angles 45,90,135 --pairs queries.csv --json",
+        "  bouncesim plan complex --angles 45,90,135 --pairs queries.csv --json\n"
+        "  bouncesim plan complex --angles 45,90,135 --start 8 --goal 900 --planner exact",
         formatter_class=__import__("argparse").RawDescriptionHelpFormatter)
     add_env_args(p)
     add_planner_args(p)
@@ -149,12 +174,17 @@ def run(args) -> int:
         if route is None:
             missing += 1
         if args.json:
-            print_json(route.to_json() if route else
+            print_json(route_json(route, cells) if route else
                        {"start": s, "goal": g, "plan": None, "plan_text": None, "cost": None,
-                        "angles_used": None, "path": None})
+                        "angles_used": None, "path": None, "planner": args.planner,
+                        "angles": None, "flights_m": None, "final_m": None})
         elif route is None:
             print(f"{s} -> {g}: no path with angles "
                   f"{', '.join(f'{a:g}°' for a in nav.angles)}")
+        elif route.plan.is_exact:
+            print(f"{s} -> {g}: {route.plan.exact_text()}  (cost {route.cost:.4g}, "
+                  f"{route.angles_used} angle(s), {route.plan.bumps} bumps; the zeros are "
+                  f"round(flight / h), approximate off the axes)")
         else:
             print(f"{s} -> {g}: {route.plan}  (cost {route.cost:g}, "
                   f"{route.angles_used} angle(s), {len(route.plan)} observations)")

@@ -10,22 +10,18 @@ from bouncesim.robots import KINDS, make_robot
 from bouncesim.robots.noise import parse_noise
 from bouncesim.runs.execute import check_speed, execute
 from envs import UserError
-from planners.navigation import Navigator
 
 from .common import (
     add_env_args,
     add_output,
-    check_fits,
     flush_warnings,
     load_env,
     make_cells,
     make_rng,
-    max_memory,
-    parse_angles,
     print_json,
     progress,
 )
-from .plan import add_planner_args, parse_config
+from .plan import add_planner_args, make_navigator, parse_config
 
 __all__ = ["register", "run", "EXIT_FAILURE", "EXIT_NO_PATH"]
 
@@ -122,9 +118,7 @@ def run(args) -> int:
     """Run ``bouncesim run-plan``: plan, execute on the chosen body; exit status (4: failed)."""
     env = load_env(args)
     cells = make_cells(args, env)
-    nav = Navigator(cells, parse_angles(args.angles), args.w1, args.w2,
-                    max_memory=max_memory(args))
-    check_fits(args, cells, nav.angles, task="plan", searches=1)
+    nav = make_navigator(args, cells)
     start = parse_config(args.start, cells, "start")
     goal = parse_config(args.goal, cells, "goal")
     noise = parse_noise(args.noise, cells.delta_deg)
@@ -181,7 +175,7 @@ def run(args) -> int:
         out.update(result.to_json())
         print_json(out)
     else:
-        print(f"{start} -> {goal}: {route.plan}  (cost {route.cost:g})")
+        print(f"{start} -> {goal}: {route.plan.exact_text()}  (cost {route.cost:.6g})")
         err = ""
         if result.position_error is not None:
             err = (f" (final pose error {result.position_error:.3f} m, "

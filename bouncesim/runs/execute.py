@@ -14,7 +14,9 @@ it never feeds back into control. The room is the robot's (``robot.env``), or th
   the clock and stops. A run's length is the distance the step model moves in n steps at the
   current heading (:meth:`planners.cells.CellSpace.run_length`: n·h along an axis, n·√2·h
   along a diagonal at K = 8), known from the start heading and the angles before it.
-  Returns a :class:`PlanRun`.
+  An exact plan (:mod:`planners.exact`, docs/model.md §15) runs by its angles instead: drive
+  until a bump and turn, for every angle, then drive its final length by the clock; its
+  expected flights only log deviations (more than h/4 off). Returns a :class:`PlanRun`.
 - A :class:`~planners.plan.PolicyMix` is time-shared: epochs of ``epoch`` steps, each with one
   angle drawn with probabilities α; a step drives h by the clock or until a bump, and on a
   bump turns by the epoch's angle (the robot's own noise model perturbs the turn). Returns a
@@ -45,7 +47,6 @@ Examples
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -55,139 +56,12 @@ from planners.cells import CellSpace
 from planners.plan import Plan, PolicyMix
 
 from ..robots.base import Robot, RobotError
+from .results import Deviation, MixRun, PlanRun, SegmentDone
 from .trace import Trace
 
 __all__ = ["check_speed", "execute", "PlanRun", "MixRun", "Deviation", "SegmentDone"]
 
 
-@dataclass(frozen=True)
-class Deviation:
-    """A bump more than one cell length early or late (docs/model.md §8).
-
-    Attributes
-    ----------
-    segment : int        index into ``plan.segments()``
-    expected : float     planned travel: the run's length in the step model [m]
-    travelled : float    speed x elapsed time [m]
-    kind : str           'early' or 'late'
-    t : float            robot clock at the bump [s]
-    """
-
-    segment: int
-    expected: float
-    travelled: float
-    kind: str
-    t: float
-
-
-@dataclass(frozen=True)
-class SegmentDone:
-    """What ``execute(..., on_segment=)`` reports after each plan segment: its 1-based
-    ``index`` of ``total``, the drive (``travelled`` = speed x time [m], ``seconds`` [s],
-    ``bumped``) and the ``turn`` after the bump [deg] (None: a trailing run of zeros).
-    """
-
-    index: int
-    total: int
-    travelled: float
-    seconds: float
-    bumped: bool
-    turn: float | None
-
-    def __str__(self) -> str:
-        end = (f"bump after {self.seconds:.1f} s" if self.bumped
-               else f"stop after {self.seconds:.1f} s")
-        turn = "" if self.turn is None else f", turn {self.turn:g}°"
-        return f"segment {self.index}/{self.total}: drive {self.travelled:.2f} m, {end}{turn}"
-
-
-@dataclass(frozen=True)
-class PlanRun:
-    """Outcome of :func:`execute` for a plan.
-
-    Attributes
-    ----------
-    plan : Plan
-    success : bool or None    None when there is no goal or no true pose (hardware)
-    reason : str              'reached the goal', or why not
-    completed : bool          every segment was executed
-    final_pose : (x [m], y [m], heading [deg]) or None
-    position_error : float or None   distance from the goal cell's centre [m]
-    heading_error : float or None    final minus goal heading, wrapped to (−180, 180] [deg]
-    deviations : tuple of Deviation
-    bumps : int
-    elapsed : float           robot clock from start to end [s]
-    start_pose, goal_pose : (x, y, heading) or None
-    trace : Trace
-    """
-
-    plan: Plan
-    success: bool | None
-    reason: str
-    completed: bool
-    final_pose: tuple | None
-    position_error: float | None
-    heading_error: float | None
-    deviations: tuple
-    bumps: int
-    elapsed: float
-    start_pose: tuple | None
-    goal_pose: tuple | None
-    trace: Trace
-
-    def to_json(self) -> dict:
-        """The run as plain JSON types (non-finite numbers as None)."""
-        def num(v):
-            return None if v is None else round(float(v), 6)
-        return {"plan": str(self.plan), "success": self.success, "reason": self.reason,
-                "completed": self.completed,
-                "final_pose": None if self.final_pose is None else
-                [num(v) for v in self.final_pose],
-                "position_error": num(self.position_error),
-                "heading_error": num(self.heading_error),
-                "deviations": [{"segment": d.segment, "expected": num(d.expected),
-                                "travelled": num(d.travelled), "kind": d.kind}
-                               for d in self.deviations],
-                "bumps": self.bumps, "elapsed": num(self.elapsed)}
-
-
-@dataclass(frozen=True)
-class MixRun:
-    """Outcome of :func:`execute` for a policy mix.
-
-    Attributes
-    ----------
-    counts : (P,) int array or None   steps counted per free position cell (None on hardware)
-    dropped : int        steps counted in no free cell
-    steps : int          steps executed (may fall short of the budget when the run stopped)
-    bumps : int          bump steps
-    reason : str         'finished', or why the run stopped early
-    epoch_angles : tuple of float     the angle drawn for each epoch [deg]
-    final_pose : tuple or None
-    elapsed : float      robot clock [s]
-    trace : Trace
-    """
-
-    counts: np.ndarray | None
-    dropped: int
-    steps: int
-    bumps: int
-    reason: str
-    epoch_angles: tuple
-    final_pose: tuple | None
-    elapsed: float
-    trace: Trace
-
-    @property
-    def coverage(self) -> np.ndarray | None:
-        """(P,) fraction of the counted steps per position cell (docs/model.md §9)."""
-        if self.counts is None:
-            return None
-        s = self.counts.sum()
-        return self.counts / s if s > 0 else self.counts.astype(float)
-
-
-# ============================================================================ helpers
 def _wrap180(deg: float) -> float:
     """Wrap an angle [deg] into (−180, 180]."""
     w = math.fmod(deg, 360.0)
@@ -407,31 +281,51 @@ class _PlanRunner:
         self.deviations: list[Deviation] = []
         self.bumps = 0
         self.completed = False
-        self.label = str(plan)
+        self.label = plan.exact_text()
         _place(robot, self.start_pose)
+
+    def _segments(self) -> list[tuple]:
+        """(zeros or None, expected flight [m] or None, angle or None) per segment: an exact
+        plan runs by its angles (its expected flights only log deviations) and ends with its
+        final drive; a step plan by its observation string (lengths from the cell space).
+        """
+        plan = self.plan
+        if not plan.is_exact:
+            return [(n, None, a) for n, a in plan.segments()]
+        segs = [(None, f, a) for f, a in zip(plan.flights_m, plan.turns)]
+        if plan.final_m > 0:
+            segs.append((None, plan.final_m, None))
+        return segs
 
     def loop(self, trace: Trace, t0: float, max_time: float | None) -> str:
         robot, cells, speed, h = self.robot, self.cells, self.speed, self.cells.h
-        segs = self.plan.segments()
-        for i, (zeros, angle) in enumerate(segs):
+        segs = self._segments()
+        tol = h / 4 if self.plan.is_exact else h                 # deviation threshold [m]
+        for i, (zeros, flight, angle) in enumerate(segs):
             late = _time_up(robot, t0, max_time)
             if late:
                 return late
-            expected = cells.run_length(self.k, zeros)      # the step model's distance [m]
+            if flight is None:
+                expected = cells.run_length(self.k, zeros)  # the step model's distance [m]
+            else:
+                expected = flight                           # the exact planner's flight [m]
             if angle is None:                               # trailing zeros: drive and stop
                 ev = robot.drive_for(speed, expected / speed)
                 travelled = speed * ev.elapsed
                 if ev.bumped and travelled < expected - STEP_TOL:  # not just touching at the end
                     self.bumps += 1
                     trace.add(robot.clock() - t0, robot.true_pose(), "bump", _side(ev))
-                    if expected - travelled > h:
+                    if expected - travelled > tol:
                         dev = Deviation(i, expected, travelled, "early", robot.clock() - t0)
                         self.deviations.append(dev)
                         trace.add(dev.t, robot.true_pose(), "deviation",
                                   f"early: {travelled:.3f} m of {expected:.3f} m")
                 self._report(i, len(segs), travelled, ev.elapsed, ev.bumped, None)
                 continue
-            limit = min(self.max_factor * (zeros + 2) * h, self.cap)
+            if flight is None:
+                limit = min(self.max_factor * (zeros + 2) * h, self.cap)
+            else:
+                limit = min(self.max_factor * (flight + 2 * h), self.cap)
             ev = robot.drive_until_bump(speed, limit / speed)
             travelled = speed * ev.elapsed
             if not ev.bumped:
@@ -440,7 +334,7 @@ class _PlanRunner:
                 return f"no bump within {limit:.2f} m (segment {i + 1} of {len(segs)})"
             self.bumps += 1
             trace.add(robot.clock() - t0, robot.true_pose(), "bump", _side(ev))
-            if abs(travelled - expected) > h:
+            if abs(travelled - expected) > tol:
                 kind = "early" if travelled < expected else "late"
                 dev = Deviation(i, expected, travelled, kind, robot.clock() - t0)
                 self.deviations.append(dev)

@@ -1,0 +1,586 @@
+"""The exact navigation planner: plans over exact bump poses (docs/model.md §15).
+
+The step model (:mod:`planners.navigation`) puts every bump at a cell centre; a continuous
+robot drives on to the real wall. This planner keeps the robot's exact pose after every bump:
+the contact point on the C-space boundary (where the robot stops, ``CONTACT_GAP`` short of
+the wall) and its heading after the turn. Flights are the exact ray casts of the motion layer
+(:mod:`envs.motion`, the kinematic twin's casts), so every plan replays exactly.
+
+- Search: uniform-cost over states (contact bin × heading × current angle); the contact
+  bins are the event model's (:class:`planners.coverage.event.Boundary`, arc-length bins of
+  h/4 by default). Each state keeps the exact pose of its first settled arrival. A single
+  query is A* with scalar casts (a few hundred states); all pairs use Dial's buckets as wide
+  as the smallest edge weight: the lowest bucket is final as a whole, so it is expanded with
+  one vectorised ray cast over 256 starts' trees at once.
+- Cost: w1 per step-equivalent of travel (flight length / h) and per same-angle bump, w2 per
+  change of angle; the first bump costs min(w1, w2) (any start angle, as in §6).
+- Goal: after the last turn the heading equals the goal heading and the flight passes through
+  the goal cell; the plan ends with a final drive (``final_m``) by the clock to the point of
+  that flight's chord through the cell nearest the cell's centre.
+- Candidates: :meth:`ExactNavigator.plans` lists every goal arrival within a cost slack of
+  the best (one per final state), for a reliability layer that ranks near-optimal plans.
+
+Examples
+--------
+A 4 × 3 cell room (h = 0.34 m, K = 8): from the centre of cell (0, 0) facing east to cell
+(3, 2) facing north. The robot drives east to the wall (1.02 m less the 1e-9 m contact gap),
+turns 90° and drives north to the goal cell's centre, where it touches the north wall:
+
+>>> from envs import Environment
+>>> from planners.cells import CellSpace
+>>> env = Environment.from_dict({"boundary": [[0, 0], [1.36, 0], [1.36, 1.02], [0, 1.02]],
+...     "robot_radius": 0.17, "discretization": {"cell_size": 0.34, "orientations": 8}})
+>>> cs = CellSpace(env)
+>>> nav = ExactNavigator(cs, [90, 135])
+>>> route = nav.plan(cs.z(0, 0), cs.z(11, 2))
+>>> route.plan.exact_text(), round(route.cost, 6)
+('000 90° 00 | flights 1.019999999 m | final 0.679999999 m', 6.0)
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+from collections.abc import Iterable
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from envs import UserError
+from envs.motion import BUMP_RANGE, casters, drive_distance
+
+from .cells import CellSpace
+from .coverage.event import Boundary
+from .plan import Plan
+
+__all__ = ["ExactNavigator", "ExactRoute", "ExactAllPairs", "ExactSearch", "chords",
+           "step_flights"]
+
+_IMPROVE = 1e-9          # a new arrival replaces a state's pose when cheaper by this
+
+
+@dataclass(frozen=True)
+class ExactRoute:
+    """An exact plan from one configuration to another (a :class:`planners.navigation.Route`
+    with the exact poses).
+
+    Attributes
+    ----------
+    start, goal : int      configuration indices z
+    plan : Plan            exact plan (angles, flights_m, final_m)
+    cost : float           w1·(travel / h) + w1 per same-angle bump + w2 per angle change
+    poses : tuple of (x [m], y [m], heading [deg])
+        The start pose, then the exact pose after every bump and turn, then the final pose.
+    """
+
+    start: int
+    goal: int
+    plan: Plan
+    cost: float
+    poses: tuple
+
+    @property
+    def angles_used(self) -> int:
+        """Number of distinct bouncing angles in the plan."""
+        return self.plan.angles_used
+
+    def to_json(self) -> dict:
+        """JSON-ready dict: the :class:`~planners.navigation.Route` fields (``path`` holds the
+        poses) plus planner, angles, flights_m and final_m.
+        """
+        out = {"start": self.start, "goal": self.goal}
+        out.update(self.plan.to_json())
+        out.update({"cost": round(float(self.cost), 9), "angles_used": self.angles_used,
+                    "path": [[round(float(v), 9) for v in p] for p in self.poses]})
+        return out
+
+
+def step_flights(cells: CellSpace, start: int, plan: Plan) -> tuple[list, float]:
+    """The expected flights [m] of a step-model plan (docs/model.md §8): the length of the
+    run of zeros before every bump, and of the trailing run, from the start heading.
+    """
+    k = int(cells.pk(start)[1])
+    flights, final = [], 0.0
+    for zeros, angle in plan.segments():
+        length = cells.run_length(k, zeros)
+        if angle is None:
+            final = length
+        else:
+            flights.append(length)
+            k = int(cells.orientation_of(k * cells.delta_deg + angle))
+    return flights, final
+
+
+# ============================================================================ geometry
+def chords(cells: CellSpace, pos, u, dist):
+    """The free cells each flight passes through, with the point of each chord nearest the
+    cell's centre.
+
+    Parameters
+    ----------
+    cells : CellSpace
+    pos : (n, 2) flight starts [m];  u : (n, 2) unit headings;  dist : (n,) lengths [m]
+
+    Returns
+    -------
+    flight : (c,) int     index of the flight
+    p : (c,) int          free position cell crossed (cells in no free cell are left out)
+    t : (c,) float        [m] along the flight: the point of the chord (the part of the flight
+                          inside the cell) nearest the cell's centre
+    depth : (c,) float    [m] that point's distance to the cell's border
+    """
+    pos = np.asarray(pos, dtype=float).reshape(-1, 2)
+    u = np.asarray(u, dtype=float).reshape(-1, 2)
+    dist = np.asarray(dist, dtype=float).reshape(-1)
+    h = cells.h
+    origin = _origin(cells)
+    rel = pos - origin
+    ts = [np.zeros((len(pos), 1)), dist[:, None]]
+    for ax in (0, 1):
+        c, p = u[:, ax], rel[:, ax]
+        nmax = int(np.ceil(np.max(dist * np.abs(c), initial=0.0) / h)) + 2
+        sgn = np.sign(c)
+        first = np.where(c > 0, np.floor(p / h) + 1, np.ceil(p / h) - 1)
+        g = first[:, None] + sgn[:, None] * np.arange(nmax)[None]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = (g * h - p[:, None]) / c[:, None]
+        ok = (c[:, None] != 0) & (t > 0) & (t < dist[:, None])
+        ts.append(np.where(ok, t, dist[:, None]))
+    T = np.sort(np.concatenate(ts, axis=1), axis=1)
+    a, b = T[:, :-1], T[:, 1:]
+    # a flight of length 0 (a bump at once) still has its start point: a chord of length 0
+    fi, col = np.nonzero((b - a > 1e-12) | (np.arange(a.shape[1]) == 0)[None])
+    a, b = a[fi, col], b[fi, col]
+    mid = pos[fi] + ((a + b) / 2)[:, None] * u[fi]
+    cell = cells.cell_of_point(mid)
+    keep = cell >= 0
+    fi, a, b, cell = fi[keep], a[keep], b[keep], cell[keep]
+    # the point of the chord nearest the cell's centre, and its depth: the distance to the
+    # cell's border, min(x − X0, X1 − x, y − Y0, Y1 − y)
+    centre = cells.centres[cell]
+    t = np.clip(((centre - pos[fi]) * u[fi]).sum(1), a, b)
+    off = np.abs(pos[fi] + t[:, None] * u[fi] - centre)
+    best = h / 2 - off.max(axis=1)
+    return fi, cell, t, best
+
+
+def _origin(cells: CellSpace) -> np.ndarray:
+    o = getattr(cells, "_exact_origin", None)
+    if o is None:
+        o = np.asarray(cells.env.origin, dtype=float)
+        cells.__dict__["_exact_origin"] = o
+    return o
+
+
+# ============================================================================ the search
+@dataclass(eq=False)
+class ExactSearch:
+    """One uniform-cost search from a start configuration (the settled tree).
+
+    Attributes
+    ----------
+    cost : (S + 1,) float   cost of every state (inf: not reached); index S is the start
+    pred : (S + 1,) int     predecessor state (−1: none)
+    pos : (S + 1, 2) float  exact pose [m] of each state's best arrival
+    flight : (S + 1,) float length [m] of the flight leaving each settled state (nan: not cast)
+    used : (S + 1,) int     bit mask of the angles used on the way to each state
+    goals : dict            goal configuration -> (cost, state, final_m), best arrivals
+    arrivals : list         every goal arrival (cost, state, final_m, goal z) when recorded
+    """
+
+    cost: np.ndarray
+    pred: np.ndarray
+    pos: np.ndarray
+    flight: np.ndarray
+    used: np.ndarray
+    goals: dict
+    arrivals: list
+
+
+class ExactNavigator:
+    """Plans over exact bump poses (docs/model.md §15), with the shape of
+    :class:`planners.navigation.Navigator`.
+
+    Parameters
+    ----------
+    cells : CellSpace
+    angles : sequence of float   bouncing angles Φ [deg], multiples of 360°/K, no repeats
+    w1, w2 : float               weights (defaults: the paper's 1 and 100)
+    bin_length : float, optional contact-bin length [m] along the C-space boundary (h/4)
+    min_depth : float            [m] the final stop must lie at least this deep inside the
+                                 goal cell (default 1e-3)
+    """
+
+    def __init__(self, cells: CellSpace, angles: Iterable[float], w1: float = 1.0,
+                 w2: float = 100.0, bin_length: float | None = None,
+                 min_depth: float = 1e-3) -> None:
+        self.cells = cells
+        angles = tuple(float(a) for a in angles)
+        if not angles:
+            raise UserError("the exact planner needs at least one bouncing angle.")
+        steps = [cells.angle_steps(a) for a in angles]
+        if len(set(steps)) != len(steps):
+            raise UserError(f"the bouncing angles {list(angles)} repeat an angle.")
+        for name, w in (("w1", w1), ("w2", w2)):
+            if not (math.isfinite(w) and w > 0):
+                raise UserError(f"{name} must be a positive number, got {w}.")
+        self.angles, self.w1, self.w2 = angles, float(w1), float(w2)
+        self._steps = np.asarray(steps, dtype=np.int64)
+        self.bin_length = cells.h / 4 if bin_length is None else float(bin_length)
+        self.min_depth = float(min_depth)
+        self.caster = casters(cells.env)[0]
+
+    @property
+    def m(self) -> int:
+        """Number of bouncing angles."""
+        return len(self.angles)
+
+    @cached_property
+    def boundary(self) -> Boundary:
+        """The C-space boundary cut into contact bins (the event model's)."""
+        return Boundary(self.cells.env, self.bin_length)
+
+    @cached_property
+    def _scalar_boundary(self) -> tuple:
+        bd = self.boundary
+        segs = [tuple(v) for v in np.column_stack(
+            [bd.A, bd.B - bd.A, bd.seg_len ** 2, bd.seg_len, bd.seg_s0, bd.seg_ring]).tolist()]
+        cand = [[int(c) for c in row if c >= 0] for row in bd._cand.tolist()]
+        return segs, cand, bd.ring_bin_length.tolist(), bd.ring_bins.tolist(), \
+            bd.ring_first_bin.tolist()
+
+    def _bin_of_scalar(self, x: float, y: float) -> int:
+        """:meth:`Boundary.bin_of` for one point in plain Python (the nearest candidate
+        segment of the point's fine grid cell; far points go to the vectorised lookup).
+        """
+        bd = self.boundary
+        segs, cand, blen, nbins, first = self._scalar_boundary
+        i = min(max(int((x - bd.x0) / bd.g), 0), bd.nx - 1)
+        j = min(max(int((y - bd.y0) / bd.g), 0), bd.ny - 1)
+        best, arc, ring = math.inf, 0.0, -1
+        for c in cand[j * bd.nx + i]:
+            ax, ay, ex, ey, ee, length, s0, r = segs[c]
+            t = min(max(((x - ax) * ex + (y - ay) * ey) / ee, 0.0), 1.0)
+            d = math.hypot(x - ax - t * ex, y - ay - t * ey)
+            if d < best:
+                best, arc, ring = d, s0 + t * length, int(r)
+        if ring < 0 or best > 2e-3:
+            return int(bd.bin_of([[x, y]])[0])
+        return first[ring] + min(int(arc / blen[ring]), nbins[ring] - 1)
+
+    @property
+    def n_states(self) -> int:
+        """Contact states (bin × heading × angle), without the start."""
+        return self.boundary.n_bins * self.cells.K * self.m
+
+    def _check(self, z, what: str) -> int:
+        try:
+            zi = int(z)
+        except (TypeError, ValueError, OverflowError):
+            raise UserError(f"{what} {z!r} is not a configuration index.") from None
+        if not 0 <= zi < self.cells.N:
+            raise UserError(f"{what} {zi} is out of range: configurations are 0 to "
+                            f"{self.cells.N - 1}.")
+        return zi
+
+    def _flights(self, pos, k):
+        """Exact flight lengths [m] from poses ``pos`` at orientations ``k`` (the twin's
+        drive: no motion when the bumper is already pressed, else the cast less CONTACT_GAP).
+        """
+        u = self.cells.units[k]
+        t = self.caster.cast(pos, u)
+        if not np.all(np.isfinite(t)):
+            raise UserError("a flight never meets a wall: the environment is not closed.")
+        return np.where(t <= BUMP_RANGE, 0.0, drive_distance(t)), u
+
+    # ------------------------------------------------------------------ search
+    def search(self, start: int, goal: int | None = None, slack: float = 0.0) -> ExactSearch:
+        """Uniform-cost search from configuration ``start``.
+
+        With ``goal``, stops once no cheaper arrival (within ``slack``) is possible and
+        records every arrival at the goal within ``slack`` of the best; without it, settles
+        every reachable state and records the best arrival at every goal configuration.
+        """
+        if goal is not None:
+            return self._search_one(int(start), int(goal), float(slack))
+        out = self._search(np.array([int(start)]))
+        gcost, gstate, gt = out[5:8]
+        reached = np.flatnonzero(np.isfinite(gcost[0]))
+        goals = {int(z): (float(gcost[0, z]), int(gstate[0, z]), float(gt[0, z]))
+                 for z in reached}
+        return ExactSearch(*out[:5], goals, out[8])
+
+    def _search_one(self, start: int, goal: int, slack: float) -> ExactSearch:
+        """A* from one start to one goal, one state at a time (heapq, scalar ray casts):
+        a single query settles a few hundred states, too few to pay for vectorising.
+
+        Same states, costs, bound and merging as :meth:`_search` (each state keeps its
+        first-settled, i.e. cheapest, arrival).
+        """
+        cs, K, m, h = self.cells, self.cells.K, self.m, self.cells.h
+        S = self.n_states
+        w1, w2 = self.w1, self.w2
+        first_bump = w1 if m == 1 else min(w1, w2)
+        steps = self._steps.tolist()
+        units = [tuple(float(v) for v in u) for u in cs.units]
+        gp, gk = (int(v) for v in cs.pk(goal))
+        glo = _origin(cs) + cs.cells_ij[gp] * h
+        gx0, gy0, gx1, gy1 = float(glo[0]), float(glo[1]), float(glo[0] + h), \
+            float(glo[1] + h)
+        bin_of = self._bin_of_scalar
+        cast = self.caster.cast_one
+
+        def bound(x: float, y: float) -> float:
+            dx = max(gx0 - x, x - gx1, 0.0)
+            dy = max(gy0 - y, y - gy1, 0.0)
+            return w1 / h * math.hypot(dx, dy)
+
+        cost = np.full(S + 1, np.inf)
+        pred = np.full(S + 1, -1, dtype=np.int64)
+        pos = np.full((S + 1, 2), np.nan)
+        flight = np.full(S + 1, np.nan)
+        used = np.zeros(S + 1, dtype=np.int64)
+        p0, k0 = (int(v) for v in cs.pk(start))
+        x0, y0 = (float(v) for v in cs.centres[p0])
+        # heap entries: (key, order, state, cost, x, y, k, angle index, predecessor, mask)
+        heap = [(0.0, 0, S, 0.0, x0, y0, k0, -1, -1, 0)]
+        order = 1
+        best = math.inf
+        arrivals: list = []
+        while heap:
+            key, _, st, c, x, y, k, a, pr, mask = heapq.heappop(heap)
+            if not math.isinf(cost[st]):
+                continue                                  # settled already
+            if key > best + slack:
+                break
+            cost[st], pred[st], pos[st], used[st] = c, pr, (x, y), mask
+            ux, uy = units[k]
+            t = cast(x, y, ux, uy)
+            if math.isinf(t):
+                raise UserError("a flight never meets a wall: the environment is not closed.")
+            D = 0.0 if t <= BUMP_RANGE else drive_distance(t)
+            flight[st] = D
+            if k == gk and min(x, x + D * ux) <= gx1 and max(x, x + D * ux) >= gx0 and \
+                    min(y, y + D * uy) <= gy1 and max(y, y + D * uy) >= gy0:
+                _, p, tt, depth = chords(cs, [[x, y]], [[ux, uy]], [D])
+                for pi, ti, di in zip(p.tolist(), tt.tolist(), depth.tolist()):
+                    if pi == gp and di >= self.min_depth:
+                        total = c + w1 * ti / h
+                        arrivals.append((total, st, ti, goal))
+                        if total < best - _IMPROVE:
+                            best, best_arrival = total, (total, st, ti)
+            lx, ly = x + D * ux, y + D * uy
+            lb = bin_of(lx, ly)
+            cf = c + w1 * D / h
+            hb = bound(lx, ly)
+            for b in range(m):
+                k2 = (k + steps[b]) % K
+                tgt = (lb * K + k2) * m + b
+                if not math.isinf(cost[tgt]):
+                    continue
+                c2 = cf + (first_bump if a < 0 else (w1 if a == b else w2))
+                heapq.heappush(heap, (c2 + hb, order, tgt, c2, lx, ly, k2, b, st,
+                                      mask | (1 << b)))
+                order += 1
+        goals = {goal: best_arrival} if math.isfinite(best) else {}
+        return ExactSearch(cost, pred, pos, flight, used, goals, arrivals)
+
+    def _search(self, starts: np.ndarray) -> tuple:
+        """The search from several starts at once (independent trees, one index space:
+        source i owns states i·(S + 1) … i·(S + 1) + S, the last one its start). One cost
+        band of all trees is settled per round (every state cheaper than the smallest
+        unsettled cost plus the smallest edge weight is final), with one ray cast.
+        """
+        cs, K, m, P, N = self.cells, self.cells.K, self.m, self.cells.P, self.cells.N
+        bd = self.boundary
+        S = self.n_states
+        SS = S + 1
+        B = len(starts)
+        w1, w2, h = self.w1, self.w2, cs.h
+        wmin = min(w1, w2)
+        first_bump = w1 if m == 1 else min(w1, w2)
+        cost = np.full(B * SS, np.inf)
+        pred = np.full(B * SS, -1, dtype=np.int64)
+        pos = np.full((B * SS, 2), np.nan)
+        flight = np.full(B * SS, np.nan)
+        used = np.zeros(B * SS, dtype=np.int32)
+        done = np.zeros(B * SS, dtype=bool)
+        p0, k0 = cs.pk(starts)
+        kstate = np.append(np.tile(np.repeat(np.arange(K), m), bd.n_bins), -1)
+        astate = np.append(np.tile(np.arange(m), bd.n_bins * K), -1)
+        roots = np.arange(B) * SS + S
+        cost[roots] = 0.0
+        pos[roots] = cs.centres[p0]
+        gcost = np.full(B * N, np.inf)
+        gstate = np.full(B * N, -1, dtype=np.int64)
+        gt = np.full(B * N, np.nan)
+        # Dial's bucket queue on the cost, buckets of the smallest edge weight: the lowest
+        # non-empty bucket is final as a whole (every edge adds at least wmin)
+        buckets: dict = {0: [roots]}
+        heap = [0]
+        while heap:
+            j = heapq.heappop(heap)
+            band = np.unique(np.concatenate(buckets.pop(j)))
+            band = band[~done[band] & (np.floor(cost[band] / wmin) == j)]
+            if band.size == 0:
+                continue
+            done[band] = True
+            src_i, local = np.divmod(band, SS)
+            ks = np.where(local == S, k0[src_i], kstate[local])
+            D, u = self._flights(pos[band], ks)
+            flight[band] = D
+            # goal arrivals along the flights
+            fi, p, t, depth = chords(cs, pos[band], u, D)
+            ok = depth >= self.min_depth
+            fi, p, t = fi[ok], p[ok], t[ok]
+            if fi.size:
+                total = cost[band][fi] + w1 * t / h
+                gz = src_i[fi] * N + ks[fi] * P + p
+                order = np.lexsort((total, gz))
+                gz, total, fi, t = gz[order], total[order], fi[order], t[order]
+                first = np.ones(gz.size, dtype=bool)
+                first[1:] = gz[1:] != gz[:-1]
+                gz, total, fi, t = gz[first], total[first], fi[first], t[first]
+                win = total < gcost[gz] - _IMPROVE
+                gz, total, fi, t = gz[win], total[win], fi[win], t[win]
+                gcost[gz], gstate[gz], gt[gz] = total, band[fi], t
+            # landings and turns
+            land = pos[band] + D[:, None] * u
+            lb = bd.bin_of(land)
+            row = np.repeat(np.arange(band.size), m)
+            b = np.tile(np.arange(m), band.size)
+            a = astate[local[row]]
+            k2 = (ks[row] + self._steps[b]) % K
+            tgt = src_i[row] * SS + (lb[row] * K + k2) * m + b
+            w = np.where(a < 0, first_bump, np.where(a == b, w1, w2))
+            new = (cost[band] + w1 * D / h)[row] + w
+            order = np.lexsort((new, tgt))
+            tgt, new, row, b = tgt[order], new[order], row[order], b[order]
+            firsts = np.ones(tgt.size, dtype=bool)
+            firsts[1:] = tgt[1:] != tgt[:-1]
+            tgt, new, row, b = tgt[firsts], new[firsts], row[firsts], b[firsts]
+            better = ~done[tgt] & (new < cost[tgt] - _IMPROVE)
+            tgt, new, row, b = tgt[better], new[better], row[better], b[better]
+            cost[tgt] = new
+            pred[tgt] = band[row]
+            pos[tgt] = land[row]
+            used[tgt] = used[band[row]] | (1 << b)
+            if tgt.size:
+                bj = np.floor(cost[tgt] / wmin).astype(np.int64)
+                order = np.argsort(bj, kind="stable")
+                bj, tg = bj[order], tgt[order]
+                cut = np.flatnonzero(np.diff(bj)) + 1
+                for jj, part in zip(bj[np.r_[0, cut]].tolist(), np.split(tg, cut)):
+                    if jj not in buckets:
+                        buckets[jj] = []
+                        heapq.heappush(heap, jj)
+                    buckets[jj].append(part)
+        return (cost, pred, pos, flight, used, gcost.reshape(B, N), gstate.reshape(B, N),
+                gt.reshape(B, N), [])
+
+    # ------------------------------------------------------------------ routes
+    def _route(self, tree: ExactSearch, start: int, goal: int, c: float, state: int,
+               final: float) -> ExactRoute:
+        S, m, cs = self.n_states, self.m, self.cells
+        chain = [state]
+        while chain[-1] != S:
+            chain.append(int(tree.pred[chain[-1]]))
+            if chain[-1] < 0:  # pragma: no cover - a tree without its root would be a bug
+                raise RuntimeError("broken search tree")
+        chain.reverse()                                   # start, state 1, ..., last state
+        turns = [self.angles[s % m] for s in chain[1:]]
+        flights = [float(tree.flight[s]) for s in chain[:-1]]
+        head = cs.pose(start)[2]
+        poses = [cs.pose(start)]
+        for s, a in zip(chain[1:], turns):
+            head = (head + a) % 360.0
+            poses.append((float(tree.pos[s, 0]), float(tree.pos[s, 1]), head))
+        u = cs.units[(s_k := int(cs.pk(goal)[1]))]
+        x, y = tree.pos[state] + final * u
+        poses.append((float(x), float(y), float(s_k * cs.delta_deg)))
+        plan = Plan.exact(turns, flights, final, cs.h)
+        return ExactRoute(start, goal, plan, c, tuple(poses))
+
+    def plan(self, start: int, goal: int) -> ExactRoute | None:
+        """The minimum-cost exact plan from configuration ``start`` to ``goal``, or None."""
+        s, g = self._check(start, "start"), self._check(goal, "goal")
+        if s == g:
+            return ExactRoute(s, g, Plan((), (), 0.0, "exact"), 0.0, (self.cells.pose(s),))
+        tree = self.search(s, g)
+        if g not in tree.goals:
+            return None
+        return self._route(tree, s, g, *tree.goals[g])
+
+    def plans(self, start: int, goal: int, slack: float) -> list[ExactRoute]:
+        """Every exact plan within ``slack`` of the cheapest, cheapest first: one per final
+        state and goal arrival (the candidates a reliability layer ranks).
+        """
+        s, g = self._check(start, "start"), self._check(goal, "goal")
+        if s == g:
+            return [self.plan(s, g)]
+        tree = self.search(s, g, slack=float(slack))
+        if g not in tree.goals:
+            return []
+        best = tree.goals[g][0]
+        rows = sorted(a for a in tree.arrivals if a[3] == g and a[0] <= best + slack)
+        return [self._route(tree, s, g, c, st, t) for c, st, t, _ in rows]
+
+    def all_pairs(self, max_memory=None, progress=None) -> ExactAllPairs:
+        """Every ordered pair: one full search per start, 256 starts at a time (the analogue
+        of Algorithm 2). ``max_memory`` is accepted for the shape of
+        :meth:`planners.navigation.Navigator.all_pairs` (the search keeps about 50 bytes
+        per contact state and start of a batch, about 0.2 GB on ``complex``);
+        ``progress(done, total)`` is called after every batch.
+        """
+        return ExactAllPairs(self, progress=progress)
+
+
+class ExactAllPairs:
+    """All-pairs exact plans: weights and angles used (one full search per start).
+
+    Attributes
+    ----------
+    weights : (N, N) float   minimum cost, −1 where unreachable, 0 on the diagonal
+    angles_used : (N, N) int8  distinct angles of the plan, −1 where unreachable or i == j
+    """
+
+    def __init__(self, nav: ExactNavigator, batch: int = 256, progress=None) -> None:
+        self.nav = nav
+        N = nav.cells.N
+        W = np.full((N, N), -1.0)
+        used = np.full((N, N), -1, dtype=np.int8)
+        bits = np.array([bin(i).count("1") for i in range(1 << nav.m)], dtype=np.int8)
+        for lo in range(0, N, batch):
+            starts = np.arange(lo, min(N, lo + batch))
+            out = nav._search(starts)
+            gcost, gstate = out[5], out[6]
+            ok = np.isfinite(gcost)
+            W[lo:lo + len(starts)][ok] = gcost[ok]
+            used[lo:lo + len(starts)][ok] = bits[out[4][gstate[ok]]]
+            if progress is not None:
+                progress(lo + len(starts), N)
+        idx = np.arange(N)
+        W[idx, idx] = 0.0
+        used[idx, idx] = -1
+        self.weights, self.angles_used = W, used
+
+    @property
+    def N(self) -> int:
+        """Number of configurations N."""
+        return self.nav.cells.N
+
+    def route(self, i: int, j: int) -> ExactRoute | None:
+        """The plan for the pair (i, j) (searched again: the same tree, the same plan)."""
+        return self.nav.plan(i, j)
+
+    def histogram(self) -> np.ndarray:
+        """Counts of plans by number of angles used (0..m) over reachable pairs i != j."""
+        u = self.angles_used[self.angles_used >= 0]
+        return np.bincount(u, minlength=self.nav.m + 1)
+
+    @cached_property
+    def reachable_fraction(self) -> float:
+        """Fraction of the ordered pairs (i ≠ j) with a plan."""
+        N = self.N
+        return float((self.weights[~np.eye(N, dtype=bool)] >= 0).mean()) if N > 1 else 1.0
