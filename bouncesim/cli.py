@@ -24,6 +24,7 @@ COMMAND_MODULES = [
     "bouncesim.commands.allpairs",
     "bouncesim.commands.coverage",
     "bouncesim.commands.run_plan",
+    "bouncesim.commands.validate",
     "bouncesim.commands.emulator",
 ]
 
