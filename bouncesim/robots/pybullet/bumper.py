@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["CONTACT_TOLERANCE", "BUMP_CENTRE_DEG", "read_bumper"]
+__all__ = ["CONTACT_TOLERANCE", "BUMP_CENTRE_DEG", "contact_bearing", "read_bumper"]
 
 CONTACT_TOLERANCE = 1e-3
 """A contact point within this distance [m] closes the bumper."""
@@ -19,6 +19,11 @@ BUMP_CENTRE_DEG = 10.0
 
 def _wrap_deg(a: float) -> float:
     return (a + 180.0) % 360.0 - 180.0
+
+
+def contact_bearing(pos, x: float, y: float, yaw_deg: float) -> float:
+    """Bearing [deg] in [−180, 180) of the point ``pos`` seen from (x, y) heading ``yaw_deg``."""
+    return _wrap_deg(math.degrees(math.atan2(pos[1] - y, pos[0] - x)) - yaw_deg)
 
 
 def read_bumper(p, body: int, wall_set: frozenset, arc_deg: float, kw: dict,
@@ -37,8 +42,7 @@ def read_bumper(p, body: int, wall_set: frozenset, arc_deg: float, kw: dict,
     for c in contacts:
         if c[2] not in wall_set or c[8] > CONTACT_TOLERANCE:
             continue
-        pos = c[5]
-        rel = _wrap_deg(math.degrees(math.atan2(pos[1] - y, pos[0] - x)) - yaw)
+        rel = contact_bearing(c[5], x, y, yaw)
         if abs(rel) > arc_deg:
             continue
         if rel >= -BUMP_CENTRE_DEG:

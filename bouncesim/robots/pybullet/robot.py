@@ -35,7 +35,7 @@ from envs import Environment, UserError
 
 from ..base import CREATE2, Robot, RobotError, RobotSpec
 from ..noise import NoiseModel, noise_and_rng
-from .bumper import read_bumper
+from .bumper import CONTACT_TOLERANCE, contact_bearing, read_bumper
 from .video import check_record_format, render_top_down, write_video
 from .walls import WALL_THICKNESS, convex_pieces, wall_pieces
 
@@ -539,6 +539,17 @@ class PyBulletRobot(Robot):
         p.resetJointState(self._robot, 1, a_r, 0.0, **kw)
         self._set_wheels(0.0, 0.0)
         p.performCollisionDetection(**kw)
+
+    def wall_contacts(self) -> list[tuple[float, float]]:
+        """(bearing [deg] from the heading, distance [m]) of every body–wall contact point
+        closer than 1 mm, whatever the bumper arc (simulation only, for calibration).
+        """
+        self._check_open()
+        p, kw = self._p, self._kw
+        x, y, yaw = self.true_pose()
+        return [(contact_bearing(c[5], x, y, yaw), c[8])
+                for c in p.getContactPoints(bodyA=self._robot, linkIndexA=-1, **kw)
+                if c[2] in self._wall_set and c[8] <= CONTACT_TOLERANCE]
 
     def true_pose(self) -> tuple[float, float, float]:
         """(x [m], y [m], heading [deg] in (−180, 180]) of the body centre."""
