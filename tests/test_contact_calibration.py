@@ -32,7 +32,8 @@ def test_fit_on_a_hand_made_table():
 
 def test_defaults_are_the_pybullet_geometry():
     """The fitted β lies within 0.5° of the geometric 90° − 80° arc, the slide is nearly
-    frictionless; the dataclass is frozen data."""
+    frictionless; the dataclass is frozen data.
+    """
     assert isinstance(PYBULLET_CONTACT, ContactParams)
     assert abs(PYBULLET_CONTACT.beta_deg - 10.0) <= 0.5
     assert 0 <= PYBULLET_CONTACT.slide_friction <= 0.05
@@ -44,7 +45,8 @@ def test_defaults_are_the_pybullet_geometry():
 @pytest.mark.skipif(importlib.util.find_spec("pybullet") is None, reason="needs pybullet")
 def test_trials_slide_below_and_bump_above_beta():
     """At 5° the robot slides at v cos 5° without bumping; at 20° it bumps with the contact
-    at a bearing of 20° − 90° (within 1°) and no slide."""
+    at a bearing of 20° − 90° (within 1°) and no slide.
+    """
     from bouncesim.robots.pybullet import PyBulletRobot
     with PyBulletRobot(wall_room()) as bot:
         slide = trial(bot, 5.0, 0.002, 0.3, 0.5)

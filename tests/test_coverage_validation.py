@@ -73,7 +73,8 @@ def test_policy_labels_round_trip():
 
 def test_envs_accepts_an_env_file_path(tmp_path):
     """--envs takes an env file path as well as a catalogue name: the lab copied to a file
-    gives the lab's predictions and a heatmap named after the file."""
+    gives the lab's predictions and a heatmap named after the file.
+    """
     import shutil
 
     import envs

@@ -39,7 +39,8 @@ def _noise(cs):
 
 def test_batch_robot_follows_the_single_robot(lab72):
     """Robot i of a batch with generator seed s bumps within 1 cm of the same wall points,
-    in the same order, as one PyBulletRobot run by execute() with seed s (same physics)."""
+    in the same order, as one PyBulletRobot run by execute() with seed s (same physics).
+    """
     from bouncesim.robots.pybullet import PyBulletRobot
     from bouncesim.robots.pybullet.batch import BATCH_PHYSICS, PyBulletBatch
     from bouncesim.runs.execute import execute
@@ -62,7 +63,8 @@ def test_batch_robot_follows_the_single_robot(lab72):
 
 def test_robots_ignore_each_other(lab72):
     """Two robots started on the same pose with the same seed overlap all the time; with
-    robot-robot collisions filtered out they move exactly alike."""
+    robot-robot collisions filtered out they move exactly alike.
+    """
     from bouncesim.robots.pybullet.batch import PyBulletBatch
     env, cs = lab72
     with PyBulletBatch(env, 2, rngs=[np.random.default_rng(7), np.random.default_rng(7)],
@@ -79,7 +81,8 @@ def test_batch_bumps_at_the_wall_and_turns_accurately(lab72):
     than 2 mm into it), and every turn executes the noise-sampled angle within 1.5° (mean
     within 0.25°). Turns start touching the wall; with Bullet's default contact settings
     (the single robot's) the same run measured mean 0.17°, max 1.18°; with the batch's
-    0.17° and 1.06°."""
+    0.17° and 1.06°.
+    """
     from bouncesim.robots.pybullet.batch import PyBulletBatch
     env, cs = lab72
     with PyBulletBatch(env, 8, 3, cells=cs, noise=_noise(cs)) as batch:

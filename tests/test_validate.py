@@ -26,10 +26,11 @@ def _rows(capsys) -> list[dict]:
 
 
 def test_kinematic_matches_the_event_model_within_the_noise(capsys):
-    """lab at 75° and 315° and the 50/50 mix: TV(event q, twin) at most 1.5 × the floor plus
+    """Lab at 75° and 315° and the 50/50 mix: TV(event q, twin) at most 1.5 × the floor plus
     0.01 (the event model's binning error on lab is about 0.01, docs/model_continuous.md);
     the pooled histogram has √2 less noise than each half, so a right model sits near
-    floor/√2. Bumps per step agree within 0.02."""
+    floor/√2. Bumps per step agree within 0.02.
+    """
     assert main(LAB + ["--angles", "75,315", "--alpha", "1,1", "--model", "event",
                        "--steps", "100000", "--json"]) == 0
     rows = _rows(capsys)
@@ -45,7 +46,8 @@ def test_kinematic_matches_the_event_model_within_the_noise(capsys):
 
 def test_step_model_bump_rate_and_table(capsys):
     """The step model's bump rate is π over its bump configurations: at K = 72 in lab it is
-    a number in (0, 1); the table prints one line per angle."""
+    a number in (0, 1); the table prints one line per angle.
+    """
     assert main(LAB + ["--angles", "75", "--model", "step", "--steps", "4000"]) == 0
     out = capsys.readouterr().out.splitlines()
     assert out[1].split()[:3] == ["angle", "tv", "floor"]
@@ -78,7 +80,8 @@ def test_unknown_env_exits_2(capsys):
 @pytest.mark.skipif(importlib.util.find_spec("pybullet") is None, reason="needs pybullet")
 def test_pybullet_backend_few_steps(capsys):
     """Two batches of 16 PyBullet robots, 4 counted steps each: the JSON row counts them all,
-    and the rates and distances are proper numbers."""
+    and the rates and distances are proper numbers.
+    """
     assert main(LAB + ["--angles", "75", "--backend", "pybullet", "--steps", "128",
                        "--burn-in", "2", "--json"]) == 0
     (r,) = _rows(capsys)

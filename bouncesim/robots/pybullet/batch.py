@@ -19,11 +19,11 @@ points and turns against that path).
 
 Examples
 --------
->>> import envs                                                  # doctest: +SKIP
->>> batch = PyBulletBatch(envs.load("lab"), 16, np.random.default_rng(0))
->>> res = batch.run(75.0, 200)
->>> res.counts.shape, res.steps                                  # doctest: +SKIP
-((16, 48), 200)
+>>> import envs
+>>> with PyBulletBatch(envs.load("lab"), 2, np.random.default_rng(0)) as batch:
+...     res = batch.run(90.0, 3)
+>>> res.counts.shape, res.steps, res.total
+((2, 48), 3, 6)
 """
 
 from __future__ import annotations
@@ -198,7 +198,7 @@ class PyBulletBatch:
         """Robot i's run as execute's mix loop; yields physics steps to wait."""
         host, cells, rng, body = self.host, self.cells, self.rngs[i], self.bodies[i]
         dt, period, speed, h = host.time_step, host.spec.sensor_period, self.speed, cells.h
-        t_goal = 0.0
+        t_goal = self._steps * dt             # the robot's clock target (PyBulletRobot.wait)
 
         def wait_steps(duration: float) -> int:
             nonlocal t_goal
