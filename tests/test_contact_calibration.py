@@ -57,3 +57,26 @@ def test_trials_slide_below_and_bump_above_beta():
     assert abs(slide["heading_change_deg"]) <= 0.5
     assert bump["bump"] == 1 and bump["slide_m"] <= 0.005
     assert bump["bearing_deg"] == pytest.approx(20.0 - 90.0, abs=1.0)
+
+
+@pytest.mark.physics
+@pytest.mark.skipif(importlib.util.find_spec("pybullet") is None, reason="needs pybullet")
+def test_quick_run_writes_outputs_and_agrees_with_the_defaults(tmp_path):
+    """The --quick run writes trials.csv, fit.csv, config.json (with the fit and the defaults
+    in code) and contact.png; its β is within 0.5° of the stored default, its μ within
+    0.01.
+    """
+    import json
+
+    from experiments import contact_calibration as cc
+    out = tmp_path / "cc"
+    assert cc.main(["--quick", "--out", str(out)]) == 0
+    for name in ("trials.csv", "fit.csv", "config.json", "contact.png"):
+        assert (out / name).exists()
+    cfg = json.loads((out / "config.json").read_text())
+    assert cfg["defaults_in_code"] == {"beta_deg": PYBULLET_CONTACT.beta_deg,
+                                       "slide_friction": PYBULLET_CONTACT.slide_friction}
+    assert abs(cfg["fit"]["beta_deg"] - PYBULLET_CONTACT.beta_deg) <= 0.5
+    assert abs(cfg["fit"]["slide_friction"] - PYBULLET_CONTACT.slide_friction) <= 0.01
+    trials = pd.read_csv(out / "trials.csv")
+    assert len(trials) == 2 * len(cc.QUICK_INCIDENCES)
