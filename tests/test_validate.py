@@ -28,8 +28,8 @@ def _rows(capsys) -> list[dict]:
 def test_kinematic_matches_the_event_model_within_the_noise(capsys):
     """Lab at 75° and 315° and the 50/50 mix: TV(event q, twin) at most 1.5 × the floor plus
     0.01 (the event model's binning error on lab is about 0.01, docs/model_continuous.md);
-    the pooled histogram has √2 less noise than each half, so a right model sits near
-    floor/√2. Bumps per step agree within 0.02.
+    the floor compares two halves, each with √2 times the pooled histogram's noise, so a
+    right model sits near floor/2. Bumps per step agree within 0.02.
     """
     assert main(LAB + ["--angles", "75,315", "--alpha", "1,1", "--model", "event",
                        "--steps", "100000", "--json"]) == 0

@@ -55,9 +55,10 @@ histogram of a simulation on --backend (docs/model.md section 9: a step drives o
 clock or until a bump; runs start uniformly over the configurations and a burn-in is not
 counted). Prints per angle: tv = TV(q, simulated), floor = TV between two independent halves of
 the simulation (what sampling noise alone gives at half the steps; a model that is right has
-tv near floor/sqrt(2)), steps = simulated steps, and the bumps per step of the model and of the
-simulation. With --alpha also the policy mix, executed in epochs of --epoch steps and
-predicted by the model's time-shared coverage (docs/model.md section 12).
+tv near floor/2: each half has sqrt(2) times the pooled noise), steps = simulated steps, and
+the bumps per step of the model and of the simulation. With --alpha also the policy mix,
+executed in epochs of --epoch steps and predicted by the model's time-shared coverage
+(docs/model.md section 12).
 """
 
 EXAMPLES = """\
