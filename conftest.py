@@ -15,3 +15,6 @@ if importlib.util.find_spec("serial") is None:
     # the Create 2 examples talk to the emulator through a pyserial link (extra "hardware")
     collect_ignore += ["bouncesim/robots/create2/adapter.py",
                        "bouncesim/robots/create2/emulator.py"]
+if importlib.util.find_spec("gymnasium") is None:
+    # the Gymnasium environment needs its extra (gym)
+    collect_ignore += ["bouncesim/gym.py"]

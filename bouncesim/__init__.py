@@ -3,7 +3,8 @@
 The short list a researcher needs, in the order of a session (every name is imported on
 first use, so ``import bouncesim`` stays light and never needs pybullet or pyserial):
 
-- maps: :func:`load` (``envs.load``), :func:`env_names`;
+- maps: :func:`load` (``envs.load``), :func:`env_names`, :func:`import_map`
+  (``envs.map_import``: an occupancy-grid map as an environment);
 - cells: :class:`CellSpace` (``planners.cells``);
 - navigation: :class:`Navigator` (``planners.navigation``), :class:`Plan`;
 - coverage: :func:`design_mix`, :func:`model_for`, :data:`MODELS`, :class:`TurnNoise`
@@ -31,13 +32,15 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 __all__ = ["MODELS", "CellSpace", "Navigator", "Plan", "PolicyMix", "Trace", "TurnNoise",
-           "design_mix", "draw_env", "draw_trace", "env_names", "execute", "heatmap", "load",
+           "design_mix", "draw_env", "draw_trace", "env_names", "execute", "heatmap", "import_map",
+           "load",
            "make_robot", "model_for", "noise_for_mix", "save_figure", "tv_distance"]
 
 # public name -> (module, attribute): imported on first access (PEP 562)
 _LAZY = {
     "load": ("envs", "load"),
     "env_names": ("envs", "names"),
+    "import_map": ("envs.map_import", "import_map"),
     "CellSpace": ("planners.cells", "CellSpace"),
     "Navigator": ("planners.navigation", "Navigator"),
     "Plan": ("planners.plan", "Plan"),
@@ -60,6 +63,7 @@ _LAZY = {
 if TYPE_CHECKING:  # for type checkers and IDEs only; at run time __getattr__ imports
     from envs import load
     from envs import names as env_names
+    from envs.map_import import import_map
     from planners.cells import CellSpace
     from planners.coverage import MODELS, TurnNoise, design_mix, model_for
     from planners.metrics import tv_distance

@@ -7,8 +7,9 @@ configuration cells) plus the cell space, so figures can be drawn from CSV files
 - :func:`heatmap`: one value per position cell as coloured squares on the map.
 - :func:`diff_heatmap`: signed differences on a symmetric diverging scale.
 - :func:`save_heatmap`: one heatmap per file.
-- :func:`save_mix_vs_target`: the mixed coverage next to the target (same colour scale) and
-  their difference.
+- :func:`save_mix_vs_target`: the mixed coverage next to the target (same colour scale, unless
+  the target is uniform: then its one value is marked on the mix's colour bar) and their
+  difference.
 - :func:`save_group_slices`: persistent groups drawn on the map for a few orientations.
 """
 
@@ -21,7 +22,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.colors import ListedColormap
 
-from .plots import draw_env, save_figure
+from .plots import draw_env, fit_title, save_figure
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -58,10 +59,25 @@ def _extent(cs):
     return (x0, x0 + cols * cs.h, y0, y0 + rows * cs.h)
 
 
+PROBABILITY = "probability per cell"
+
+
+def _colorbar(ax: Axes, im, label: str):
+    """A colour bar hugging ``ax`` on its right (it follows an equal-aspect map's real size)
+    with ``label``; returns it.
+    """
+    cax = ax.inset_axes([1.03, 0.0, 0.045, 1.0])
+    return ax.figure.colorbar(im, cax=cax, label=label)
+
+
 def heatmap(ax: Axes, cs: CellSpace, values: ArrayLike, title: str | None = None,
             vmax: float | None = None, cmap: str = "viridis", colorbar: bool = True,
-            label: str = "probability") -> AxesImage:
-    """Colour every free position cell by ``values[p]`` on the map; returns the image."""
+            label: str = f"coverage q [{PROBABILITY}]") -> AxesImage:
+    """Colour every free position cell by ``values[p]`` on the map; returns the image.
+
+    The title is wrapped to the panel's width; the colour bar (with ``label``, units in
+    brackets) sits right of the map.
+    """
     grid = position_grid(cs, values)
     vmax = float(np.nanmax(grid)) if vmax is None else vmax
     im = ax.imshow(np.ma.masked_invalid(grid), origin="lower", extent=_extent(cs),
@@ -69,15 +85,16 @@ def heatmap(ax: Axes, cs: CellSpace, values: ArrayLike, title: str | None = None
                    interpolation="nearest", zorder=1)
     draw_map(ax, cs.env)
     if title:
-        ax.set_title(title, fontsize=10)
+        fit_title(ax, title, fontsize=10)
     if colorbar:
-        ax.figure.colorbar(im, ax=ax, shrink=0.8, label=label)
+        _colorbar(ax, im, label)
     return im
 
 
-def diff_heatmap(ax, cs, values, title: str | None = None):
+def diff_heatmap(ax, cs, values, title: str | None = None,
+                 label: str = f"difference [{PROBABILITY}]"):
     """Signed values per position cell (e.g. simulated − predicted) on a symmetric diverging
-    colour scale, with a colour bar; returns the image.
+    colour scale, with a colour bar labelled ``label``; returns the image.
     """
     lim = float(np.abs(np.asarray(values, dtype=float)).max()) or 1.0
     im = ax.imshow(np.ma.masked_invalid(position_grid(cs, values)), origin="lower",
@@ -85,8 +102,8 @@ def diff_heatmap(ax, cs, values, title: str | None = None):
                    interpolation="nearest")
     draw_map(ax, cs.env)
     if title:
-        ax.set_title(title, fontsize=10)
-    ax.figure.colorbar(im, ax=ax, shrink=0.8)
+        fit_title(ax, title, fontsize=10)
+    _colorbar(ax, im, label)
     return im
 
 
@@ -99,15 +116,32 @@ def save_heatmap(path, cs, values, title: str | None = None, vmax: float | None 
 
 def save_mix_vs_target(path, cs, mixed, target, title: str | None = None,
                        label: str = "Aα") -> Path:
-    """Three panels: mixed coverage (``label``, default Aα), target b (same colour scale)
-    and their difference.
+    """Three panels: mixed coverage (``label``, default Aα), target b and their difference.
+
+    A target that varies shares the mix's colour scale. A uniform target would read as one
+    flat colour on that scale, so its panel shows it on its own scale with its value in the
+    title, and that value is marked on the mix's colour bar.
     """
     mixed = np.asarray(mixed, dtype=float)
     target = np.asarray(target, dtype=float)
-    vmax = float(max(mixed.max(), target.max()))
-    fig, axes = plt.subplots(1, 3, figsize=(16, 4.8))
-    heatmap(axes[0], cs, mixed, title=f"mixed coverage {label}", vmax=vmax)
-    heatmap(axes[1], cs, target, title="target b", vmax=vmax)
+    uniform = target.size > 0 and bool(np.ptp(target) <= 1e-12 * max(target.max(), 1e-300))
+    vmax = float(mixed.max()) if uniform else float(max(mixed.max(), target.max()))
+    x0, y0, x1, y1 = cs.env.bounds
+    fig, axes = plt.subplots(1, 3, figsize=(16, 4.0 * (y1 - y0) / (x1 - x0) + 1.6))
+    im = heatmap(axes[0], cs, mixed, title=f"mixed coverage {label}", vmax=vmax)
+    if uniform:
+        b = float(target.flat[0])
+        heatmap(axes[1], cs, target, vmax=2 * b, label=f"target b [{PROBABILITY}]",
+                title=f"target b: uniform, 1/P = {b:.3g} per cell "
+                "(own scale; red line on the left colour bar)")
+        cbar = im.colorbar
+        if cbar is not None and b <= vmax:
+            cbar.ax.axhline(b, color="red", lw=2.0)
+            cbar.ax.text(-0.2, b, "b", color="red", ha="right", va="center", fontsize=11,
+                         transform=cbar.ax.get_yaxis_transform())
+    else:
+        heatmap(axes[1], cs, target, title="target b (same colour scale)", vmax=vmax,
+                label=f"target b [{PROBABILITY}]")
     diff_heatmap(axes[2], cs, mixed - target, title=f"{label} − b")
     if title:
         fig.suptitle(title)

@@ -8,7 +8,12 @@ matplotlib falls back to Agg by itself. Scripts that only write files may call
   helper, also behind :func:`bouncesim.coverage_plots.draw_map`;
 - :func:`draw_route`: a planned route through configuration cells;
 - :func:`draw_trace`: an executed run's path, bumps and turns from its :class:`Trace`;
-- :func:`angle_use_bars`, :func:`save_figure`.
+- :func:`draw_pose`: a start or goal marker (dot or star, heading arrow, legend entry);
+- :func:`draw_cell_ids`: position ids p (or configuration ids z) in the cells, font scaled to
+  the cell size;
+- :func:`plan_vs_executed`: a planned route and an executed trace on one map;
+- :func:`fit_title`: a title wrapped to its axes' width;
+- :func:`angle_use_bars`, :func:`save_figure` (constrained layout, so no title is clipped).
 
 Examples
 --------
@@ -37,16 +42,35 @@ from matplotlib.figure import Figure
 from matplotlib.patches import FancyArrow
 from matplotlib.patches import Polygon as MplPolygon
 
-__all__ = ["angle_use_bars", "draw_env", "draw_route", "draw_trace", "save_figure"]
+__all__ = ["angle_use_bars", "draw_cell_ids", "draw_env", "draw_pose", "draw_route",
+           "draw_trace", "fit_title", "map_figsize", "map_legend", "plan_vs_executed",
+           "save_figure"]
+
+START_COLOR, GOAL_COLOR, EXECUTED_COLOR = "#d62728", "#2ca02c", "#ff7f0e"
 
 
 def save_figure(fig: Figure, path: str | Path, dpi: int = 120) -> Path:
-    """Lay out, write and close a figure; returns the path."""
-    fig.tight_layout()
+    """Lay out (constrained layout: titles, labels and colour bars are not clipped), write
+    (PNG, SVG, PDF by the suffix) and close a figure; returns the path.
+    """
+    if fig.get_layout_engine() is None:
+        fig.set_layout_engine("constrained")
     path = Path(path)
     fig.savefig(path, dpi=dpi)
     plt.close(fig)
     return path
+
+
+def fit_title(ax: Axes, text: str, fontsize: float = 10, **kw) -> Any:
+    """Set ``text`` as the title of ``ax``, wrapped at spaces to the axes' width so that it
+    neither overflows into the next panel nor is clipped by the figure.
+    """
+    import textwrap
+    fig = ax.figure
+    width_in = ax.get_position().width * fig.get_figwidth()
+    chars = max(12, int(width_in * 72 / (0.55 * fontsize)))
+    wrapped = "\n".join(textwrap.fill(line, chars) for line in str(text).split("\n"))
+    return ax.set_title(wrapped, fontsize=fontsize, **kw)
 
 
 def angle_use_bars(hist: Any, path: str | Path, title: str = "") -> None:
@@ -114,10 +138,11 @@ def draw_env(ax: Axes, env: Any, cells: Any = None, grid: bool = True, *,
 
 
 def draw_route(ax: Axes, cells: Any, path: Sequence[int], color: str = "#1f77b4",
-               label: str | None = None) -> None:
+               label: str | None = None, markers: bool = True) -> None:
     """Draw a route through configuration cells: centres joined, an arrow per heading.
 
-    The start is marked red and the goal green; ``path`` holds configuration indices z
+    With ``markers`` the start is marked red and the goal green, with legend entries
+    ``start`` and ``goal``; ``path`` holds configuration indices z
     (e.g. :attr:`planners.navigation.Route.path`).
     """
     pts = np.array([cells.pose(z) for z in path])
@@ -128,11 +153,102 @@ def draw_route(ax: Axes, cells: Any, path: Sequence[int], color: str = "#1f77b4"
         ax.add_patch(FancyArrow(x, y, L * np.cos(t), L * np.sin(t), width=0.01,
                                 head_width=0.05, color=color, alpha=0.6,
                                 length_includes_head=True))
-    for (x, y, deg), c in ((pts[0], "red"), (pts[-1], "green")):
-        t = np.radians(deg)
-        ax.plot([x], [y], "o", color=c, ms=9)
-        ax.add_patch(FancyArrow(x, y, 1.2 * L * np.cos(t), 1.2 * L * np.sin(t), width=0.02,
-                                head_width=0.08, color=c, length_includes_head=True))
+    if markers:
+        draw_pose(ax, pts[0], "start", length=1.2 * L)
+        draw_pose(ax, pts[-1], "goal", length=1.2 * L)
+
+
+def draw_pose(ax: Axes, pose: Sequence[float], kind: str = "start", label: str | None = None,
+              length: float | None = None) -> None:
+    """Mark a start (red dot) or goal (green star) pose (x [m], y [m][, heading [deg]]) with a
+    heading arrow of ``length`` [m] (default 6 % of the larger axis range) and a legend
+    entry ``label`` (default ``kind``).
+    """
+    if kind not in ("start", "goal"):
+        raise ValueError(f"kind must be 'start' or 'goal', got {kind!r}.")
+    color = START_COLOR if kind == "start" else GOAL_COLOR
+    marker, ms = ("o", 9) if kind == "start" else ("*", 15)
+    x, y = float(pose[0]), float(pose[1])
+    ax.plot([x], [y], marker, color=color, ms=ms, mec="black", mew=0.6, ls="none",
+            label=label or kind, zorder=8)
+    if len(pose) > 2 and pose[2] is not None and math.isfinite(pose[2]):
+        if length is None:
+            length = 0.06 * max(np.ptp(ax.get_xlim()), np.ptp(ax.get_ylim()))
+        _arrow(ax, x, y, float(pose[2]), length, color)
+
+
+def draw_cell_ids(ax: Axes, cells: Any, kind: str = "positions",
+                  fontsize: float | None = None, halo: bool = False) -> list:
+    """Write the id of every cell on ``ax``: the position id p in each cell's top-left corner
+    (the centre stays free for paths and poses), or (kind
+    ``configurations``) the K configuration ids z = k·P + p around it, each towards its
+    heading 360° k / K. The font size follows the cell size on the page unless given;
+    ``halo`` outlines the digits in white (readable on a heatmap, slower to draw).
+
+    Returns the list of Text artists (P of them, or N).
+    """
+    if kind not in ("positions", "configurations"):
+        raise ValueError(f"kind must be 'positions' or 'configurations', got {kind!r}.")
+    fig = ax.figure
+    xr = np.ptp(ax.get_xlim()) or 1.0
+    cell_pt = cells.h * ax.get_position().width * fig.get_figwidth() * 72 / xr
+    n = cells.P if kind == "positions" else cells.N
+    digits = len(str(max(n - 1, 0)))
+    if fontsize is None:
+        share = 0.5 if kind == "positions" else 0.27
+        fontsize = float(np.clip(share * cell_pt / (0.62 * digits), 2.0, 9.0))
+    from matplotlib import patheffects
+    halo = [patheffects.withStroke(linewidth=2.2, foreground="white")] if halo else None
+    texts = []
+    c = cells.centres
+    if kind == "positions":
+        d = 0.40 * cells.h             # top-left corner: the centre stays free for paths
+        for p, (x, y) in enumerate(c):
+            texts.append(ax.text(x - d, y + d, str(p), ha="left", va="top", fontsize=fontsize,
+                                 color="black", zorder=4, path_effects=halo))
+        return texts
+    r = 0.33 * cells.h
+    for k in range(cells.K):
+        t = math.radians(k * cells.delta_deg)
+        for p, (x, y) in enumerate(c):
+            texts.append(ax.text(x + r * math.cos(t), y + r * math.sin(t), str(k * cells.P + p),
+                                 ha="center", va="center", fontsize=fontsize, color="black",
+                                 zorder=4, path_effects=halo))
+    return texts
+
+
+def plan_vs_executed(env: Any, cells: Any, path: Sequence[int] | None, trace: Any,
+                     goal: Sequence[float] | None = None, title: str | None = None) -> Figure:
+    """One map with a planned route (configuration indices ``path``) and an executed run's
+    trace over it, the start and goal marked; returns the figure (see :func:`save_figure`).
+    """
+    fig, ax = plt.subplots(figsize=map_figsize(env))
+    draw_env(ax, env, cells)
+    if path is not None:
+        draw_route(ax, cells, path, label="planned (cell centres)", markers=False)
+    draw_trace(trace, ax=ax, goal=goal, legend=False, color=EXECUTED_COLOR)
+    if title:
+        fit_title(ax, title, fontsize=10)
+    map_legend(ax)
+    return fig
+
+
+def map_figsize(env: Any, width: float = 7.0, extra: float = 0.9) -> tuple[float, float]:
+    """(width, height) [in] of a one-map figure: the map's aspect plus room for labels."""
+    x0, y0, x1, y1 = env.bounds
+    return width, min(12.0, max(3.0, (width - extra) * (y1 - y0) / max(x1 - x0, 1e-9) + extra))
+
+
+def map_legend(ax: Axes, **kw) -> Any:
+    """A legend outside the map (below it), so it hides nothing; duplicate labels once."""
+    handles, labels = ax.get_legend_handles_labels()
+    seen: dict = {}
+    for h, lab in zip(handles, labels):
+        seen.setdefault(lab, h)
+    opts = {"loc": "upper center", "bbox_to_anchor": (0.5, -0.12), "fontsize": 8,
+            "ncol": min(len(seen), 4), "frameon": False}
+    opts.update(kw)
+    return ax.legend(list(seen.values()), list(seen.keys()), **opts)
 
 
 def _trace_columns(trace: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -154,7 +270,7 @@ def _trace_columns(trace: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.n
 def draw_trace(trace: Any, env: Any = None, ax: Axes | None = None, *,
                goal: Sequence[float] | None = None, cells: Any = None,
                color: str = "#1f77b4", label: str = "executed", events: bool = True,
-               legend: bool = True) -> Axes:
+               legend: bool = True, markers: bool = True) -> Axes:
     """Draw an executed run's path on the map: poses joined, bumps and turns, start and goal.
 
     Parameters
@@ -178,6 +294,8 @@ def draw_trace(trace: Any, env: Any = None, ax: Axes | None = None, *,
         Mark bumps (crosses) and turns (small dots).
     legend : bool
         Add a legend (path, bump, turn, start, goal or end).
+    markers : bool
+        Mark the start, and the goal (or the end); off when the caller marks them.
 
     Returns
     -------
@@ -200,15 +318,12 @@ def draw_trace(trace: Any, env: Any = None, ax: Axes | None = None, *,
                 ax.plot(x[sel], y[sel], marker, color="black" if kind == "bump" else color,
                         ms=ms, ls="none", label=name, zorder=6)
     L = 0.12 * max(np.ptp(ax.get_xlim()), np.ptp(ax.get_ylim())) / 2
-    ax.plot([x[0]], [y[0]], "o", color="red", ms=9, label="start", zorder=7)
-    if np.isfinite(h[0]):
-        _arrow(ax, x[0], y[0], h[0], L, "red")
-    if goal is not None:
-        ax.plot([goal[0]], [goal[1]], "*", color="green", ms=14, label="goal", zorder=7)
-        if len(goal) > 2 and goal[2] is not None and math.isfinite(goal[2]):
-            _arrow(ax, goal[0], goal[1], goal[2], L, "green")
-    else:
-        ax.plot([x[-1]], [y[-1]], "s", color="green", ms=8, label="end", zorder=7)
+    if markers:
+        draw_pose(ax, (x[0], y[0], h[0]), "start", length=L)
+        if goal is not None:
+            draw_pose(ax, goal, "goal", length=L)
+        else:
+            ax.plot([x[-1]], [y[-1]], "s", color=GOAL_COLOR, ms=8, label="end", zorder=7)
     if legend:
         ax.legend(fontsize=7, loc="best")
     return ax

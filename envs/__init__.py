@@ -2,7 +2,7 @@
 
 >>> import envs
 >>> sorted(envs.names())
-['complex', 'fig1', 'lab']
+['complex', 'fig1', 'lab', 'studio']
 >>> envs.load("lab").cell_size
 0.34
 """

@@ -341,17 +341,20 @@ class LocalCaster:
     ----------
     caster : WallCaster
     max_dist : float   longest ray that must be exact [m]
-    fine : float, optional   fine-grid cell [m] (default r / 2)
+    fine : float, optional   fine-grid cell [m] (default r / 2, but at least max_dist / 4
+                             and 1/1024 of the walls' extent, so a tiny robot radius does
+                             not make the grid explode; exactness does not depend on it)
     """
 
     def __init__(self, caster: WallCaster, max_dist: float, fine: float | None = None) -> None:
         self.caster = caster
         self.max_dist = float(max_dist)
         r = caster.r
-        g = float(fine) if fine is not None else r / 2
         seg = caster.segments
         lo = np.minimum(seg[:, 0], seg[:, 1]).min(axis=0)
         hi = np.maximum(seg[:, 0], seg[:, 1]).max(axis=0)
+        g = (float(fine) if fine is not None
+             else max(r / 2, self.max_dist / 4, float((hi - lo).max()) / 1024))
         self.g = g
         self.x0, self.y0 = float(lo[0]), float(lo[1])
         self.nx = max(1, int(math.ceil((hi[0] - lo[0]) / g)))

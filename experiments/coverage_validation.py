@@ -219,7 +219,8 @@ def draw_figures(out: Path) -> list[Path]:
             sim = sim.to_numpy(float)
             sim = sim / sim.sum() if sim.sum() > 0 else sim
             vmax = float(max(q.max(), sim.max()))
-            name = pol if not pol.startswith("mix") else f"mix α, {cfg['epoch']}-step epochs"
+            name = (f"{pol}°" if not pol.startswith("mix")      # a policy is an angle [deg]
+                    else f"mix α, {cfg['epoch']}-step epochs")
             heatmap(row[0], cs, q, title=f"{name}: predicted ({model})", vmax=vmax)
             heatmap(row[1], cs, sim, title=f"{name}: twin ({int(hb['count'].sum())} steps)",
                     vmax=vmax)

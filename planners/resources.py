@@ -37,14 +37,16 @@ envs.errors.UserError: planning in complex with N = 18300000 configurations need
 from __future__ import annotations
 
 import math
+import os
 import re
 from dataclasses import dataclass
 
 from envs import UserError
 
 __all__ = ["DEFAULT_MAX_MEMORY", "MemoryEstimate", "TASKS", "all_pairs_bytes", "chain_bytes",
-           "check_memory", "estimate", "format_bytes", "grid_bytes",
-           "max_grid_cells", "parse_memory", "roadmap_bytes", "search_bytes", "step_table_bytes"]
+           "available_memory", "check_memory", "estimate", "format_bytes",
+           "grid_bytes", "max_grid_cells", "memory_warning", "parse_memory", "roadmap_bytes",
+           "search_bytes", "step_table_bytes"]
 
 DEFAULT_MAX_MEMORY = 4 * 2**30          # 4 GiB
 TASKS = ("cells", "plan", "allpairs", "coverage")
@@ -248,6 +250,36 @@ def max_grid_cells(max_memory=DEFAULT_MAX_MEMORY) -> int:
     them.
     """
     return max(1, int(parse_memory(max_memory) // grid_bytes(1, 1).total))
+
+
+def available_memory() -> int | None:
+    """Bytes of physical memory available now (Linux ``MemAvailable``, else free pages), or
+    None where the platform does not say.
+    """
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return int(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def memory_warning(est: MemoryEstimate, available: int | None = None) -> str | None:
+    """One sentence when ``est`` (within the limit, or :func:`check_memory` would have
+    refused it) exceeds the memory available now (default :func:`available_memory`), else
+    None: the job may swap or be killed.
+    """
+    available = available_memory() if available is None else available
+    if available is None or est.total <= available:
+        return None
+    return (f"{est.what} needs about {format_bytes(est.total)}, more than the "
+            f"{format_bytes(available)} of memory free now: expect swapping, or use fewer "
+            "orientations or a larger cell size.")
 
 
 _TASK_WORDS = {"cells": "the step table", "plan": "planning", "allpairs": "all pairs",

@@ -1,6 +1,6 @@
 """Fuzzing every public entry point: it returns a result or raises the one-sentence
-:class:`envs.UserError` (the CLI: exit status 0, 3 or 4, or 2 with one line on stderr),
-never another exception and never a hang.
+:class:`envs.UserError` (the CLI: exit status 0, 3 or 4, or 2 with one error line on stderr,
+after any warnings and progress lines), never another exception and never a hang.
 
 Profiles (``BOUNCESIM_FUZZ_PROFILE``): ``ci`` (default; 200 examples per entry point,
 derandomized, no example database) and ``fuzz`` (10^4 random examples per entry point;
@@ -16,6 +16,7 @@ import contextlib
 import io
 import json
 import os
+import re
 import tempfile
 from pathlib import Path
 from unittest import mock
@@ -57,6 +58,11 @@ PROFILE = "bouncesim-" + os.environ.get("BOUNCESIM_FUZZ_PROFILE", "ci")
 FUZZ = settings(settings.get_profile(PROFILE))
 TIMEOUT = float(os.environ.get("BOUNCESIM_FUZZ_TIMEOUT", "30"))
 LIMIT = "64M"          # --max-memory / max_memory in the fuzz: big inputs are refused at once
+
+
+# what commands print on stderr besides "bouncesim: warning/error: ..." lines
+PROGRESS = re.compile(r"(running \d+ segment\(s\) on the \w+ robot"
+                      r"|segment \d+/\d+: drive .*|note: .*)$")
 
 
 class Hang(AssertionError):
@@ -104,10 +110,18 @@ def cli(argv: list[str]) -> tuple[int, str, str]:
     event(f"exit {code}" + (" (argparse)" if parser_exit else ""))
     assert "Traceback" not in e, e
     assert code in (0, 2, 3, 4), (code, e)
+    lines = [ln for ln in e.splitlines() if ln.strip()]
+    for ln in [] if parser_exit else lines:     # warnings and progress: one line each
+        if ln.startswith("bouncesim: warning: "):
+            assert_sentence(ln)
+        elif not ln.startswith("bouncesim: "):
+            assert PROGRESS.match(ln), f"not a progress line: {ln!r}"
     if code == 2 and not parser_exit:
-        lines = [ln for ln in e.splitlines() if ln.strip()]
-        assert len(lines) == 1 and lines[0].startswith("bouncesim: error: "), e
-        assert_sentence(lines[0])
+        errors = [ln for ln in lines if ln.startswith("bouncesim: ")
+                  and not ln.startswith("bouncesim: warning: ")]
+        assert len(errors) == 1 and errors[0] == lines[-1], e
+        assert errors[0].startswith("bouncesim: error: "), e
+        assert_sentence(errors[0])
     if parser_exit:
         assert code == 2 and "error:" in e, e
     return code, o, e

@@ -156,6 +156,25 @@ def test_ray_cast_matches_shapely_bisection(name):
     assert np.all(local[~near] >= 0.34 - 1e-12)
 
 
+def test_local_caster_grid_stays_small_for_a_point_robot():
+    # found by fuzzing: the fine grid was r / 2, so a 1e-12 m robot asked for a 2e12 x 2e12
+    # grid; the grid is now bounded and the local cast still agrees with the full one
+    segs = np.array([[[0, 0], [1, 0]], [[1, 0], [1, 1]], [[1, 1], [0, 1]], [[0, 1], [0, 0]]],
+                    dtype=float)
+    caster = WallCaster(segs, 1e-12)
+    local = LocalCaster(caster, 0.25)
+    assert local.nx * local.ny <= 1024 ** 2
+    rng = np.random.default_rng(3)
+    pts = rng.uniform(0.05, 0.95, size=(400, 2))
+    u = unit(rng.uniform(0, 360, size=400))
+    full = caster.cast(pts, u)
+    got = local.cast(pts, u)
+    near = full < 0.25
+    assert near.sum() > 20
+    assert np.allclose(got[near], full[near], atol=1e-12)
+    assert np.all(got[~near] >= 0.25 - 1e-12)
+
+
 def test_ray_cast_from_contact_and_parallel(lab):
     caster = WallCaster(lab.wall_segments, lab.robot_radius)
     # touching the west wall: into it 0, along it the far wall, away from it the east side

@@ -4,14 +4,11 @@ from __future__ import annotations
 
 import json
 import time
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from planners.resources import check_memory
-
-from .common import add_env_args, max_memory, writable_path
+from .common import add_env_args, add_output, check_fits, flush_warnings, max_memory, writable_path
 from .plan import add_planner_args, make_navigator
 
 __all__ = ["histogram_frame", "register", "run"]
@@ -26,7 +23,7 @@ def register(sub) -> None:
         "weights.npy, angles_used.csv, summary.json and angles_used.png to --out.")
     add_env_args(p)
     add_planner_args(p)
-    p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder")
+    add_output(p, "--out", folder=True, required=True, metavar="DIR", help="output folder")
     p.set_defaults(func=run)
 
 
@@ -41,8 +38,9 @@ def run(args) -> int:
     """Run ``bouncesim allpairs``: weights, angle use and figure files; exit status."""
     nav = make_navigator(args)
     limit = max_memory(args)
-    check_memory(nav.cells, nav.angles, task="allpairs", max_memory=limit)  # before --out
+    check_fits(args, nav.cells, nav.angles, task="allpairs")
     out = writable_path(args.out, "--out", folder=True)
+    flush_warnings()
     t0 = time.perf_counter()
     ap = nav.all_pairs(max_memory=limit)
     elapsed = time.perf_counter() - t0

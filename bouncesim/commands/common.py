@@ -1,4 +1,12 @@
-"""Argument helpers shared by the sub-commands."""
+"""Argument helpers shared by the sub-commands: ENV and its overrides, output paths
+(declared with :func:`add_output`, all checked by :func:`check_outputs` before a command
+starts), warnings and progress lines (both on stderr).
+
+Warnings (:func:`warn`: the map's diagnostics when ENV is loaded, memory notes) wait until
+the inputs are valid: a command prints them with :func:`flush_warnings` just before its long
+work, and ``bouncesim.cli.main`` prints any left at the end. A command that fails with a
+user error prints its one error line only.
+"""
 
 from __future__ import annotations
 
@@ -13,11 +21,15 @@ import numpy as np
 import envs
 from bouncesim.runs.options import parse_angles
 from envs import UserError
+from envs.diagnostics import diagnose
 from planners.cells import CellSpace
-from planners.resources import max_grid_cells, parse_memory
+from planners.resources import check_memory, max_grid_cells, memory_warning, parse_memory
 
-__all__ = ["add_env_args", "load_env", "make_cells", "make_rng", "max_memory", "parse_angles",
-           "print_json", "writable_path"]
+__all__ = ["add_env_args", "add_output", "check_fits", "check_outputs", "load_env",
+           "make_cells", "make_rng", "max_memory", "parse_angles", "print_json", "progress",
+           "remove_created", "warn", "writable_path", "flush_warnings", "discard_warnings"]
+
+_PENDING: list[str] = []            # warnings not printed yet (see the module docstring)
 
 
 def add_env_args(p: argparse.ArgumentParser) -> None:
@@ -38,17 +50,110 @@ def max_memory(args: argparse.Namespace) -> int:
     return parse_memory(args.max_memory)
 
 
-def load_env(args: argparse.Namespace) -> envs.Environment:
+def load_env(args: argparse.Namespace, warnings: bool = True) -> envs.Environment:
     """ENV with the overrides; a grid too large for --max-memory is refused before it is
-    built.
+    built. With ``warnings``, the map's diagnostics (:func:`envs.diagnostics.diagnose`) are
+    queued with :func:`warn`.
     """
-    return envs.load(args.env, cell_size=args.cell_size, orientations=args.orientations,
-                     max_grid_cells=max_grid_cells(max_memory(args)))
+    env = envs.load(args.env, cell_size=args.cell_size, orientations=args.orientations,
+                    max_grid_cells=max_grid_cells(max_memory(args)))
+    if warnings:
+        for w in diagnose(env):
+            warn(w.message)
+    return env
+
+
+def warn(message: str) -> None:
+    """Queue ``bouncesim: warning: <message>`` for stderr (stdout stays machine-readable);
+    a message already queued is not repeated.
+    """
+    line = f"bouncesim: warning: {message}"
+    if line not in _PENDING:
+        _PENDING.append(line)
+
+
+def flush_warnings() -> None:
+    """Print the queued warnings on stderr, once: call it just before the long work."""
+    while _PENDING:
+        print(_PENDING.pop(0), file=sys.stderr, flush=True)
+
+
+def discard_warnings() -> None:
+    """Forget the queued warnings (a command failed before its work started)."""
+    _PENDING.clear()
+
+
+def progress(args: argparse.Namespace):
+    """A printer of progress lines on stderr, or None with ``--quiet``."""
+    if getattr(args, "quiet", False):
+        return None
+    return lambda line: print(line, file=sys.stderr, flush=True)
+
+
+def add_output(p: argparse.ArgumentParser, *flags: str, folder: bool = False,
+               as_path: bool = True, suffixes: tuple = (), **kw) -> argparse.Action:
+    """Add an output option (a file, or with ``folder`` a folder) that
+    :func:`check_outputs` checks before the command starts; its value is a Path
+    (``as_path``) or the string as given. With ``suffixes`` (e.g. ``(".png", ".svg")``) the
+    file name must end in one of them.
+    """
+    action = p.add_argument(*flags, **kw)
+    outputs = p.get_default("_outputs") or ()
+    p.set_defaults(_outputs=(*outputs, (action.dest, flags[0], folder, as_path, suffixes)))
+    return action
+
+
+def check_outputs(args: argparse.Namespace, created: list | None = None) -> list[Path]:
+    """Check every output option of the command (:func:`add_output`) before any work:
+    :class:`UserError` in one sentence for the first that cannot be written. Returns (and
+    appends to ``created``) the folders it had to create, deepest first.
+    """
+    created = [] if created is None else created
+    for dest, flag, folder, as_path, suffixes in getattr(args, "_outputs", ()):
+        value = getattr(args, dest, None)
+        if value is None:
+            continue
+        if not str(value).strip():
+            raise UserError(f"{flag} needs a {'folder' if folder else 'file'} name.")
+        path = Path(value)
+        if suffixes and path.suffix.lower() not in suffixes:
+            raise UserError(f"{flag} must end in {' or '.join(suffixes)}, "
+                            f"got {path.name!r}.")
+        base = path if folder else path.parent
+        missing = [q for q in (base, *base.parents) if not q.exists()]
+        try:
+            writable_path(path, flag, folder=folder)
+        finally:
+            created.extend(q for q in missing if q.is_dir())
+        if as_path:
+            setattr(args, dest, path)
+    return created
+
+
+def remove_created(created) -> None:
+    """Remove the folders :func:`check_outputs` created that are still empty."""
+    for q in created:
+        try:
+            q.rmdir()
+        except OSError:
+            pass
 
 
 def make_cells(args: argparse.Namespace, env: envs.Environment) -> CellSpace:
     """The cell space of ENV, refusing a step table above --max-memory."""
     return CellSpace(env, max_memory=max_memory(args))
+
+
+def check_fits(args: argparse.Namespace, cells: CellSpace, angles=(), task: str = "plan",
+               **kw):
+    """:func:`planners.resources.check_memory` at --max-memory (refuse above it), and a
+    warning when the estimate exceeds the memory free now; returns the estimate.
+    """
+    est = check_memory(cells, angles, task=task, max_memory=max_memory(args), **kw)
+    note = memory_warning(est)
+    if note:
+        warn(note)
+    return est
 
 
 def make_rng(seed) -> np.random.Generator:
@@ -65,6 +170,8 @@ def writable_path(path, what: str = "--out", folder: bool = False) -> Path:
     if not str(path).strip():           # Path("") would be the current folder
         raise UserError(f"{what} needs a {'folder' if folder else 'file'} name.")
     p = Path(path)
+    if folder and p.exists() and not p.is_dir():
+        raise UserError(f"{what} {p} is a file, not a folder.")
     try:
         if folder:
             p.mkdir(parents=True, exist_ok=True)

@@ -20,20 +20,30 @@ from planners.cells import CellSpace
 from planners.coverage import (
     MODELS,
     SPACES,
+    STATE_KINDS,
     TARGET_FORMATS,
     MixDesign,
     TurnNoise,
     check_angles,
     default_settings,
     design_mix,
+    group_cells,
     load_target,
     model_for,
     timeshared_coverage,
 )
 from planners.metrics import tv_distance
-from planners.resources import check_memory
 
-from .common import add_env_args, load_env, make_cells, max_memory, parse_angles, writable_path
+from .common import (
+    add_env_args,
+    add_output,
+    check_fits,
+    flush_warnings,
+    load_env,
+    make_cells,
+    parse_angles,
+    writable_path,
+)
 
 __all__ = ["register", "run", "write_outputs", "format_table"]
 
@@ -48,8 +58,10 @@ the target b.
 Writes to --out: coverage.csv (columns angle,p,i,j,x,y,q; angle = each bouncing angle, "mix"
 for A alpha and "target" for b, over position cells), alpha.json (angles, alpha, residual =
 ||A alpha - b||_2 not squared, tv = 0.5 ||A alpha - b||_1, and per angle the persistent
-groups, their sizes and the transient fraction), heatmap_angle_<A>.png per angle and
-heatmap_mix_vs_target.png. With --target-space configurations also
+groups, their sizes in the model's states (see "states") and in position cells
+("group_cells", comparable across models) and the transient fraction of the states),
+heatmap_angle_<A>.png per angle and heatmap_mix_vs_target.png. With --target-space
+configurations also
 coverage_configurations.csv (angle,z,p,k,pi).
 
 A x alpha assumes every epoch of the executed mix reaches its angle's limiting distribution.
@@ -105,8 +117,8 @@ def register(sub) -> None:
                    help="also predict the mix as it is executed: epochs of STEPS steps, each "
                    "with one angle drawn with probabilities alpha (docs/model.md section 8); "
                    "positions only")
-    p.add_argument("--out", type=Path, default=None, metavar="DIR",
-                   help="output folder (CSV, JSON, PNG); without it only the table is printed")
+    add_output(p, "--out", folder=True, default=None, metavar="DIR",
+               help="output folder (CSV, JSON, PNG); without it only the table is printed")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG heatmaps")
     p.add_argument("--json", action="store_true",
                    help="print alpha.json's content instead of the table")
@@ -146,15 +158,20 @@ def run(args) -> int:
         if args.target_space != "positions":
             raise UserError("--epoch predicts coverage over position cells only; use "
                             "--target-space positions.")
-    check_memory(cs, angles, task="coverage", eps_deg=args.eps, model=args.model,
-                 settings=settings, max_memory=max_memory(args))
+    check_fits(args, cs, angles, task="coverage", eps_deg=args.eps, model=args.model,
+               settings=settings)
     if args.out is not None:
         writable_path(args.out, "--out", folder=True)
+    flush_warnings()
     model = model_for(cs, args.model, settings)
     result = design_mix(model, angles, noise, target=target, space=args.target_space,
                         progress=_progress(len(angles)))
     summary = summarise(result, cs, env.name, target_desc)
     summary["model"] = args.model
+    summary["states"] = {"kind": STATE_KINDS.get(args.model, "states"),
+                         "count": int(result.per_angle[0].pi.size) if result.per_angle else 0}
+    for pa, cov in zip(summary["per_angle"], result.per_angle):   # positions, every model
+        pa["group_cells"] = group_cells(model, cov).tolist()
     if settings is not None:
         summary["model_settings"] = {k: getattr(settings, k)
                                      for k in settings.__dataclass_fields__}
@@ -225,9 +242,14 @@ def format_table(summary: dict) -> str:
              f"eps={summary['eps']}° r={summary['r']} target={summary['target']}",
              f"{'angle':>7} {'alpha':>10} {'groups':>7} {'largest':>8} {'transient':>10}"]
     for a, pa in zip(summary["alpha"], summary["per_angle"]):
-        largest = max(pa["group_sizes"]) if pa["group_sizes"] else 0
+        sizes = pa.get("group_cells", pa["group_sizes"])
+        largest = max(sizes) if sizes else 0
         lines.append(f"{str(pa['angle']) + '°':>7} {a:10.6f} {pa['persistent_groups']:7d} "
                      f"{largest:8d} {100 * pa['transient_fraction']:9.1f}%")
+    states = summary.get("states")
+    if states and summary["per_angle"] and "group_cells" in summary["per_angle"][0]:
+        lines.append(f"largest: position cells of the largest persistent group; transient: "
+                     f"share of the {states['count']} {states['kind']} in no group")
     lines.append(f"residual ||A alpha - b||_2 = {summary['residual']:.6g}, "
                  f"TV = {summary['tv']:.6g}")
     ts = summary.get("timeshared")

@@ -10,7 +10,7 @@ import time
 
 from envs import UserError
 
-from .common import add_env_args, load_env, make_cells, make_rng
+from .common import add_env_args, flush_warnings, load_env, make_cells, make_rng
 from .plan import parse_config
 
 __all__ = ["register", "run"]
@@ -100,6 +100,7 @@ def run(args) -> int:
     previous = None
     if threading.current_thread() is threading.main_thread():
         previous = signal.signal(signal.SIGTERM, on_sigterm)
+    flush_warnings()
     emu.start()
     x, y, h = emu.true_pose()
     print(f"OI emulator for {env.name}: robot at ({x:.3f}, {y:.3f}) facing {h:g}°", flush=True)

@@ -11,7 +11,16 @@ from envs import UserError
 from planners.cells import CellSpace
 from planners.navigation import Navigator
 
-from .common import add_env_args, load_env, make_cells, max_memory, parse_angles, print_json
+from .common import (
+    add_env_args,
+    check_fits,
+    flush_warnings,
+    load_env,
+    make_cells,
+    max_memory,
+    parse_angles,
+    print_json,
+)
 
 __all__ = ["add_planner_args", "make_navigator", "parse_config", "register", "run"]
 
@@ -67,8 +76,10 @@ def add_planner_args(p) -> None:
 def make_navigator(args) -> Navigator:
     """A :class:`~planners.navigation.Navigator` for the parsed environment, angles and weights."""
     env = load_env(args)
-    return Navigator(make_cells(args, env), parse_angles(args.angles), args.w1, args.w2,
-                     max_memory=max_memory(args))
+    nav = Navigator(make_cells(args, env), parse_angles(args.angles), args.w1, args.w2,
+                    max_memory=max_memory(args))
+    check_fits(args, nav.cells, nav.angles, task="plan", searches=1)
+    return nav
 
 
 def register(sub) -> None:
@@ -93,18 +104,29 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def _read_pairs(path: Path) -> list[tuple[str, str]]:
+def _read_pairs(path: Path) -> list[tuple[str, str, int]]:
+    """The (start, goal, line number) rows of a --pairs file."""
     try:
         with open(path, newline="") as fh:
             reader = csv.DictReader(fh)
             if reader.fieldnames is None or not {"start", "goal"} <= set(reader.fieldnames):
                 raise UserError(f"{path} needs the columns start,goal.")
-            return [(row["start"], row["goal"]) for row in reader]
+            return [(row["start"], row["goal"], reader.line_num) for row in reader]
     except FileNotFoundError:
         raise UserError(f"no pairs file at {path}.") from None
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         reason = getattr(exc, "strerror", None) or str(exc).rstrip(".")
         raise UserError(f"cannot read the pairs file {path} ({reason}).") from None
+
+
+def _resolve_row(row, cells: CellSpace, path: Path) -> tuple[int, int]:
+    start, goal, line = row
+    try:
+        if start is None or goal is None or not start.strip() or not goal.strip():
+            raise UserError(f"the row has no {'start' if not (start or '').strip() else 'goal'}.")
+        return parse_config(start, cells, "start"), parse_config(goal, cells, "goal")
+    except UserError as exc:
+        raise UserError(f"{path}, line {line}: {exc}") from None
 
 
 def run(args) -> int:
@@ -115,9 +137,12 @@ def run(args) -> int:
         raise UserError("give either --start/--goal or --pairs, not both.")
     nav = make_navigator(args)
     cells = nav.cells
-    queries = ([(args.start, args.goal)] if args.pairs is None else _read_pairs(args.pairs))
-    resolved = [(parse_config(s, cells, "start"), parse_config(g, cells, "goal"))
-                for s, g in queries]
+    if args.pairs is None:
+        resolved = [(parse_config(args.start, cells, "start"),
+                     parse_config(args.goal, cells, "goal"))]
+    else:       # every row is checked before any planning; an error names its line
+        resolved = [_resolve_row(row, cells, args.pairs) for row in _read_pairs(args.pairs)]
+    flush_warnings()
     missing = 0
     for s, g in resolved:
         route = nav.plan(s, g)

@@ -8,19 +8,22 @@ import argparse
 
 from bouncesim.robots import KINDS, make_robot
 from bouncesim.robots.noise import parse_noise
-from bouncesim.runs.execute import execute
+from bouncesim.runs.execute import check_speed, execute
 from envs import UserError
 from planners.navigation import Navigator
 
 from .common import (
     add_env_args,
+    add_output,
+    check_fits,
+    flush_warnings,
     load_env,
     make_cells,
     make_rng,
     max_memory,
     parse_angles,
     print_json,
-    writable_path,
+    progress,
 )
 from .plan import add_planner_args, parse_config
 
@@ -40,11 +43,13 @@ def register(sub) -> None:
         "by the next angle, and so on. Prints 'success' or 'failure: <reason>' with the "
         "final pose error. A real Create 2 has no pose: a plan it completes prints "
         "'finished' (check the goal by eye). Exit status 0 on success (or a completed plan "
-        "on hardware), 4 on failure, 3 when there is no plan.",
+        "on hardware), 4 on failure, 3 when there is no plan. One progress line per plan "
+        "segment goes to stderr (--quiet: none).",
         epilog="examples:\n"
         "  bouncesim run-plan lab --angles 90,135 --start 8 --goal 0\n"
         "  bouncesim run-plan lab --angles 90,135 --start 103 --goal 8 --noise gauss:1 "
         "--seed 3 --json\n"
+        "    (exits 4: with any rotation noise this plan ends one cell from the goal)\n"
         "  bouncesim run-plan lab --angles 90,135 --start 8 --goal 0 --robot pybullet "
         "--record run.mp4\n"
         "  bouncesim run-plan lab --angles 90,135 --start 8 --goal 0 --robot emulator\n"
@@ -99,12 +104,17 @@ def register(sub) -> None:
                    help="kinematic only: a wall met more than DEG from the heading does not "
                    "press the bumper, the robot slides along it (80 matches the PyBullet "
                    "bumper arc; default: every front contact is a bump)")
-    p.add_argument("--record", metavar="FILE", default=None,
-                   help="record a video of the run (pybullet only)")
+    add_output(p, "--record", as_path=False, metavar="FILE", default=None,
+               help="record a video of the run (pybullet only)")
     p.add_argument("--gui", action="store_true", help="show the PyBullet window (pybullet only)")
-    p.add_argument("--trace", metavar="FILE.csv", default=None,
-                   help="write the run's event trace as CSV")
+    add_output(p, "--trace", as_path=False, metavar="FILE.csv", default=None,
+               help="write the run's event trace as CSV")
     p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--quiet", action="store_true",
+                   help="no progress lines (one per plan segment, on stderr)")
+    add_output(p, "--plot", as_path=False, metavar="FILE.png|.svg", default=None,
+               suffixes=(".png", ".svg"),
+               help="draw the planned path (cell centres) and the executed path on the map")
     p.set_defaults(func=run)
 
 
@@ -114,6 +124,7 @@ def run(args) -> int:
     cells = make_cells(args, env)
     nav = Navigator(cells, parse_angles(args.angles), args.w1, args.w2,
                     max_memory=max_memory(args))
+    check_fits(args, cells, nav.angles, task="plan", searches=1)
     start = parse_config(args.start, cells, "start")
     goal = parse_config(args.goal, cells, "goal")
     noise = parse_noise(args.noise, cells.delta_deg)
@@ -132,10 +143,6 @@ def run(args) -> int:
         raise UserError("--noise is for simulated robots; a real Create 2 brings its own.")
     if args.robot in ("create2", "emulator") and (args.gui or args.record):
         raise UserError("--gui and --record need --robot pybullet.")
-    if args.trace:
-        writable_path(args.trace, "--trace")
-    if args.record:
-        writable_path(args.record, "--record")
     route = nav.plan(start, goal)
     if route is None:
         if args.json:
@@ -146,12 +153,26 @@ def run(args) -> int:
                   f"{', '.join(f'{a:g}°' for a in nav.angles)}")
         return EXIT_NO_PATH
     rng = make_rng(args.seed)
+    say = progress(args)
     robot = make_robot(args.robot, env, noise=noise, rng=rng, **_robot_options(args))
     with robot:
+        check_speed(args.speed, robot)          # the last user error before the robot moves
+        flush_warnings()
+        if say:
+            say(f"running {len(route.plan.segments())} segment(s) on the {args.robot} robot")
         result = execute(route.plan, robot, start=start, goal=goal, cells=cells,
-                         speed=args.speed, back_off=args.back_off)
+                         speed=args.speed, back_off=args.back_off,
+                         on_segment=say and (lambda seg: say(str(seg))))
+        if getattr(robot, "recorder", None) is not None and len(result.trace):
+            # the video's overlay: goal, plan segment, and the run's clock (trace t = 0)
+            robot.recorder.annotate_plan(
+                route.plan, result.trace, goal=result.goal_pose,
+                t0=robot.clock() - result.trace[-1].t,
+                title=f"{env.name}: {start} → {goal} (green: goal, orange: path so far)")
     if args.trace:
         result.trace.to_csv(args.trace)
+    if args.plot:
+        _plot(args.plot, env, cells, route, result)
     # hardware: the plan ran to its end but nothing can tell whether the goal was reached
     unknown = result.final_pose is None and result.reason.startswith("plan finished")
     if args.json:
@@ -173,6 +194,9 @@ def run(args) -> int:
             print(f"finished{err}: the robot reports no pose; check the goal by eye")
         else:
             print(f"failure: {result.reason}{err}")
+    if not (result.success or unknown or noise.exact or args.quiet):
+        say("note: with rotation noise a run can miss the goal; exit status 4 reports that "
+            "outcome, it is not an error")
     return 0 if result.success or unknown else EXIT_FAILURE
 
 
@@ -193,3 +217,16 @@ def _robot_options(args) -> dict:
         raise UserError(f"--robot emulator takes --port pty or tcp, got {args.port!r}.")
     return {**options, "transport": transport, "time_scale": args.time_scale,
             "faults": args.fault, "lockstep": args.lockstep}
+
+
+def _plot(path, env, cells, route, result) -> None:
+    """--plot: the planned route against the executed trace (a hardware run has no poses)."""
+    from bouncesim.plots import plan_vs_executed, save_figure
+    if not any(r.x == r.x for r in result.trace.rows):     # NaN poses only: hardware
+        print("bouncesim: note: --plot skipped, the robot reports no poses.")
+        return
+    status = "success" if result.success else "failure"
+    title = (f"{env.name}: {route.start} → {route.goal}, plan {route.plan}; executed: "
+             f"{status}")
+    save_figure(plan_vs_executed(env, cells, route.path, result.trace, goal=result.goal_pose,
+                                 title=title), path, dpi=150)

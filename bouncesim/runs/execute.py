@@ -57,7 +57,7 @@ from planners.plan import Plan, PolicyMix
 from ..robots.base import Robot, RobotError
 from .trace import Trace
 
-__all__ = ["execute", "PlanRun", "MixRun", "Deviation"]
+__all__ = ["check_speed", "execute", "PlanRun", "MixRun", "Deviation", "SegmentDone"]
 
 
 @dataclass(frozen=True)
@@ -78,6 +78,27 @@ class Deviation:
     travelled: float
     kind: str
     t: float
+
+
+@dataclass(frozen=True)
+class SegmentDone:
+    """What ``execute(..., on_segment=)`` reports after each plan segment: its 1-based
+    ``index`` of ``total``, the drive (``travelled`` = speed x time [m], ``seconds`` [s],
+    ``bumped``) and the ``turn`` after the bump [deg] (None: a trailing run of zeros).
+    """
+
+    index: int
+    total: int
+    travelled: float
+    seconds: float
+    bumped: bool
+    turn: float | None
+
+    def __str__(self) -> str:
+        end = (f"bump after {self.seconds:.1f} s" if self.bumped
+               else f"stop after {self.seconds:.1f} s")
+        turn = "" if self.turn is None else f", turn {self.turn:g}°"
+        return f"segment {self.index}/{self.total}: drive {self.travelled:.2f} m, {end}{turn}"
 
 
 @dataclass(frozen=True)
@@ -210,7 +231,8 @@ def _place(robot: Robot, pose) -> bool:
         return False
 
 
-def _check_speed(speed: float, robot: Robot) -> float:
+def check_speed(speed: float, robot: Robot) -> float:
+    """``speed`` [m/s] as a float; :class:`UserError` unless 0 < speed <= the robot's maximum."""
     speed = float(speed)
     vmax = robot.spec.max_wheel_speed
     if not (math.isfinite(speed) and 0 < speed <= vmax):
@@ -250,7 +272,8 @@ def execute(policy, robot: Robot, *, start=None, cells: CellSpace | None = None,
             speed: float = 0.2, back_off: float = 0.0, max_time: float | None = None,
             goal=None, max_factor: float = 2.0, steps: int | None = None,
             epoch: int | None = None, rng: np.random.Generator | None = None,
-            max_stuck: int | None = None, record_trace: bool = True) -> PlanRun | MixRun:
+            max_stuck: int | None = None, record_trace: bool = True,
+            on_segment=None) -> PlanRun | MixRun:
     """Run a policy on a robot (docs/model.md §8-9): a plan's observation string, or a policy
     mix by time-sharing.
 
@@ -283,6 +306,8 @@ def execute(policy, robot: Robot, *, start=None, cells: CellSpace | None = None,
 
     goal : int or (x, y, heading), optional
         Goal configuration (or a pose mapped to its cell) for the success check.
+    on_segment : callable, optional
+        Called with a :class:`SegmentDone` after every completed segment (progress lines).
     max_factor : float
         A segment of n zeros may drive at most ``max_factor * (n + 2) * h`` before the run is
         declared failed ("no bump"), and never more than the bounding-box diagonal plus h
@@ -316,7 +341,7 @@ def execute(policy, robot: Robot, *, start=None, cells: CellSpace | None = None,
             raise UserError(f"{type(robot).__name__} knows no environment: pass "
                             f"cells=CellSpace(env) for the room it is in.")
         cells = CellSpace(env)
-    speed = _check_speed(speed, robot)
+    speed = check_speed(speed, robot)
     back_off = float(back_off)
     if back_off < 0 or not math.isfinite(back_off):
         raise UserError(f"back-off must be a non-negative distance in metres, got {back_off:g}.")
@@ -332,6 +357,7 @@ def execute(policy, robot: Robot, *, start=None, cells: CellSpace | None = None,
             raise UserError("steps, epoch and max_stuck are for policy mixes; a plan runs its "
                             "segments.")
         runner = _PlanRunner(policy, robot, cells, start, goal, speed, back_off, max_factor)
+        runner.on_segment = on_segment
 
     trace = Trace()
     t0 = robot.clock()
@@ -361,6 +387,7 @@ class _PlanRunner:
     """
 
     finished = "plan finished"
+    on_segment = None
 
     def __init__(self, plan, robot, cells, start, goal, speed, back_off, max_factor) -> None:
         self.plan = plan = Plan.parse(plan) if not isinstance(plan, Plan) else plan
@@ -402,6 +429,7 @@ class _PlanRunner:
                         self.deviations.append(dev)
                         trace.add(dev.t, robot.true_pose(), "deviation",
                                   f"early: {travelled:.3f} m of {expected:.3f} m")
+                self._report(i, len(segs), travelled, ev.elapsed, ev.bumped, None)
                 continue
             limit = min(self.max_factor * (zeros + 2) * h, self.cap)
             ev = robot.drive_until_bump(speed, limit / speed)
@@ -425,8 +453,14 @@ class _PlanRunner:
             robot.turn(angle)
             self.k = int(cells.orientation_of(self.k * cells.delta_deg + angle))
             trace.add(robot.clock() - t0, robot.true_pose(), "turn", f"{angle:g}")
+            self._report(i, len(segs), travelled, ev.elapsed, True, angle)
         self.completed = True
         return ""
+
+    def _report(self, i, total, travelled, seconds, bumped, turn) -> None:
+        if self.on_segment is not None:
+            self.on_segment(SegmentDone(i + 1, total, float(travelled), float(seconds),
+                                        bool(bumped), None if turn is None else float(turn)))
 
     def result(self, reason: str, elapsed: float, final, trace: Trace) -> PlanRun:
         cells, goal_z, goal_pose = self.cells, self.goal_z, self.goal_pose

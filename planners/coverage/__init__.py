@@ -36,7 +36,7 @@ from .api import (
     model_for,
     timeshared_coverage,
 )
-from .base import AngleCoverage, CoverageModel, clear_cache
+from .base import STATE_KINDS, AngleCoverage, CoverageModel, clear_cache, group_cells
 from .event import EventModel, EventSettings, flight_steps
 from .mix import MixDesign, MixFit, solve_mix
 from .noise import TurnNoise
@@ -48,5 +48,5 @@ __all__ = ["MODELS", "AngleCoverage", "CoverageModel", "EventModel", "EventSetti
            "MixDesign", "MixFit", "SampledModel", "SampledSettings", "SPACES", "StepModel",
            "StepSettings", "TARGET_FORMATS", "TargetError", "TurnNoise", "check_angles",
            "check_model", "clear_cache", "default_settings", "design_mix", "flight_steps",
-           "load_target", "model_for", "solve_mix", "timeshared_coverage",
-           "transition_matrix", "uniform_target"]
+           "group_cells", "load_target", "STATE_KINDS", "model_for", "solve_mix",
+           "timeshared_coverage", "transition_matrix", "uniform_target"]

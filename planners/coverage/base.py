@@ -26,7 +26,12 @@ from ..markov import ChainAnalysis
 from ..timeshare import DelayChain
 from .noise import NoiseView, TurnNoise
 
-__all__ = ["AngleCoverage", "CoverageModel", "cached_build", "clear_cache"]
+__all__ = ["STATE_KINDS", "AngleCoverage", "CoverageModel", "cached_build", "clear_cache",
+           "group_cells"]
+
+STATE_KINDS = {"step": "configurations", "sampled": "configurations",
+               "event": "contact states (bin, heading)"}
+"""What each model's chain states (``group_sizes``, ``transient_fraction``) count."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -111,6 +116,16 @@ class CoverageModel(Protocol):
 
     def delay_chain(self) -> DelayChain:
         """The angle-independent part as a delay chain (flights, rewards, start)."""
+
+
+def group_cells(model: CoverageModel, cov: AngleCoverage) -> np.ndarray:
+    """Number of position cells of each persistent group of ``cov``: the cells in which the
+    group's states count steps (the model's delay-chain reward), i.e. where the group's
+    long-run coverage is positive. Comparable across models, unlike ``group_sizes``.
+    """
+    R = sp.csr_matrix(model.delay_chain().reward)
+    return np.array([int((np.asarray(R[g].sum(axis=0)).ravel() > 0).sum()) for g in cov.groups],
+                    dtype=np.int64)
 
 
 @lru_cache(maxsize=2)

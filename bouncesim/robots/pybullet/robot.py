@@ -36,7 +36,7 @@ from envs import Environment, UserError
 from ..base import CREATE2, Robot, RobotError, RobotSpec
 from ..noise import NoiseModel, noise_and_rng
 from .bumper import CONTACT_TOLERANCE, contact_bearing, read_bumper
-from .video import check_record_format, render_top_down, write_video
+from .video import Recorder, check_record_format
 from .walls import WALL_THICKNESS, convex_pieces, wall_pieces
 
 __all__ = ["PyBulletRobot", "DEFAULT_SPEED", "DEFAULT_TURN_SPEED", "DEFAULT_TIME_STEP"]
@@ -176,7 +176,7 @@ class PyBulletRobot(Robot):
                  solver_iterations: int = 10,
                  wheel_torque: float = 2.0, bumper_arc_deg: float = 80.0,
                  spec: RobotSpec | None = None, record_period: float = 0.1,
-                 record_width: int = 320, clearance: float = 0.002,
+                 record_width: int = 640, clearance: float = 0.002,
                  contact_threshold: float | None = None,
                  start: tuple[float, float, float] | None = None) -> None:
         self._cid = None
@@ -213,11 +213,11 @@ class PyBulletRobot(Robot):
         self.contact_threshold = None if contact_threshold is None else float(contact_threshold)
         self._record = Path(record) if record is not None else None
         self._record_every = max(1, round(record_period / self.time_step))
-        self._record_period = self._record_every * self.time_step
-        self._record_width = int(record_width)
-        self._frames: list[np.ndarray] = []
+        self.recorder: Recorder | None = None
         if self._record is not None:
             check_record_format(self._record)
+            self.recorder = Recorder(self._record, self._record_every * self.time_step,
+                                     int(record_width), self.env.bounds, _WALL_HEIGHT)
 
         p = self._p = _import_pybullet()
         if self.gui:
@@ -399,9 +399,8 @@ class PyBulletRobot(Robot):
         for _ in range(n):
             step(**kw)
             self._steps += 1
-            if self._record is not None and self._steps % self._record_every == 0:
-                self._frames.append(render_top_down(self._p, self._kw, self.env.bounds,
-                                                  self._record_width, _WALL_HEIGHT))
+            if self.recorder is not None and self._steps % self._record_every == 0:
+                self.recorder.capture(p, kw, self.clock(), self.true_pose())
         if self.gui:   # pace to real time
             ahead = self._steps * self.time_step - (_time.perf_counter() - self._wall_t0)
             if ahead > 0:
@@ -560,8 +559,8 @@ class PyBulletRobot(Robot):
 
     @property
     def frames(self) -> list[np.ndarray]:
-        """Video frames recorded so far (RGB uint8 arrays)."""
-        return self._frames
+        """Video frames recorded so far (RGB uint8 arrays, without the overlay)."""
+        return self.recorder.frames if self.recorder is not None else []
 
     def close(self) -> None:
         """Stop, write the recording (if any) and disconnect (idempotent)."""
@@ -569,8 +568,8 @@ class PyBulletRobot(Robot):
             return
         try:
             self.stop()
-            if self._record is not None and self._frames:
-                write_video(self._record, self._frames, self._record_period)
+            if self.recorder is not None:
+                self.recorder.write()
         finally:
             self._disconnect()
 

@@ -1,0 +1,398 @@
+"""A Gymnasium environment of the bouncing robot: ``bouncesim/Bounce-v0`` (docs/model.md §13).
+
+Importing this module registers the environment (gymnasium is the optional extra ``gym``;
+``import bouncesim`` never imports it)::
+
+    import gymnasium
+    import bouncesim.gym
+    env = gymnasium.make("bouncesim/Bounce-v0", env="lab", task="navigate", goal=0)
+
+- One step is one bounce: the action indexes the bouncing angles Φ; the robot turns CCW by
+  Φ[action] (plus the turn noise) and drives until its bumper closes.
+- The observation is what the robot senses: ``{"bumper": (left, right) in {0, 1},
+  "duration": [flight time [s]]}``. The true pose and the cell are in ``info`` only.
+- ``task="navigate"``: reward +1 and the end of the episode when a flight reaches the goal
+  configuration (its cell with its heading, the executor's success rule, docs/model.md §8),
+  ``-step_cost`` for every other bounce.
+- ``task="cover"``: the reward of a bounce is the decrease of the total-variation distance
+  between the visit histogram (docs/model.md §9's counted steps) and the target, so the return
+  of an episode is 1 − the final TV.
+- Episodes are truncated after ``max_steps`` bounces. Seeding follows Gymnasium:
+  ``reset(seed=s)`` seeds ``self.np_random``, which draws the start and every turn error.
+
+The simulator is the kinematic twin (:class:`bouncesim.robots.kinematic.KinematicRobot`),
+several thousand bounces per second on ``lab``.
+
+Examples
+--------
+>>> import gymnasium
+>>> env = gymnasium.make("bouncesim/Bounce-v0", env="lab", task="navigate", goal=0)
+>>> obs, info = env.reset(seed=0, options={"start": 8})   # bottom right, facing the east wall
+>>> obs["bumper"].tolist(), float(obs["duration"][0])
+([1, 1], 0.0)
+>>> [float(a) for a in env.unwrapped.angles]
+[45.0, 90.0, 135.0]
+>>> for a in (1, 1):                  # the plan '90° 90° 00000000 90° 90°' from 8 to 0
+...     obs, reward, terminated, truncated, info = env.step(a)
+>>> round(float(obs["duration"][0]), 4), [round(v, 6) for v in info["pose"]]
+(13.6, [0.17, 0.17, 180.0])
+>>> for a in (1, 1):
+...     obs, reward, terminated, truncated, info = env.step(a)
+>>> reward, terminated, info["is_success"]
+(1.0, True, True)
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+try:
+    import gymnasium
+    from gymnasium import spaces
+except ModuleNotFoundError as exc:          # the optional extra is not installed
+    if exc.name != "gymnasium":
+        raise
+    raise ModuleNotFoundError("bouncesim.gym needs gymnasium, the optional extra gym: "
+                              "pip install 'bouncesim[gym]'.", name="gymnasium") from None
+
+import envs
+from envs import Environment, UserError
+from envs.motion import flight_steps, unit
+from planners.cells import CellSpace
+from planners.coverage.targets import load_target, uniform_target
+from planners.metrics import tv_distance
+
+from .robots.base import CREATE2
+from .robots.factory import make_robot
+from .robots.noise import NoiseModel, parse_noise
+
+__all__ = ["ENV_ID", "TASKS", "BounceEnv", "flight_reaches"]
+
+ENV_ID = "bouncesim/Bounce-v0"
+"""The id under which importing this module registers :class:`BounceEnv`."""
+TASKS = ("navigate", "cover")
+_MAX_STARTS = 10_000          # random starts tried before giving up (navigate)
+_TRAIL = 400                  # flights kept for rendering
+
+
+def flight_reaches(start_xy, end_xy, heading_deg: float, cells: CellSpace, goal: int) -> bool:
+    """Whether a straight flight reaches goal configuration ``goal`` (docs/model.md §13).
+
+    True when the flight's heading [deg] is within ±(Δ/2 + 1e-9°) of the goal heading and the
+    segment from ``start_xy`` to ``end_xy`` [m] meets the goal's position cell, a half-open
+    square as in docs/model.md §3 (its left and bottom borders belong to it).
+
+    >>> import envs
+    >>> cs = CellSpace(envs.load("lab"))
+    >>> flight_reaches((2.89, 0.17), (0.17, 0.17), 180.0, cs, cs.z(0, 4))   # west, row 0
+    True
+    >>> flight_reaches((2.89, 0.17), (0.34, 0.17), 180.0, cs, cs.z(0, 4))   # at its right border
+    False
+    >>> flight_reaches((2.89, 0.17), (0.34, 0.17), 180.0, cs, cs.z(1, 4))   # cell 1's left border
+    True
+    >>> flight_reaches((2.89, 0.17), (0.35, 0.17), 180.0, cs, cs.z(0, 4))   # short of it
+    False
+    >>> flight_reaches((2.89, 0.17), (0.17, 0.17), 135.0, cs, cs.z(0, 4))   # wrong heading
+    False
+    """
+    p, k = (int(v) for v in cells.pk(int(goal)))
+    off = math.remainder(float(heading_deg) - k * cells.delta_deg, 360.0)
+    if abs(off) > cells.delta_deg / 2 + 1e-9:
+        return False
+    h = cells.h
+    cx, cy = cells.centres[p]
+    lo = np.array([cx - h / 2, cy - h / 2])
+    hi = lo + h
+    a = np.asarray(start_xy, dtype=float)
+    b = np.asarray(end_xy, dtype=float)
+    d = b - a
+    t0, t1 = 0.0, 1.0                       # Liang-Barsky clip of the segment to the square
+    for i in range(2):
+        if d[i] == 0.0:
+            if not lo[i] <= a[i] <= hi[i]:
+                return False
+            continue
+        ta, tb = (lo[i] - a[i]) / d[i], (hi[i] - a[i]) / d[i]
+        t0, t1 = max(t0, min(ta, tb)), min(t1, max(ta, tb))
+    if t0 > t1:
+        return False
+    # the clipped part may only touch the square's right or top border, which belongs to the
+    # neighbouring cell: its midpoint decides with the §3 point -> cell rule
+    def at(t: float) -> np.ndarray:         # the end points exactly, not a + d rounded
+        return a if t == 0.0 else b if t == 1.0 else a + t * d
+
+    mid = 0.5 * (at(t0) + at(t1))
+    return int(cells.cell_of_point([mid])[0]) == p
+
+
+class BounceEnv(gymnasium.Env):
+    """A bump-and-clock robot in a room; one step is one bounce (docs/model.md §13).
+
+    Parameters
+    ----------
+    env : str, Path or Environment
+        A catalogue name (``envs.names()``), an env file, or an environment.
+    task : {"navigate", "cover"}
+    angles : sequence of float
+        The bouncing angles Φ [deg] the actions index, multiples of 360°/K (default 45°, 90°,
+        135°).
+    noise : str or NoiseModel
+        Turn noise: ``"none"``, ``"gauss:SIGMA"`` or ``"model:eps=E,r=R"`` (docs/model.md §7-8).
+    goal : int
+        Navigate: the goal configuration z (docs/model.md §4); ``reset(options={"goal": z})``
+        changes it for one episode.
+    target : None, path or array of P weights
+        Cover: the target over the position cells (default uniform; a file as
+        ``planners.coverage.targets.TARGET_FORMATS`` describes).
+    max_steps : int      bounces before the episode is truncated
+    step_cost : float    navigate: the reward of a bounce that does not reach the goal is −this
+    speed : float        drive speed [m/s]
+    render_mode : {None, "rgb_array", "human"}
+    """
+
+    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 4}
+
+    def __init__(self, env: str | Path | Environment = "lab", task: str = "navigate", *,
+                 angles=(45.0, 90.0, 135.0), noise: str | NoiseModel = "none", goal: int = 0,
+                 target=None, max_steps: int = 200, step_cost: float = 0.01,
+                 speed: float = 0.2, render_mode: str | None = None) -> None:
+        self.room = env if isinstance(env, Environment) else envs.load(env)
+        self.cells = cells = CellSpace(self.room)
+        if task not in TASKS:
+            raise UserError(f"unknown task {task!r}; use navigate or cover.")
+        self.task = task
+        self.angles = tuple(float(a) for a in angles)
+        if not self.angles or len(set(self.angles)) != len(self.angles):
+            raise UserError("the bouncing angles must be one or more distinct angles.")
+        for a in self.angles:
+            cells.angle_steps(a)
+        self.noise = parse_noise(noise, cells.delta_deg) if isinstance(noise, str) else noise
+        self.goal = self._check_goal(goal)
+        self.target = self._load_target(target)
+        self.max_steps = int(max_steps)
+        if self.max_steps < 1:
+            raise UserError(f"max_steps must be at least 1, got {max_steps}.")
+        self.step_cost = float(step_cost)
+        if not math.isfinite(self.step_cost):
+            raise UserError(f"the step cost must be a finite number, got {step_cost}.")
+        self.speed = float(speed)
+        if not (math.isfinite(self.speed) and 0 < self.speed <= CREATE2.max_wheel_speed):
+            raise UserError(f"speed must lie in (0, {CREATE2.max_wheel_speed:g}] m/s, got "
+                            f"{speed}.")
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise UserError(f"unknown render mode {render_mode!r}; use None, human or "
+                            "rgb_array.")
+        self.render_mode = render_mode
+        x0, y0, x1, y1 = self.room.bounds
+        self.max_flight = math.hypot(x1 - x0, y1 - y0) + cells.h   # [m] no line is longer
+        self.action_space = spaces.Discrete(len(self.angles))
+        self.observation_space = spaces.Dict({
+            "bumper": spaces.MultiBinary(2),
+            "duration": spaces.Box(0.0, np.float32(self.max_flight / self.speed), (1,),
+                                   np.float32)})
+        self._robot = None
+        self._fig = None
+
+    # ------------------------------------------------------------------ checks
+    def _check_goal(self, goal) -> int:
+        try:
+            z = int(goal)
+        except (TypeError, ValueError):
+            raise UserError(f"goal {goal!r} is not a configuration index.") from None
+        if not 0 <= z < self.cells.N:
+            raise UserError(f"goal {z} is out of range: configurations are 0 to "
+                            f"{self.cells.N - 1}.")
+        return z
+
+    def _load_target(self, target) -> np.ndarray:
+        if target is None:
+            return uniform_target(self.cells)
+        if isinstance(target, (str, Path)):
+            return load_target(target, self.cells)
+        b = np.asarray(target, dtype=float).ravel()
+        if b.shape != (self.cells.P,) or not np.all(np.isfinite(b)) or (b < 0).any() \
+                or not b.sum() > 0:
+            raise UserError(f"the target must be {self.cells.P} non-negative weights with a "
+                            "positive sum, one per position cell.")
+        return b / b.sum()
+
+    # ------------------------------------------------------------------ simulation
+    def _fly(self) -> tuple[dict, tuple, tuple]:
+        """Drive until a bump: (observation, pose before, pose after)."""
+        bot = self._robot
+        before = bot.true_pose()
+        ev = bot.drive_until_bump(self.speed, self.max_flight / self.speed)
+        after = bot.true_pose()
+        obs = {"bumper": np.array([ev.left, ev.right], dtype=np.int8),
+               "duration": np.array([ev.elapsed], dtype=np.float32)}
+        self._trail.append(after[:2])
+        return obs, before, after
+
+    def _count(self, before, after) -> int:
+        """Add the flight's counted steps to the visit histogram (docs/model.md §9-10);
+        returns the position cell of the contact (−1: none).
+        """
+        x, y, deg = before
+        u = unit(np.array([deg]))[0]            # the twin's unit vectors, axes exact
+        length = math.hypot(after[0] - x, after[1] - y)
+        n = int(flight_steps(length, self.cells.h))
+        pts = np.vstack([np.array([x, y]) + np.arange(n)[:, None] * self.cells.h * u,
+                         [after[:2]]])
+        p = self.cells.cell_of_point(pts)
+        np.add.at(self._visits, p[p >= 0], 1)
+        self._dropped += int((p < 0).sum())
+        return int(p[-1])
+
+    def _info(self, pose, p: int | None = None) -> dict[str, Any]:
+        x, y, deg = pose
+        if p is None:
+            p = int(self.cells.cell_of_point([[x, y]])[0])
+        z = int(self.cells.z(p, self.cells.orientation_of(deg))) if p >= 0 else -1
+        info: dict[str, Any] = {"pose": (float(x), float(y), float(deg)), "config": z,
+                                "steps": self._steps}
+        if self.task == "navigate":
+            info["is_success"] = self._reached
+            info["goal"] = self._goal
+        else:
+            info["tv"] = self._tv
+            info["visits"] = self._visits.copy()
+            info["dropped"] = self._dropped
+        return info
+
+    def _start_pose(self, start) -> tuple[float, float, float]:
+        cells = self.cells
+        if isinstance(start, (int, np.integer)):
+            if not 0 <= int(start) < cells.N:
+                raise UserError(f"start {int(start)} is out of range: configurations are 0 "
+                                f"to {cells.N - 1}.")
+            return cells.pose(int(start))
+        try:
+            x, y, h = (float(v) for v in start)
+        except (TypeError, ValueError):
+            raise UserError("start must be a configuration index or a pose (x, y, heading)."
+                            ) from None
+        if not self.room.points_free([[x, y]])[0]:
+            raise UserError(f"the robot does not fit at the start ({x:g}, {y:g}).")
+        return x, y, h
+
+    # ------------------------------------------------------------------ Gymnasium API
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Start an episode: place the robot and drive it to its first bump.
+
+        ``options``: ``start`` (a configuration z or a pose (x [m], y [m], heading [deg]);
+        default a configuration drawn uniformly from ``self.np_random``) and, for navigate,
+        ``goal`` (a configuration z, for this episode). A random start whose first flight
+        already reaches the goal is drawn again; a given one is refused.
+        """
+        super().reset(seed=seed)
+        options = dict(options or {})
+        unknown = set(options) - {"start", "goal"}
+        if unknown:
+            raise UserError(f"unknown reset option {sorted(unknown)[0]!r}; use start or goal.")
+        self._goal = self._check_goal(options.get("goal", self.goal))
+        start = options.get("start")
+        self._robot = make_robot("kinematic", self.room, noise=self.noise, rng=self.np_random)
+        self._steps, self._reached, self._tv, self._dropped = 0, False, 1.0, 0
+        self._visits = np.zeros(self.cells.P, dtype=np.int64)
+        for _ in range(_MAX_STARTS):
+            pose = self._start_pose(start if start is not None
+                                    else int(self.np_random.integers(self.cells.N)))
+            self._robot.place(*pose)
+            self._trail = [pose[:2]]
+            obs, before, after = self._fly()
+            if self.task == "cover" or not flight_reaches(before[:2], after[:2], before[2],
+                                                          self.cells, self._goal):
+                break
+            if start is not None:
+                raise UserError("the start's first flight already reaches the goal; choose "
+                                "another start.")
+        else:
+            raise UserError(f"no start found whose first flight misses goal {self._goal}.")
+        p = self._count(before, after) if self.task == "cover" else None
+        if self.render_mode == "human":
+            self.render()
+        return obs, self._info(after, p)
+
+    def step(self, action):
+        """One bounce: turn by Φ[action] (with the turn noise), drive until the bumper closes."""
+        if self._robot is None:
+            raise UserError("call reset() before step().")
+        if not self.action_space.contains(action):
+            raise UserError(f"action {action!r} is not an index into the "
+                            f"{len(self.angles)} bouncing angles.")
+        self._robot.turn(self.angles[int(action)])
+        obs, before, after = self._fly()
+        self._steps += 1
+        if self.task == "navigate":
+            self._reached = flight_reaches(before[:2], after[:2], before[2], self.cells,
+                                           self._goal)
+            reward = 1.0 if self._reached else -self.step_cost
+            terminated, p = self._reached, None
+        else:
+            p = self._count(before, after)
+            tv = tv_distance(self._visits, self.target) if self._visits.any() else 1.0
+            reward, self._tv = self._tv - tv, tv
+            terminated = False
+        truncated = not terminated and self._steps >= self.max_steps
+        if self.render_mode == "human":
+            self.render()
+        return obs, float(reward), terminated, truncated, self._info(after, p)
+
+    def render(self):
+        """``rgb_array``: an (H, W, 3) uint8 picture of the room, the flights and the robot;
+        ``human``: the same in a matplotlib window; None: nothing.
+        """
+        if self.render_mode is None or self._robot is None:
+            return None
+        import matplotlib
+        if self.render_mode == "rgb_array":
+            from matplotlib.backends.backend_agg import FigureCanvasAgg
+            from matplotlib.figure import Figure
+            x0, y0, x1, y1 = self.room.bounds
+            fig = Figure(figsize=(5, 0.6 + 4.4 * (y1 - y0) / (x1 - x0)), dpi=80)
+            FigureCanvasAgg(fig)
+        else:
+            import matplotlib.pyplot as plt
+            if self._fig is None:
+                self._fig = plt.figure(figsize=(5, 5))
+            fig = self._fig
+            fig.clf()
+        from .plots import draw_env
+        ax = fig.add_subplot(1, 1, 1)
+        draw_env(ax, self.room, self.cells)
+        if self.task == "navigate":
+            p, _ = self.cells.pk(self._goal)
+            gx, gy = self.cells.centres[int(p)]
+            h = self.cells.h
+            ax.add_patch(matplotlib.patches.Rectangle((gx - h / 2, gy - h / 2), h, h,
+                                                      color="green", alpha=0.3))
+        trail = np.asarray(self._trail[-_TRAIL:])
+        ax.plot(trail[:, 0], trail[:, 1], "-", color="#1f77b4", lw=1)
+        x, y, deg = self._robot.true_pose()
+        r = self.room.robot_radius
+        ax.add_patch(matplotlib.patches.Circle((x, y), r, color="#d62728", alpha=0.6))
+        ax.plot([x, x + r * math.cos(math.radians(deg))],
+                [y, y + r * math.sin(math.radians(deg))], color="black", lw=2)
+        ax.set_title(f"{self.task}, bounce {self._steps}", fontsize=9)
+        if self.render_mode == "human":
+            import matplotlib.pyplot as plt
+            plt.pause(1.0 / self.metadata["render_fps"])
+            return None
+        fig.tight_layout()
+        fig.canvas.draw()
+        return np.asarray(fig.canvas.buffer_rgba())[:, :, :3].copy()
+
+    def close(self) -> None:
+        """Close the human-mode window, if any."""
+        if self._fig is not None:
+            import matplotlib.pyplot as plt
+            plt.close(self._fig)
+            self._fig = None
+
+
+if ENV_ID not in gymnasium.registry:
+    gymnasium.register(id=ENV_ID, entry_point="bouncesim.gym:BounceEnv")
