@@ -27,12 +27,21 @@ of simulated time have passed. Columns:
 The reference is PyBullet's defaults (240 Hz, sequential-impulse solver with 50 iterations)
 with the contacts read after every physics step; the other rows poll every 15 ms. A second
 table gives the turn accuracy of the default settings by clock and by encoders.
+
+``--throughput`` instead measures coverage steps (docs/model.md §9) per CPU second: today's
+single robot (``execute`` on one :class:`PyBulletRobot`, default physics) against
+:class:`~bouncesim.robots.pybullet.batch.PyBulletBatch` worlds of 1, 8, 32 and 64 robots
+(``--robots``), all at 75° with ε = 5°, r = 0.8, K = 72, 0.3 m/s, about ``--budget``
+robot-steps per row, plus the same batch in one process per core (wall-clock rate over
+``--processes`` processes) and the time 10⁶ steps would take at that rate.
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import time
+from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 import shapely
@@ -108,6 +117,66 @@ def turn_accuracy(env, mode: str, n: int = 20) -> np.ndarray:
     return np.abs(errs)
 
 
+def _mix_setup(env_name: str):
+    from planners.cells import CellSpace
+    from planners.plan import PolicyMix
+    env = envs.load(env_name, orientations=72)
+    return env, CellSpace(env), PolicyMix((75.0,), (1.0,), 5.0, 0.8)
+
+
+def single_rate(env_name: str, steps: int, seed: int = 0) -> tuple[float, float]:
+    """(steps per CPU second, bumps per step) of ``execute`` on one default PyBulletRobot."""
+    from bouncesim.robots.noise import noise_for_mix
+    from bouncesim.runs.execute import execute
+    env, cs, mix = _mix_setup(env_name)
+    rng = np.random.default_rng(seed)
+    with PyBulletRobot(env, noise=noise_for_mix(mix, cs.delta_deg), rng=rng) as bot:
+        t0 = time.process_time()
+        run = execute(mix, bot, steps=steps, epoch=1000, rng=rng, cells=cs, speed=0.3,
+                      record_trace=False)
+        cpu = time.process_time() - t0
+    return run.steps / cpu, run.bumps / max(run.steps, 1)
+
+
+def batch_rate(env_name: str, n_robots: int, steps: int, seed: int = 0
+               ) -> tuple[float, float, int]:
+    """(robot-steps per CPU second, bumps per step, robot-steps) of one PyBulletBatch."""
+    from bouncesim.robots.pybullet.batch import PyBulletBatch
+    env, cs, mix = _mix_setup(env_name)
+    with PyBulletBatch(env, n_robots, seed, cells=cs) as batch:
+        res = batch.run(mix, steps)
+    return res.total / res.cpu_s, float(res.bumps.sum()) / res.total, res.total
+
+
+def throughput(env_name: str, robots, budget: int, processes: int) -> None:
+    """Print the robot-steps per second table (see the module docstring)."""
+    print(f"env {env_name}, 75° ε 5° r 0.8, K 72, 0.3 m/s, ~{budget} robot-steps per row "
+          f"(CPU seconds of this process; the machine may be shared)")
+    print(f"{'body':<34} {'robot-steps':>11} {'steps/CPU s':>11} {'bumps/step':>10} "
+          f"{'vs single':>9}")
+    ref, bumps = single_rate(env_name, budget)
+    print(f"{'single PyBulletRobot (today)':<34} {budget:11d} {ref:11.1f} {bumps:10.3f} "
+          f"{1.0:8.2f}x")
+    best = (0.0, 1)
+    for n in robots:
+        rate, bumps, total = batch_rate(env_name, n, max(2, math.ceil(budget / n)))
+        best = max(best, (rate, n))
+        print(f"{f'PyBulletBatch, {n} robots/world':<34} {total:11d} {rate:11.1f} "
+              f"{bumps:10.3f} {rate / ref:8.2f}x")
+    n = best[1]
+    per = max(2, math.ceil(budget / n))
+    t0 = time.perf_counter()
+    with ProcessPoolExecutor(processes) as ex:
+        outs = list(ex.map(batch_rate, [env_name] * processes, [n] * processes,
+                           [per] * processes, range(1, processes + 1)))
+    wall = time.perf_counter() - t0
+    total = sum(o[2] for o in outs)
+    print(f"{f'{processes} processes x {n} robots (wall)':<34} {total:11d} "
+          f"{total / wall:11.1f} {'':>10} {total / wall / ref:8.2f}x")
+    print(f"10^6 steps at that wall rate: {1e6 / (total / wall) / 60:.0f} min "
+          f"(process start-up and world construction included)")
+
+
 def main(argv=None) -> None:
     """Run the PyBullet benchmark (real-time factor, bump latency) and print the table."""
     ap = argparse.ArgumentParser(prog="python -m benchmarks.bench_pybullet",
@@ -116,7 +185,17 @@ def main(argv=None) -> None:
     ap.add_argument("--sim-seconds", type=float, default=60.0)
     ap.add_argument("--angle", type=float, default=135.0)
     ap.add_argument("--repeat", type=int, default=2)
+    ap.add_argument("--throughput", action="store_true",
+                    help="robot-steps per second of PyBulletBatch against one robot instead")
+    ap.add_argument("--robots", default="1,8,32,64", help="robots per world (--throughput)")
+    ap.add_argument("--budget", type=int, default=256,
+                    help="robot-steps per row (--throughput)")
+    ap.add_argument("--processes", type=int, default=2, help="processes (--throughput)")
     args = ap.parse_args(argv)
+    if args.throughput:
+        throughput(args.env, [int(n) for n in args.robots.split(",")], args.budget,
+                   args.processes)
+        return
     env = envs.load(args.env)
     print(f"env {env.name}, {args.sim_seconds:g} s simulated per row, bounce angle "
           f"{args.angle:g}°, drive 0.2 m/s, turns by clock at 0.1 m/s")

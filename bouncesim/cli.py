@@ -33,6 +33,7 @@ COMMAND_MODULES = [
     "bouncesim.commands.coverage",
     "bouncesim.commands.run_plan",
     "bouncesim.commands.show",
+    "bouncesim.commands.validate",
     "bouncesim.commands.emulator",
     "bouncesim.commands.import_map",
 ]

@@ -41,6 +41,7 @@ rounded corners, unlike ``env.cspace``).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from functools import cached_property, lru_cache
 
 import numpy as np
@@ -454,3 +455,32 @@ def casters(env: Environment, step: float | None = None) -> tuple[WallCaster, Lo
     """
     full = WallCaster(env.wall_segments, env.robot_radius)
     return full, LocalCaster(full, env.cell_size if step is None else step)
+
+
+# ---------------------------------------------------------------------------- contact data
+@dataclass(frozen=True)
+class ContactParams:
+    """How a disk robot meets a straight wall (data only; docs/model.md §16, "Contact calibration
+    (PyBullet)"). Fitted to the PyBullet Create 2 by ``experiments/contact_calibration.py``.
+
+    Attributes
+    ----------
+    beta_deg : float
+        Incidence [deg] (angle between heading and wall) below which a contact does not
+        close the bumper: the contact bearing α − 90° lies outside the bumper arc and the
+        robot slides along the wall instead of bumping.
+    slide_friction : float
+        μ of the slide rule: while sliding, the speed along the wall is
+        v · max(cos α − μ sin α, 0) and the heading is kept.
+    """
+
+    beta_deg: float = 9.6
+    slide_friction: float = 0.006
+
+
+PYBULLET_CONTACT = ContactParams()
+"""The PyBullet Create 2's fitted contact rule (±80° bumper arc, frictionless walls; fit of
+144 trials at 0.3 m/s: β = 9.62°, μ = 0.0062, rounded). While sliding, its heading drifts
+into the wall by about 0.1°/m, so a slide near β ends in a bump after 0.6–2.7 m."""
+
+__all__ += ["ContactParams", "PYBULLET_CONTACT"]

@@ -67,8 +67,8 @@ from planners.coverage import TurnNoise, design_mix, model_for, timeshared_cover
 from planners.metrics import tv_distance
 from planners.plan import PolicyMix
 
-__all__ = ["ANGLES", "EPS", "R", "Config", "draw_figures", "main", "predict", "run", "simulate",
-           "tv_table"]
+__all__ = ["ANGLES", "EPS", "R", "Config", "draw_figures", "env_label", "main", "predict", "run",
+           "simulate", "tv_table"]
 
 NAME = "coverage_validation"
 ANGLES = (30.0, 75.0, 315.0)
@@ -185,6 +185,12 @@ def tv_table(runs: pd.DataFrame, preds: pd.DataFrame) -> pd.DataFrame:
 
 
 # ----------------------------------------------------------------------------- figures
+def env_label(name: str) -> str:
+    """A catalogue name as it is; an env file path by its file stem (for file names)."""
+    p = Path(name)
+    return p.stem if p.suffix or len(p.parts) > 1 else name
+
+
 def draw_figures(out: Path) -> list[Path]:
     """heatmaps_<env>_<model>.png and tv_<backend>.png from the CSV files alone."""
     import matplotlib
@@ -223,9 +229,11 @@ def draw_figures(out: Path) -> list[Path]:
             tvs = f"TV {float(t.tv_pooled.iloc[0]):.3f}" if len(t) else ""
             diff_heatmap(row[2], cs, sim - q, title=f"twin − predicted  {tvs}")
         fig.suptitle(f"{env_name}: predicted ({model} model) vs simulated coverage")
-        paths.append(save_figure(fig, out / f"heatmaps_{env_name}_{model}.png", dpi=90))
+        paths.append(save_figure(fig, out / f"heatmaps_{env_label(env_name)}_{model}.png",
+                                 dpi=90))
     for backend, tb in tv.groupby("backend", sort=False):
-        tb = tb.assign(label=tb.env + " " + tb.policy.str.replace(r"mix:.*", "mix", regex=True))
+        tb = tb.assign(label=tb.env.map(env_label) + " "
+                       + tb.policy.str.replace(r"mix:.*", "mix", regex=True))
         models = list(dict.fromkeys(tb.model))
         labels = list(dict.fromkeys(tb.label))
         fig, ax = plt.subplots(figsize=(max(6, 0.8 * len(labels)), 4))
@@ -349,7 +357,8 @@ def main(argv=None) -> int:
     """Parse the command line into a :class:`Config` and :func:`run` it (exit status)."""
     p = experiment_parser(NAME, __doc__.split("\n\n")[0])
     p.add_argument("--envs", default=None,
-                   help=f"comma-separated environments (default {','.join(ENVS)}; quick: lab,fig1)")
+                   help=f"comma-separated catalogue names or env file paths (default "
+                   f"{','.join(ENVS)}; quick: lab,fig1)")
     add_models_arg(p, "step", "the models to predict with")
     p.add_argument("--orientations", type=int, default=None,
                    help="K (default 360; quick 72)")
@@ -376,7 +385,10 @@ def main(argv=None) -> int:
     add_executor_args(p)
     args = p.parse_args(argv)
     q = args.quick
-    env_names = (args.envs or ("lab,fig1" if q else ",".join(ENVS))).split(",")
+    env_names = [e.strip() for e in (args.envs or ("lab,fig1" if q else ",".join(ENVS)))
+                 .split(",") if e.strip()]
+    for e in env_names:           # a bad name or file is one sentence before any work
+        envs.load(e)
     config = Config(
         envs=tuple(env_names), models=tuple(args.models),
         orientations=args.orientations or (72 if q else 360),
@@ -387,7 +399,7 @@ def main(argv=None) -> int:
         pybullet_runs=args.pybullet_runs or (1 if q else 4),
         twin_burn_in=(args.twin_burn_in if args.twin_burn_in is not None
                       else (2000 if q else 40_000)),
-        pybullet_envs=tuple((args.pybullet_envs or ("lab" if q else ",".join(env_names)))
+        pybullet_envs=tuple((args.pybullet_envs or (env_names[0] if q else ",".join(env_names)))
                             .split(",")),
         epoch=args.epoch, speed=args.speed, quick=q, seed=args.seed, out=args.out,
         workers=args.workers, dask_local=args.dask_local, dask=args.dask,

@@ -69,3 +69,25 @@ def test_policy_labels_round_trip():
     assert mix.angles == (75.0, 315.0) and mix.alpha == (0.25, 0.75)
     assert (mix.eps, mix.r) == (cv.EPS, cv.R)
     assert cv.policy_label((30.0, 75.0), (1.0, 0.0)) == "30"
+
+
+def test_envs_accepts_an_env_file_path(tmp_path):
+    """--envs takes an env file path as well as a catalogue name: the lab copied to a file
+    gives the lab's predictions and a heatmap named after the file.
+    """
+    import shutil
+
+    import envs
+    room = tmp_path / "rooms" / "mylab.json"
+    room.parent.mkdir()
+    shutil.copy(envs.CATALOG_DIR / "lab.json", room)
+    assert cv.env_label(str(room)) == "mylab" and cv.env_label("lab") == "lab"
+    out = tmp_path / "out"
+    assert cv.main(["--quick", "--envs", f"lab,{room}", "--twin-steps", "4000",
+                    "--pybullet-steps", "0", "--twin-burn-in", "10", "--out", str(out),
+                    "--workers", "1", "--no-progress"]) == 0
+    preds = pd.read_csv(out / "predictions.csv", dtype={"policy": str})
+    a = preds[preds.env == "lab"].sort_values(["policy", "p"]).q.to_numpy()
+    b = preds[preds.env == str(room)].sort_values(["policy", "p"]).q.to_numpy()
+    assert len(a) == len(b) > 0 and abs(a - b).max() <= 1e-12
+    assert (out / "heatmaps_mylab_step.png").exists()

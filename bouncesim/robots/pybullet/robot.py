@@ -35,6 +35,7 @@ from envs import Environment, UserError
 
 from ..base import CREATE2, Robot, RobotError, RobotSpec
 from ..noise import NoiseModel, noise_and_rng
+from .bumper import CONTACT_TOLERANCE, contact_bearing, read_bumper
 from .video import Recorder, check_record_format
 from .walls import WALL_THICKNESS, convex_pieces, wall_pieces
 
@@ -58,13 +59,7 @@ _CASTER_RADIUS = 0.01       # [m]
 _CASTER_OFFSET = 0.13       # caster/skid distance ahead of / behind the axle [m]
 _CASTER_GAP = 0.001         # casters hang this far above the floor at rest [m]
 _MESH_MARGIN = 1e-4         # collision margin of the wall prisms [m]
-_CONTACT_TOLERANCE = 1e-3   # a contact point within this distance [m] closes the bumper
-_BUMP_CENTRE_DEG = 10.0     # contacts within ± this of straight ahead close both switches
 _SETTLE_STEPS = 2
-
-
-def _wrap_deg(a: float) -> float:
-    return (a + 180.0) % 360.0 - 180.0
 
 
 # ---------------------------------------------------------------------------- the robot
@@ -151,6 +146,10 @@ class PyBulletRobot(Robot):
         next to a wall are exactly r from it); in a physics engine exact tangency is fragile
         (a 0.1 mm drift turns a passing corner into a glancing collision), so the body keeps
         a 2 mm margin by default.
+    contact_threshold : float, optional
+        Speed setting [m]: Bullet's contact breaking threshold (default 0.02 m) and no
+        speculative contacts in the solver (robot links' contact processing threshold 0).
+        None (default) keeps Bullet's defaults. :class:`.batch.PyBulletBatch` uses 0.002.
     start : (x, y, heading_deg), optional
         Initial pose; default the centre of the first free cell (p = 0) facing east.
 
@@ -178,6 +177,7 @@ class PyBulletRobot(Robot):
                  wheel_torque: float = 2.0, bumper_arc_deg: float = 80.0,
                  spec: RobotSpec | None = None, record_period: float = 0.1,
                  record_width: int = 640, clearance: float = 0.002,
+                 contact_threshold: float | None = None,
                  start: tuple[float, float, float] | None = None) -> None:
         self._cid = None
         if isinstance(env, (str, Path)):
@@ -210,6 +210,7 @@ class PyBulletRobot(Robot):
         if not 0 <= clearance < spec.radius / 2:
             raise UserError(f"clearance must be in [0, {spec.radius / 2}) m, got {clearance}.")
         self.body_radius = spec.radius - float(clearance)
+        self.contact_threshold = None if contact_threshold is None else float(contact_threshold)
         self._record = Path(record) if record is not None else None
         self._record_every = max(1, round(record_period / self.time_step))
         self.recorder: Recorder | None = None
@@ -264,6 +265,8 @@ class PyBulletRobot(Robot):
         p.setPhysicsEngineParameter(fixedTimeStep=self.time_step,
                                     numSolverIterations=int(solver_iterations),
                                     deterministicOverlappingPairs=1, **kw)
+        if self.contact_threshold is not None:
+            p.setPhysicsEngineParameter(contactBreakingThreshold=self.contact_threshold, **kw)
         if self.solver == "dantzig":
             with _quiet_stdout():   # Bullet announces the switch on stdout
                 p.setPhysicsEngineParameter(
@@ -321,6 +324,11 @@ class PyBulletRobot(Robot):
         self._walls.append(body)
 
     def _build_robot(self) -> None:
+        self._robot = self._create_body()
+        self._set_wheels(0.0, 0.0)
+
+    def _create_body(self) -> int:
+        """Add one Create 2 body (disk, casters, two wheel joints) to the world; its id."""
         p, kw, s = self._p, self._kw, self.spec
         R = self._wheel_r
         # The base frame sits at axle height on the axle midpoint = the disk centre.
@@ -344,7 +352,7 @@ class PyBulletRobot(Robot):
                 **kw)
         base_mass = s.mass - 2 * _WHEEL_MASS
         half_base = s.wheel_base / 2
-        self._robot = p.createMultiBody(
+        robot = p.createMultiBody(
             base_mass, body, vis, basePosition=[0, 0, R],
             linkMasses=[_WHEEL_MASS, _WHEEL_MASS], linkCollisionShapeIndices=[wheel, wheel],
             linkVisualShapeIndices=[-1, -1],
@@ -355,14 +363,17 @@ class PyBulletRobot(Robot):
         # Centre of mass over the axle: all weight on the drive wheels, casters nearly idle.
         ixx = base_mass * (3 * self.body_radius ** 2 + _BODY_HEIGHT ** 2) / 12
         izz = base_mass * self.body_radius ** 2 / 2
-        p.changeDynamics(self._robot, -1, lateralFriction=0.0, rollingFriction=0.0,
+        p.changeDynamics(robot, -1, lateralFriction=0.0, rollingFriction=0.0,
                          spinningFriction=0.0, localInertiaDiagonal=[ixx, ixx, izz], **kw)
         for j in (0, 1):
             # (no damping arguments here: PyBullet applies those, and with them this
             # call's friction, to the base)
-            p.changeDynamics(self._robot, j, lateralFriction=1.0, rollingFriction=0.0,
+            p.changeDynamics(robot, j, lateralFriction=1.0, rollingFriction=0.0,
                              spinningFriction=0.0, **kw)
-        self._set_wheels(0.0, 0.0)
+        if self.contact_threshold is not None:
+            for j in (-1, 0, 1):
+                p.changeDynamics(robot, j, contactProcessingThreshold=0.0, **kw)
+        return robot
 
     # ------------------------------------------------------------------ internals
     def _check_open(self) -> None:
@@ -426,25 +437,7 @@ class PyBulletRobot(Robot):
         heading) closes the switch on its side; within ±10° of straight ahead both close.
         """
         self._check_open()
-        p, kw = self._p, self._kw
-        contacts = p.getContactPoints(bodyA=self._robot, linkIndexA=-1, **kw)
-        if not contacts:
-            return False, False
-        (x, y, _), orn = p.getBasePositionAndOrientation(self._robot, **kw)
-        yaw = math.degrees(p.getEulerFromQuaternion(orn)[2])
-        left = right = False
-        for c in contacts:
-            if c[2] not in self._wall_set or c[8] > _CONTACT_TOLERANCE:
-                continue
-            pos = c[5]
-            rel = _wrap_deg(math.degrees(math.atan2(pos[1] - y, pos[0] - x)) - yaw)
-            if abs(rel) > self.bumper_arc_deg:
-                continue
-            if rel >= -_BUMP_CENTRE_DEG:
-                left = True
-            if rel <= _BUMP_CENTRE_DEG:
-                right = True
-        return left, right
+        return read_bumper(self._p, self._robot, self._wall_set, self.bumper_arc_deg, self._kw)
 
     def clock(self) -> float:
         """Simulated time [s]: whole physics steps × time_step."""
@@ -545,6 +538,17 @@ class PyBulletRobot(Robot):
         p.resetJointState(self._robot, 1, a_r, 0.0, **kw)
         self._set_wheels(0.0, 0.0)
         p.performCollisionDetection(**kw)
+
+    def wall_contacts(self) -> list[tuple[float, float]]:
+        """(bearing [deg] from the heading, distance [m]) of every body–wall contact point
+        closer than 1 mm, whatever the bumper arc (simulation only, for calibration).
+        """
+        self._check_open()
+        p, kw = self._p, self._kw
+        x, y, yaw = self.true_pose()
+        return [(contact_bearing(c[5], x, y, yaw), c[8])
+                for c in p.getContactPoints(bodyA=self._robot, linkIndexA=-1, **kw)
+                if c[2] in self._wall_set and c[8] <= CONTACT_TOLERANCE]
 
     def true_pose(self) -> tuple[float, float, float]:
         """(x [m], y [m], heading [deg] in (−180, 180]) of the body centre."""

@@ -1,0 +1,270 @@
+"""``bouncesim validate ENV``: predicted against simulated coverage, angle by angle.
+
+For every bouncing angle (and, with ``--alpha``, the policy mix) it predicts the coverage q
+with a coverage model (:func:`planners.coverage.model_for`, ``analyse``; a mix with
+:func:`planners.coverage.timeshared_coverage`), simulates the step-sampled visit histogram q̂
+(docs/model.md §9) on the kinematic twin (:class:`~bouncesim.robots.kinematic.KinematicBatch`)
+or in PyBullet (:class:`~bouncesim.robots.pybullet.batch.PyBulletBatch`) through the seeded,
+resumable sweep runner (:mod:`bouncesim.runs.sweep`), and compares them: TV(q, q̂), the noise
+floor (TV between two independent halves of the simulation), the steps behind q̂ and the
+bumps per step of the model and of the simulation.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+import envs
+from envs import UserError
+from planners.cells import CellSpace
+from planners.coverage import (
+    MODELS,
+    TurnNoise,
+    check_angles,
+    design_mix,
+    model_for,
+    timeshared_coverage,
+)
+from planners.metrics import tv_distance
+from planners.plan import PolicyMix
+
+from ..runs.executors import add_executor_args, make_executor
+from ..runs.sweep import run_sweep
+from .common import add_env_args, load_env, make_cells, parse_angles, print_json, writable_path
+
+__all__ = ["register", "run", "simulate_trial", "model_bump_rate", "BACKENDS"]
+
+BACKENDS = ("kinematic", "pybullet")
+DEFAULT_STEPS = {"kinematic": 1_000_000, "pybullet": 20_000}
+ROBOTS = {"kinematic": 200, "pybullet": 16}
+"""Robots per simulated batch (one sweep trial)."""
+PER_ROBOT = {"kinematic": 2500, "pybullet": 625}
+"""Counted steps per robot in one trial, about (trials are cut to at least two halves)."""
+BURN_IN = {"kinematic": 200, "pybullet": 50}
+
+DESCRIPTION = """\
+For every bouncing angle: the coverage q predicted by --model and the step-sampled visit
+histogram of a simulation on --backend (docs/model.md section 9: a step drives one cell by the
+clock or until a bump; runs start uniformly over the configurations and a burn-in is not
+counted). Prints per angle: tv = TV(q, simulated), floor = TV between two independent halves of
+the simulation (what sampling noise alone gives at half the steps; a model that is right has
+tv near floor/2: each half has sqrt(2) times the pooled noise), steps = simulated steps, and
+the bumps per step of the model and of the simulation. With --alpha also the policy mix,
+executed in epochs of --epoch steps and predicted by the model's time-shared coverage
+(docs/model.md section 12).
+"""
+
+EXAMPLES = """\
+examples:
+  bouncesim validate lab --orientations 72 --angles 30,75,315 --eps 5 --r 0.8 --model event
+  bouncesim validate lab --orientations 72 --angles 75 --eps 5 --r 0.8 --model event \\
+      --backend pybullet --steps 20000 --json
+  bouncesim validate fig1 --orientations 72 --angles 30,75,315 --eps 5 --r 0.8 --alpha design
+"""
+
+
+def register(sub) -> None:
+    """Add the ``validate`` sub-command to the CLI's sub-parsers."""
+    p = sub.add_parser("validate", help="predicted against simulated coverage, per angle",
+                       description=DESCRIPTION, epilog=EXAMPLES,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_env_args(p)
+    p.add_argument("--angles", required=True, metavar="A1,A2,...",
+                   help="bouncing angles [deg], multiples of 360/K")
+    p.add_argument("--eps", type=float, default=0.0, metavar="DEG",
+                   help="rotation error range eps [deg], a multiple of 360/K (default 0)")
+    p.add_argument("--r", type=float, default=1.0, metavar="R",
+                   help="reliability, in [0, 1] (default 1)")
+    p.add_argument("--model", choices=list(MODELS), default="event",
+                   help="coverage model (default event)")
+    p.add_argument("--backend", choices=BACKENDS, default="kinematic",
+                   help="simulator (default kinematic)")
+    p.add_argument("--steps", type=int, default=None, metavar="N",
+                   help="simulated steps per angle, after the burn-in (default 1e6 "
+                   "kinematic, 2e4 pybullet)")
+    p.add_argument("--burn-in", type=int, default=None, metavar="N",
+                   help="steps per robot run first and not counted (default 200 kinematic, "
+                   "50 pybullet)")
+    p.add_argument("--alpha", default=None, metavar="A1,A2,...|design",
+                   help="also validate the mix with these weights over --angles, or 'design' "
+                   "for the model's best mix for the uniform target")
+    p.add_argument("--epoch", type=int, default=1000, metavar="STEPS",
+                   help="steps per epoch of the mix (default 1000)")
+    p.add_argument("--speed", type=float, default=0.3, metavar="M/S",
+                   help="PyBullet drive speed [m/s] (default 0.3)")
+    p.add_argument("--seed", type=int, default=0, help="root seed (default 0)")
+    p.add_argument("--out", type=Path, default=None, metavar="DIR",
+                   help="keep the sweep's journal, runs.csv and config.json here (a re-run "
+                   "resumes); default a temporary folder")
+    p.add_argument("--json", action="store_true", help="print one JSON object per angle")
+    add_executor_args(p)
+    p.set_defaults(func=run)
+
+
+# ----------------------------------------------------------------------------- simulate
+def simulate_trial(params: dict, rng: np.random.Generator) -> dict:
+    """One batch of robots (a sweep trial, pure in params + rng).
+
+    params: env (name or path), cell_size, orientations, angles and alpha (space-separated),
+    eps, r, backend, robots, steps (per robot, counted), burn_in, epoch, speed.
+    Returns counted, dropped, bumps, wall_s and counts (space-separated, per position cell).
+    """
+    env = envs.load(params["env"], cell_size=params["cell_size"],
+                    orientations=params["orientations"])
+    cs = CellSpace(env)
+    mix = PolicyMix(tuple(float(a) for a in params["angles"].split()),
+                    tuple(float(a) for a in params["alpha"].split()),
+                    float(params["eps"]), float(params["r"]))
+    n, steps = int(params["robots"]), int(params["steps"])
+    epoch, burn_in = int(params["epoch"]), int(params["burn_in"])
+    t0 = time.perf_counter()
+    if params["backend"] == "kinematic":
+        from ..robots.kinematic import KinematicBatch
+        res = KinematicBatch(env, n, rng, cells=cs).run(mix, steps, epoch=epoch,
+                                                        burn_in=burn_in)
+        counts, dropped, bumps = res.counts, res.dropped, res.bumps
+    else:
+        from ..robots.pybullet.batch import PyBulletBatch
+        with PyBulletBatch(env, n, rng, cells=cs, speed=float(params["speed"])) as batch:
+            res = batch.run(mix, steps, epoch=epoch, burn_in=burn_in)
+        counts, dropped, bumps = res.pooled, int(res.dropped.sum()), int(res.bumps.sum())
+    return {"counted": int(counts.sum()), "dropped": int(dropped), "bumps": int(bumps),
+            "wall_s": round(time.perf_counter() - t0, 3),
+            "counts": " ".join(str(int(c)) for c in counts)}
+
+
+# ----------------------------------------------------------------------------- predict
+def model_bump_rate(model, ac) -> float:
+    """Bumps per step the model predicts for one angle's :class:`AngleCoverage` ``ac``.
+
+    Event model: 1 / (mean steps per flight); step model: π summed over the configurations
+    whose step is a bump; sampled model: π weighted by each cell's bumping fraction.
+    """
+    if getattr(ac, "model", "") == "event":
+        return 1.0 / float(ac.steps_per_flight)
+    frac = getattr(model, "bump_frac", None)
+    if frac is None:
+        frac = (np.asarray(model.cs.forward) < 0).astype(float)
+    return float(np.asarray(ac.pi, dtype=float) @ np.asarray(frac, dtype=float))
+
+
+def _label(a: float) -> str:
+    return f"{int(round(a))}" if abs(a - round(a)) < 1e-9 else f"{a:g}"
+
+
+def _parse_alpha(text: str | None, model, angles, noise) -> tuple | None:
+    if text is None:
+        return None
+    if text.strip() == "design":
+        return tuple(float(a) for a in design_mix(model, angles, noise).alpha)
+    try:
+        alpha = [float(t) for t in text.replace(" ", "").split(",") if t]
+    except ValueError:
+        raise UserError(f"--alpha must be comma-separated weights or 'design', got "
+                        f"{text!r}.") from None
+    if (len(alpha) != len(angles) or not all(math.isfinite(a) and a >= 0 for a in alpha)
+            or sum(alpha) <= 0):
+        raise UserError(f"--alpha needs {len(angles)} non-negative weights with a positive "
+                        f"sum (one per angle), got {text!r}.")
+    s = sum(alpha)
+    return tuple(a / s for a in alpha)
+
+
+# ----------------------------------------------------------------------------- run
+def _check(args) -> None:
+    if args.steps is not None and args.steps < 2:
+        raise UserError(f"--steps must be at least 2, got {args.steps}.")
+    if args.burn_in is None:
+        args.burn_in = BURN_IN[args.backend]
+    if args.burn_in < 0:
+        raise UserError(f"--burn-in must be non-negative, got {args.burn_in}.")
+    if args.epoch < 1:
+        raise UserError(f"--epoch must be at least one step, got {args.epoch}.")
+    if not (math.isfinite(args.speed) and 0 < args.speed <= 0.5):
+        raise UserError(f"--speed must lie in (0, 0.5] m/s, got {args.speed:g}.")
+    if args.seed < 0:
+        raise UserError(f"--seed must be a non-negative integer, got {args.seed}.")
+
+
+def run(args) -> int:
+    """Run ``bouncesim validate``: predict, simulate, compare; print the table; exit status."""
+    _check(args)
+    env = load_env(args)
+    cs = make_cells(args, env)
+    noise = TurnNoise(args.eps, args.r)
+    angles = check_angles(cs.K, parse_angles(args.angles), noise)
+    out = writable_path(args.out, folder=True) if args.out is not None else None
+    backend = args.backend
+    total = args.steps if args.steps is not None else DEFAULT_STEPS[backend]
+    robots = ROBOTS[backend]
+    # two halves, each of at least one batch: an even number of trials per policy
+    trials_per = max(2, 2 * math.ceil(total / (2 * robots * PER_ROBOT[backend])))
+    per_robot = max(1, math.ceil(total / (trials_per * robots)))
+    if backend == "pybullet":
+        from ..robots.pybullet.robot import _import_pybullet
+        _import_pybullet()                      # one sentence when pybullet is missing
+    t0 = time.perf_counter()
+    model = model_for(cs, args.model)
+    per = [model.analyse(a, noise) for a in angles]
+    alpha = _parse_alpha(args.alpha, model, angles, noise)
+    policies = [(_label(a), (a,), (1.0,)) for a in angles]
+    q = {lab: ac.q for (lab, _, _), ac in zip(policies, per)}
+    bumps_model = {lab: model_bump_rate(model, ac) for (lab, _, _), ac in zip(policies, per)}
+    if alpha is not None:
+        mix = PolicyMix(tuple(angles), alpha, args.eps, args.r)
+        q["mix"] = timeshared_coverage(model, mix, epoch=args.epoch).q
+        bumps_model["mix"] = float(sum(a * bumps_model[_label(x)]
+                                       for x, a in zip(angles, alpha)))
+        policies.append(("mix", tuple(angles), alpha))
+    predict_s = time.perf_counter() - t0
+    trials = []
+    for lab, angs, al in policies:
+        for j in range(trials_per):
+            trials.append({"policy": lab, "half": j % 2, "env": args.env,
+                           "cell_size": args.cell_size, "orientations": cs.K,
+                           "angles": " ".join(repr(float(a)) for a in angs),
+                           "alpha": " ".join(repr(float(a)) for a in al),
+                           "eps": float(args.eps), "r": float(args.r), "backend": backend,
+                           "robots": robots, "steps": per_robot, "burn_in": args.burn_in,
+                           "epoch": args.epoch, "speed": float(args.speed)})
+    record = {"command": "validate", "model": args.model, "predict_s": round(predict_s, 3)}
+    progress = not args.no_progress and sys.stderr.isatty()
+    with tempfile.TemporaryDirectory() as tmp:
+        table = run_sweep(simulate_trial, trials, args.seed, out or Path(tmp), record,
+                          make_executor(args), progress=progress, name="runs")
+    rows = []
+    for lab, angs, al in policies:
+        sub = table[table.policy == lab]
+        halves = [sum(np.array(c.split(), dtype=float) for c in sub[sub.half == h].counts)
+                  for h in (0, 1)]
+        pooled = halves[0] + halves[1]
+        steps = int(sub.counted.sum() + sub.dropped.sum())
+        rows.append({"angle": lab if lab == "mix" else float(angs[0]),
+                     "tv": float(tv_distance(q[lab], pooled)),
+                     "floor": float(tv_distance(halves[0], halves[1])),
+                     "steps": steps, "dropped": int(sub.dropped.sum()),
+                     "bumps_per_step_model": bumps_model[lab],
+                     "bumps_per_step_sim": float(sub.bumps.sum()) / steps if steps else math.nan,
+                     "model": args.model, "backend": backend, "env": env.name,
+                     **({"alpha": list(al)} if lab == "mix" else {})})
+    if args.json:
+        for r in rows:
+            print_json(r)
+        return 0
+    print(f"{env.name}: {args.model} model against {backend} (K = {cs.K}, eps {args.eps:g}, "
+          f"r {args.r:g}, seed {args.seed})")
+    print(f"{'angle':>6} {'tv':>7} {'floor':>7} {'steps':>10} {'bumps/step model':>17} "
+          f"{'sim':>6}")
+    for r in rows:
+        a = r["angle"] if r["angle"] == "mix" else _label(r["angle"])
+        print(f"{a:>6} {r['tv']:7.4f} {r['floor']:7.4f} {r['steps']:10d} "
+              f"{r['bumps_per_step_model']:17.3f} {r['bumps_per_step_sim']:6.3f}")
+    return 0
+

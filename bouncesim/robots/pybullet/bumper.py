@@ -1,0 +1,52 @@
+"""The Create 2 bumper of a PyBullet body, read from its contact points with the walls.
+
+The bumper is the front arc of the disk: a contact point with a wall closer than 1 mm whose
+bearing from the heading lies within ± the arc closes the switch on its side (left for
+bearings ≥ −10°, right for ≤ 10°, so contacts within ±10° of straight ahead close both).
+"""
+
+from __future__ import annotations
+
+import math
+
+__all__ = ["CONTACT_TOLERANCE", "BUMP_CENTRE_DEG", "contact_bearing", "read_bumper"]
+
+CONTACT_TOLERANCE = 1e-3
+"""A contact point within this distance [m] closes the bumper."""
+BUMP_CENTRE_DEG = 10.0
+"""Contacts within ± this angle [deg] of straight ahead close both switches."""
+
+
+def _wrap_deg(a: float) -> float:
+    return (a + 180.0) % 360.0 - 180.0
+
+
+def contact_bearing(pos, x: float, y: float, yaw_deg: float) -> float:
+    """Bearing [deg] in [−180, 180) of the point ``pos`` seen from (x, y) heading ``yaw_deg``."""
+    return _wrap_deg(math.degrees(math.atan2(pos[1] - y, pos[0] - x)) - yaw_deg)
+
+
+def read_bumper(p, body: int, wall_set: frozenset, arc_deg: float, kw: dict,
+                contacts=None) -> tuple[bool, bool]:
+    """(left, right) bumper of body ``body``: its wall contacts (closer than 1 mm, bearing
+    within ± ``arc_deg`` [deg]; within ±10° both sides close). ``contacts``: the body's
+    contact points if already read.
+    """
+    if contacts is None:
+        contacts = p.getContactPoints(bodyA=body, linkIndexA=-1, **kw)
+    if not contacts:
+        return False, False
+    (x, y, _), orn = p.getBasePositionAndOrientation(body, **kw)
+    yaw = math.degrees(p.getEulerFromQuaternion(orn)[2])
+    left = right = False
+    for c in contacts:
+        if c[2] not in wall_set or c[8] > CONTACT_TOLERANCE:
+            continue
+        rel = contact_bearing(c[5], x, y, yaw)
+        if abs(rel) > arc_deg:
+            continue
+        if rel >= -BUMP_CENTRE_DEG:
+            left = True
+        if rel <= BUMP_CENTRE_DEG:
+            right = True
+    return left, right

@@ -1,0 +1,90 @@
+"""``bouncesim validate``: predicted against simulated coverage per angle.
+
+Independent evidence: the kinematic twin's histogram against the event model within a bound
+derived from the simulation's own noise floor (TV between two independent halves), the
+bump rates of model and twin, and the JSON schema. Bad inputs exit 2 with one line.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import math
+
+import pytest
+
+from bouncesim.cli import main
+
+KEYS = {"angle", "tv", "floor", "steps", "dropped", "bumps_per_step_model",
+        "bumps_per_step_sim", "model", "backend", "env"}
+LAB = ["validate", "lab", "--orientations", "72", "--eps", "5", "--r", "0.8", "--workers", "1",
+       "--no-progress"]
+
+
+def _rows(capsys) -> list[dict]:
+    return [json.loads(line) for line in capsys.readouterr().out.splitlines() if line.strip()]
+
+
+def test_kinematic_matches_the_event_model_within_the_noise(capsys):
+    """Lab at 75° and 315° and the 50/50 mix: TV(event q, twin) at most 1.5 × the floor plus
+    0.01 (the event model's binning error on lab is about 0.01, docs/model_continuous.md);
+    the floor compares two halves, each with √2 times the pooled histogram's noise, so a
+    right model sits near floor/2. Bumps per step agree within 0.02.
+    """
+    assert main(LAB + ["--angles", "75,315", "--alpha", "1,1", "--model", "event",
+                       "--steps", "100000", "--json"]) == 0
+    rows = _rows(capsys)
+    assert [r["angle"] for r in rows] == [75.0, 315.0, "mix"]
+    for r in rows:
+        assert set(r) >= KEYS
+        assert r["steps"] >= 100000 and r["backend"] == "kinematic" and r["env"] == "lab"
+        assert 0 < r["floor"] < 0.1
+        assert r["tv"] <= 1.5 * r["floor"] + 0.01, r
+        assert abs(r["bumps_per_step_model"] - r["bumps_per_step_sim"]) <= 0.02, r
+    assert rows[2]["alpha"] == [0.5, 0.5]
+
+
+def test_step_model_bump_rate_and_table(capsys):
+    """The step model's bump rate is π over its bump configurations: at K = 72 in lab it is
+    a number in (0, 1); the table prints one line per angle.
+    """
+    assert main(LAB + ["--angles", "75", "--model", "step", "--steps", "4000"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[1].split()[:3] == ["angle", "tv", "floor"]
+    assert len(out) == 3 and out[2].split()[0] == "75"
+    bm, bs = (float(v) for v in out[2].split()[-2:])
+    assert 0 < bm < 1 and 0 < bs < 1
+
+
+@pytest.mark.parametrize("argv", [
+    ["--angles", "77"],                                   # not a multiple of 5°
+    ["--angles", "75", "--steps", "1"],
+    ["--angles", "75,315", "--alpha", "1"],               # one weight for two angles
+    ["--angles", "75", "--alpha", "x"],
+    ["--angles", "75", "--epoch", "0"],
+    ["--angles", "75", "--speed", "2"],
+])
+def test_bad_inputs_exit_2_with_one_line(argv, capsys):
+    assert main(LAB + argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("bouncesim: error:")
+
+
+def test_unknown_env_exits_2(capsys):
+    assert main(["validate", "no_such_room", "--angles", "90"]) == 2
+    assert len(capsys.readouterr().err.strip().splitlines()) == 1
+
+
+@pytest.mark.slow
+@pytest.mark.physics
+@pytest.mark.skipif(importlib.util.find_spec("pybullet") is None, reason="needs pybullet")
+def test_pybullet_backend_few_steps(capsys):
+    """Two batches of 16 PyBullet robots, 4 counted steps each: the JSON row counts them all,
+    and the rates and distances are proper numbers.
+    """
+    assert main(LAB + ["--angles", "75", "--backend", "pybullet", "--steps", "128",
+                       "--burn-in", "2", "--json"]) == 0
+    (r,) = _rows(capsys)
+    assert r["backend"] == "pybullet" and r["steps"] == 128
+    assert 0 <= r["bumps_per_step_sim"] <= 1 and 0 < r["tv"] <= 1
+    assert math.isfinite(r["floor"])
