@@ -6,7 +6,8 @@ first use, so ``import bouncesim`` stays light and never needs pybullet or pyser
 - maps: :func:`load` (``envs.load``), :func:`env_names`, :func:`import_map`
   (``envs.map_import``: an occupancy-grid map as an environment);
 - cells: :class:`CellSpace` (``planners.cells``);
-- navigation: :class:`Navigator` (``planners.navigation``), :class:`Plan`;
+- navigation: :class:`Navigator` (``planners.navigation``, the paper's step model),
+  :class:`ExactNavigator` (``planners.exact``, exact bump poses), :class:`Plan`;
 - coverage: :func:`design_mix`, :func:`model_for`, :data:`MODELS`, :class:`TurnNoise`
   (``planners.coverage``), :class:`PolicyMix`, :func:`tv_distance`;
 - robots: :func:`make_robot`, :func:`noise_for_mix` (``bouncesim.robots``);
@@ -31,10 +32,10 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
-__all__ = ["MODELS", "CellSpace", "Navigator", "Plan", "PolicyMix", "Trace", "TurnNoise",
-           "design_mix", "draw_env", "draw_trace", "env_names", "execute", "heatmap", "import_map",
-           "load",
-           "make_robot", "model_for", "noise_for_mix", "save_figure", "tv_distance"]
+__all__ = ["MODELS", "CellSpace", "ExactNavigator", "Navigator", "Plan", "PolicyMix", "Trace",
+           "TurnNoise", "design_mix", "draw_env", "draw_trace", "env_names", "execute", "heatmap",
+           "import_map", "load", "make_robot", "model_for", "noise_for_mix", "save_figure",
+           "tv_distance"]
 
 # public name -> (module, attribute): imported on first access (PEP 562)
 _LAZY = {
@@ -43,6 +44,7 @@ _LAZY = {
     "import_map": ("envs.map_import", "import_map"),
     "CellSpace": ("planners.cells", "CellSpace"),
     "Navigator": ("planners.navigation", "Navigator"),
+    "ExactNavigator": ("planners.exact", "ExactNavigator"),
     "Plan": ("planners.plan", "Plan"),
     "PolicyMix": ("planners.plan", "PolicyMix"),
     "MODELS": ("planners.coverage", "MODELS"),
@@ -66,6 +68,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs only; at run time __getattr__ im
     from envs.map_import import import_map
     from planners.cells import CellSpace
     from planners.coverage import MODELS, TurnNoise, design_mix, model_for
+    from planners.exact import ExactNavigator
     from planners.metrics import tv_distance
     from planners.navigation import Navigator
     from planners.plan import Plan, PolicyMix
