@@ -137,15 +137,19 @@ def draw_env(ax: Axes, env: Any, cells: Any = None, grid: bool = True, *,
     ax.set_ylabel("y [m]")
 
 
-def draw_route(ax: Axes, cells: Any, path: Sequence[int], color: str = "#1f77b4",
+def draw_route(ax: Axes, cells: Any, path: Sequence, color: str = "#1f77b4",
                label: str | None = None, markers: bool = True) -> None:
-    """Draw a route through configuration cells: centres joined, an arrow per heading.
+    """Draw a planned route: its poses joined, an arrow per heading.
 
-    With ``markers`` the start is marked red and the goal green, with legend entries
-    ``start`` and ``goal``; ``path`` holds configuration indices z
-    (e.g. :attr:`planners.navigation.Route.path`).
+    ``path`` holds configuration indices z (a step-model route,
+    :attr:`planners.navigation.Route.path`: drawn through the cell centres) or poses
+    (x [m], y [m], heading [deg]) (an exact route, :attr:`planners.exact.ExactRoute.poses`:
+    the bump points themselves). With ``markers`` the start is marked red and the goal green,
+    with legend entries ``start`` and ``goal``.
     """
-    pts = np.array([cells.pose(z) for z in path])
+    pts = np.asarray(path, dtype=float)
+    if pts.ndim == 1:
+        pts = np.array([cells.pose(int(z)) for z in path])
     ax.plot(pts[:, 0], pts[:, 1], "-", color=color, lw=2, alpha=0.8, label=label)
     L = 0.35 * cells.h
     for x, y, deg in pts:
@@ -156,6 +160,12 @@ def draw_route(ax: Axes, cells: Any, path: Sequence[int], color: str = "#1f77b4"
     if markers:
         draw_pose(ax, pts[0], "start", length=1.2 * L)
         draw_pose(ax, pts[-1], "goal", length=1.2 * L)
+
+
+def route_label(path: Sequence) -> str:
+    """Legend entry of a planned route: cell centres (configuration indices) or exact poses."""
+    return ("planned (exact poses)" if np.asarray(path, dtype=float).ndim == 2
+            else "planned (cell centres)")
 
 
 def draw_pose(ax: Axes, pose: Sequence[float], kind: str = "start", label: str | None = None,
@@ -225,7 +235,7 @@ def plan_vs_executed(env: Any, cells: Any, path: Sequence[int] | None, trace: An
     fig, ax = plt.subplots(figsize=map_figsize(env))
     draw_env(ax, env, cells)
     if path is not None:
-        draw_route(ax, cells, path, label="planned (cell centres)", markers=False)
+        draw_route(ax, cells, path, label=route_label(path), markers=False)
     draw_trace(trace, ax=ax, goal=goal, legend=False, color=EXECUTED_COLOR)
     if title:
         fit_title(ax, title, fontsize=10)

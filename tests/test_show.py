@@ -245,6 +245,34 @@ def test_run_plan_plot_draws_plan_and_run(tmp_path, capsys, figures):
     assert set(np.round(planned.get_ydata(), 6)) == {0.17}
 
 
+def test_exact_plans_are_drawn_through_their_poses(tmp_path, capsys, figures):
+    # an exact plan's JSON holds the bump poses; show and run-plan --plot draw those, not the
+    # step model's cell centres (on studio the step model's replay does not even fit the map)
+    query = ["studio", "--angles", "45,90,135", "--start", "180", "--goal", "448",
+             "--planner", "exact"]
+    assert main(["plan", *query, "--json"]) == 0
+    plan = json.loads(capsys.readouterr().out.splitlines()[0])
+    poses = np.array(plan["path"])
+    (tmp_path / "plan.json").write_text(json.dumps(plan) + "\n")
+    _show(["studio", "--plan", str(tmp_path / "plan.json")], tmp_path)
+    assert main(["run-plan", *query, "--plot", str(tmp_path / "run.png"), "--quiet"]) == 0
+    for fig in figures:
+        line = next(ln for ln in fig.axes[0].lines if ln.get_label() == "planned (exact poses)")
+        assert np.column_stack(line.get_data()) == pytest.approx(poses[:, :2])
+    # the first pose is the start configuration's cell centre, the bumps lie on the walls
+    studio = CellSpace(envs.load("studio"))
+    assert poses[0] == pytest.approx(studio.pose(180))
+    walls = studio.env.free_space.boundary
+    from shapely.geometry import Point
+    for x, y, _ in poses[1:-1]:
+        assert walls.distance(Point(x, y)) == pytest.approx(studio.env.robot_radius, abs=0.01)
+    moved = dict(plan, path=(poses + [5.0, 0, 0]).tolist())
+    (tmp_path / "moved.json").write_text(json.dumps(moved) + "\n")
+    assert main(["show", "studio", "--plan", str(tmp_path / "moved.json"),
+                 "--out", str(tmp_path / "x.png")]) == 2
+    assert "another map" in capsys.readouterr().err
+
+
 def test_run_plan_plot_refuses_a_bad_name_before_running(tmp_path, capsys):
     rc = main(["run-plan", "lab", "--angles", "90,135", "--start", "8", "--goal", "0",
                "--plot", str(tmp_path / "run.gif")])

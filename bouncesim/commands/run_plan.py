@@ -213,6 +213,11 @@ def _robot_options(args) -> dict:
             "faults": args.fault, "lockstep": args.lockstep}
 
 
+def _planned(route):
+    """The route to draw: an exact route's poses, a step route's configurations."""
+    return route.poses if hasattr(route, "poses") else route.path
+
+
 def _plot(path, env, cells, route, result) -> None:
     """--plot: the planned route against the executed trace (a hardware run has no poses)."""
     from bouncesim.plots import plan_vs_executed, save_figure
@@ -222,5 +227,5 @@ def _plot(path, env, cells, route, result) -> None:
     status = "success" if result.success else "failure"
     title = (f"{env.name}: {route.start} → {route.goal}, plan {route.plan}; executed: "
              f"{status}")
-    save_figure(plan_vs_executed(env, cells, route.path, result.trace, goal=result.goal_pose,
+    save_figure(plan_vs_executed(env, cells, _planned(route), result.trace, goal=result.goal_pose,
                                  title=title), path, dpi=150)

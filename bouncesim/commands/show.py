@@ -107,9 +107,10 @@ def replay_plan(cells: CellSpace, plan: Plan, start: int) -> list[int]:
 
 
 def read_plan(path: Path, cells: CellSpace, start: int | None) -> tuple[int, int | None,
-                                                                          list[int], str]:
-    """(start, goal or None, path z, plan text) of a ``plan --json`` line or of an
-    observation string file (which needs ``start``).
+                                                                          list, str]:
+    """(start, goal or None, path, plan text) of a ``plan --json`` line or of an observation
+    string file (which needs ``start``). The path is the configurations z the step model
+    visits, or for an exact plan (``"planner": "exact"``) its poses (x, y, heading).
     """
     try:
         text = Path(path).read_text().strip()
@@ -136,6 +137,8 @@ def read_plan(path: Path, cells: CellSpace, start: int | None) -> tuple[int, int
         if start is not None:
             raise UserError("--plan with a JSON plan brings its start and goal; drop --start "
                             "and --goal.")
+        if obj.get("planner") == "exact":
+            return s, g, _exact_poses(obj, cells, path), str(Plan.from_json(obj))
         plan = Plan.parse(" ".join(str(v) for v in obj["plan"]) or "")
         z = replay_plan(cells, plan, s)
         if z[-1] != g:
@@ -146,6 +149,26 @@ def read_plan(path: Path, cells: CellSpace, start: int | None) -> tuple[int, int
         raise UserError("--plan with an observation string needs --start.")
     plan = Plan.parse(text)
     return start, None, replay_plan(cells, plan, start), str(plan)
+
+
+def _exact_poses(obj: dict, cells: CellSpace, path: Path) -> list:
+    """The poses of an exact plan's JSON, checked against the map: they start at the start
+    configuration's pose and lie in the room.
+    """
+    poses = obj.get("path")
+    try:
+        pts = np.asarray(poses, dtype=float)
+    except (TypeError, ValueError):
+        pts = np.empty((0, 0))
+    if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) < 2 or not np.isfinite(pts).all():
+        raise UserError(f"{path} lacks the exact poses (path) of `plan --planner exact --json`.")
+    x0, y0, x1, y1 = cells.env.bounds
+    inside = ((pts[:, 0] >= x0 - 1e-6) & (pts[:, 0] <= x1 + 1e-6)
+              & (pts[:, 1] >= y0 - 1e-6) & (pts[:, 1] <= y1 + 1e-6))
+    if not np.allclose(pts[0, :2], cells.pose(obj["start"])[:2], atol=1e-6) or not inside.all():
+        raise UserError(f"{path} was written for another map: its poses do not start at its "
+                        "start configuration or leave the room.")
+    return pts.tolist()
 
 
 def read_trace(path: Path):
@@ -209,6 +232,7 @@ def build_figure(args, env, cells):
         fit_title,
         map_figsize,
         map_legend,
+        route_label,
     )
     start = parse_config(args.start, cells, "start") if args.start is not None else None
     goal = parse_config(args.goal, cells, "goal") if args.goal is not None else None
@@ -243,7 +267,7 @@ def build_figure(args, env, cells):
         what.append("position ids p" if args.ids == "positions" else
                     f"configuration ids z = k·{cells.P} + p")
     if route is not None:
-        draw_route(ax, cells, route, label="planned (cell centres)", markers=False)
+        draw_route(ax, cells, route, label=route_label(route), markers=False)
         what.append(f"plan {plan_text}")
     if trace is not None:
         draw_trace(trace, ax=ax, legend=False, label="executed", color=EXECUTED_COLOR,
