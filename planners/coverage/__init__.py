@@ -11,6 +11,7 @@ Layout (imports flow down this list; nothing imports upwards):
 - :mod:`.step`, :mod:`.sampled`, :mod:`.event`: the three models (:class:`StepModel`,
   :class:`SampledModel`, :class:`EventModel`).
 - :mod:`.mix`: :func:`solve_mix` (α over the simplex) and :class:`MixDesign`.
+- :mod:`.horizon`: coverage over the first T steps and the time to the limit (§13).
 - :mod:`.api`: the registry :data:`MODELS`, :func:`model_for`, :func:`design_mix` and
   :func:`timeshared_coverage`.
 
@@ -38,6 +39,7 @@ from .api import (
 )
 from .base import AngleCoverage, CoverageModel, clear_cache
 from .event import EventModel, EventSettings, flight_steps
+from .horizon import Horizon, HorizonCoverage, horizon_coverage, steps_to_limit
 from .mix import MixDesign, MixFit, solve_mix
 from .noise import TurnNoise
 from .sampled import SampledModel, SampledSettings
@@ -47,6 +49,7 @@ from .targets import SPACES, TARGET_FORMATS, TargetError, load_target, uniform_t
 __all__ = ["MODELS", "AngleCoverage", "CoverageModel", "EventModel", "EventSettings",
            "MixDesign", "MixFit", "SampledModel", "SampledSettings", "SPACES", "StepModel",
            "StepSettings", "TARGET_FORMATS", "TargetError", "TurnNoise", "check_angles",
-           "check_model", "clear_cache", "default_settings", "design_mix", "flight_steps",
+           "check_model", "clear_cache", "Horizon", "HorizonCoverage", "horizon_coverage",
+           "steps_to_limit", "default_settings", "design_mix", "flight_steps",
            "load_target", "model_for", "solve_mix", "timeshared_coverage",
            "transition_matrix", "uniform_target"]
