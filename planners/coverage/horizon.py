@@ -273,29 +273,28 @@ class Horizon:
         RT = self.ts.RT
         t, todo = 0, list(horizons)
         while todo:
-            L = todo[0] - t if len(use) == 1 else min(E - t % E, todo[-1] - t)
-            marks = [T for T in todo if t < T <= t + L]
-            new, new_dep = np.zeros_like(hist), np.zeros(n)
-            at = {T: np.zeros(cs.P) for T in marks}
-            tot = {T: 0.0 for T in marks}
-            for i in use:
-                h, d, s = hist, dep.copy(), t
-                for T in marks + ([t + L] if not marks or marks[-1] != t + L else []):
-                    h, dd = self.ts.advance(WT[i], h, T - s)
-                    d += dd
-                    s = T
-                    if T in at:
-                        cut = self.tailsT @ h.reshape(-1).astype(float)
-                        at[T] += alpha[i] * (RT @ d - cut)
-                        tot[T] += alpha[i] * T
-                new += np.float32(alpha[i]) * h
-                new_dep += alpha[i] * d
-            hist, dep, t = new, new_dep, t + L
-            for T in marks:
-                todo.remove(T)
-                yield T, at[T], tot[T]
-                if stop is not None and stop(T, at[T]):
-                    return
+            end = todo[0] if len(use) == 1 else t + min(E - t % E, todo[-1] - t)
+            hs = dict.fromkeys(use, hist)
+            ds = {i: dep.copy() for i in use}
+            stops = [T for T in todo if t < T <= end]
+            if not stops or stops[-1] != end:
+                stops.append(end)
+            s = t
+            for T in stops:                  # angles in lockstep: stop() can end the pass
+                for i in use:
+                    hs[i], dd = self.ts.advance(WT[i], hs[i], T - s)
+                    ds[i] += dd
+                s = T
+                if T in todo:
+                    counts = sum(alpha[i] * (RT @ ds[i] - self.tailsT
+                                             @ hs[i].reshape(-1).astype(float)) for i in use)
+                    todo.remove(T)
+                    yield T, counts, float(T)
+                    if stop is not None and stop(T, counts):
+                        return
+            hist = sum(np.float32(alpha[i]) * hs[i] for i in use).astype(np.float32)
+            dep = sum(alpha[i] * ds[i] for i in use)
+            t = end
 
     def coverage(self, angles, horizon: int, *, noise: TurnNoise = _EXACT, alpha=None,
                  epoch: int | None = None, start=None) -> HorizonCoverage:
