@@ -50,7 +50,9 @@ def two_room(door: float = 0.34, orientations: int = 360) -> Environment:
     """
     if not 0 < door < 2.72:
         raise ValueError(f"the door must be between 0 and 2.72 m wide, got {door}.")
-    lo, hi = DOOR_Y - door / 2, DOOR_Y + door / 2
+    # rounded: 1.19 + 0.17 is 1.3599999999999999, 1e-16 narrower than the drawn door, and a
+    # one-robot door is a knife edge for the C-space (docs/readme_horizon.md)
+    lo, hi = round(DOOR_Y - door / 2, 9), round(DOOR_Y + door / 2, 9)
     x0, x1 = WALL_X
     obs = [[[x0, hi], [x1, hi], [x1, 2.72], [x0, 2.72]],
            [[0.68, 1.70], [1.02, 1.70], [1.02, 2.04], [0.68, 2.04]],
