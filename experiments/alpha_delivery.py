@@ -20,6 +20,12 @@ Outputs (under ``--out``, default results/alpha_delivery/): ``alpha.csv`` (model
 promised, delivered, prediction error, noise floor, steps), ``config.json`` and the
 headline figure ``alpha_delivery.png`` (drawn from the CSV files alone).
 
+``--horizon T`` designs every α for the first T steps of a run (docs/model.md §17: each
+model's q_T from the uniform start, executed in ``--epoch`` epochs; SLSQP when epochs make the
+fit non-linear) and executes it for exactly T steps without burn-in (robots =
+max(twin robots, twin steps / T)); delivery.csv's ``horizon`` column says which (``limit``
+without it).
+
 ``--quick``: 72 orientations, 2·10^5 twin steps per estimate, one short PyBullet run.
 """
 
@@ -54,12 +60,17 @@ def _counts(rows) -> np.ndarray:
 
 def _trials(label, policy, K, config, twin_steps, pb_steps, pb_runs):
     out = []
+    robots, burn_in = config.twin_robots, config.twin_burn_in
+    if config.horizon is not None:          # exactly the first T steps of many robots
+        robots = max(robots, twin_steps // config.horizon)
+        twin_steps, burn_in = robots * config.horizon, 0     # steps: over the batch
+        pb_steps = min(pb_steps, config.horizon)
     for rep in (0, 1):
         base = {"label": label, "env": ENV, "orientations": K, "policy": policy,
-                "robots": config.twin_robots, "epoch": config.epoch, "speed": config.speed,
+                "robots": robots, "epoch": config.epoch, "speed": config.speed,
                 "replicate": rep}
         out.append({**base, "backend": "twin", "steps": twin_steps, "run": 0,
-                    "burn_in": config.twin_burn_in})
+                    "burn_in": burn_in})
         if pb_steps > 0:
             out += [{**base, "backend": "pybullet", "steps": pb_steps, "run": i, "burn_in": 0}
                     for i in range(pb_runs)]
@@ -124,6 +135,7 @@ class Config(SweepOptions):
     twin_burn_in : int        twin steps per robot before counting
     epoch : int               steps per epoch
     speed : float             PyBullet speed [m/s]
+    horizon : int or None     design and execute for the first T steps (None: the limit)
     quick : bool              recorded; ``main`` turns it into the smaller budget
     seed : int                root seed (the oracle's sweep uses seed + 1)
     out : Path                output folder
@@ -140,6 +152,7 @@ class Config(SweepOptions):
     twin_burn_in: int = 20_000
     epoch: int = 1000
     speed: float = 0.3
+    horizon: int | None = None
     quick: bool = False
     seed: int = 0
     out: Path = Path("results") / NAME
@@ -160,7 +173,8 @@ def run(config: Config) -> Path:
     alpha_rows, promised, trials, mixes = [], {}, [], {}
     for m in models:
         t0 = time.perf_counter()
-        res = design_mix(model_for(cs, m), ANGLES, TurnNoise(EPS, R))
+        res = design_mix(model_for(cs, m), ANGLES, TurnNoise(EPS, R), horizon=config.horizon,
+                         epoch=None if config.horizon is None else config.epoch)
         secs = time.perf_counter() - t0
         mixes[m] = res.mixed_q()
         promised[m] = tv_distance(mixes[m], b)
@@ -198,7 +212,9 @@ def run(config: Config) -> Path:
                 continue
             h = {rep: _counts(sel[sel.replicate == rep]) for rep in (0, 1)}
             pooled = h[0] + h[1]
-            rows.append({"label": label, "backend": backend, "promised": promised[label],
+            rows.append({"label": label, "backend": backend,
+                         "horizon": "limit" if config.horizon is None else config.horizon,
+                         "promised": promised[label],
                          "delivered": tv_distance(pooled, b),
                          "prediction_error": tv_distance(mixes[label], pooled),
                          "noise_floor": tv_distance(h[0], h[1]),
@@ -229,6 +245,8 @@ def main(argv=None) -> int:
                    help="twin steps per robot before counting (default 20000; quick 2000)")
     p.add_argument("--epoch", type=int, default=1000, help="steps per epoch (default 1000)")
     p.add_argument("--speed", type=float, default=0.3, help="PyBullet speed [m/s]")
+    p.add_argument("--horizon", type=int, default=None, metavar="T",
+                   help="design and execute every mix for the first T steps (default: limit)")
     add_executor_args(p)
     args = p.parse_args(argv)
     q = args.quick
@@ -241,7 +259,8 @@ def main(argv=None) -> int:
         pybullet_runs=args.pybullet_runs or (1 if q else 4),
         twin_burn_in=(args.twin_burn_in if args.twin_burn_in is not None
                       else (2000 if q else 20_000)),
-        epoch=args.epoch, speed=args.speed, quick=q, seed=args.seed, out=args.out,
+        epoch=args.epoch, speed=args.speed, horizon=args.horizon, quick=q, seed=args.seed,
+        out=args.out,
         workers=args.workers, dask_local=args.dask_local, dask=args.dask,
         progress=not args.no_progress)
     run(config)

@@ -192,6 +192,14 @@ class TimeShared:
         p = (-steps) % D
         return buf[p + 1:p + 1 + D].copy(), dep
 
+    def advance(self, WT, hist: np.ndarray, steps: int):
+        """Run ``steps`` steps of one angle (``WT``: its turn matrix transposed, float32) from
+        the boundary state ``hist`` (D, n) = (v_{t−1}, …, v_{t−D}); returns (end state (D, n),
+        Σ v_t over the steps (n,) float64). The horizons of :mod:`planners.coverage.horizon`
+        run on this.
+        """
+        return self._epoch(WT, np.asarray(hist, dtype=np.float32), int(steps))
+
     def run(self, turns, alpha, epoch: int, *, tol: float = TOL,
             max_epochs: int | None = None, progress=None) -> TimeSharedCoverage:
         """Coverage of the mix: angle i's turn matrix ``turns[i]`` (n × n) with weight α_i.

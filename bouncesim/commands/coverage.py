@@ -22,6 +22,7 @@ from planners.coverage import (
     SPACES,
     STATE_KINDS,
     TARGET_FORMATS,
+    Horizon,
     MixDesign,
     TurnNoise,
     check_angles,
@@ -30,8 +31,10 @@ from planners.coverage import (
     group_cells,
     load_target,
     model_for,
+    steps_to_limit,
     timeshared_coverage,
 )
+from planners.coverage.horizon import CAP, per_step_limit
 from planners.metrics import tv_distance
 
 from .common import (
@@ -70,6 +73,14 @@ steps, each with one angle drawn with probabilities alpha; the robot carries its
 epoch to epoch): alpha.json gains "timeshared" (its TV to the target and to A alpha),
 coverage.csv the series "mix_epochs" and the plots heatmap_mix_epochs_vs_target.png. Where
 an angle mixes slowly (a pocket the robot leaks into rarely) the two differ a lot.
+
+With --horizon T everything is for the first T steps of a run instead of the limit
+(docs/model.md section 17): coverage.csv's q and the heatmaps are the expected share of the
+first T steps in each cell (from the uniform start, or --start), alpha is fitted to that (with
+--epoch: as executed in epochs, by SLSQP; alpha.json reports its convergence), and alpha.json
+reports per angle and for the mix "steps_to_limit": the first T on a 2^(1/8) grid from 100
+at which the coverage from the uniform start is within TV 0.05 of the limit (null: not up to
+--limit-cap steps or within --limit-seconds), with a warning when T is far below it.
 """
 
 EXAMPLES = """\
@@ -81,6 +92,8 @@ examples:
       --model-option bin_length=0.01
   bouncesim coverage fig1 --orientations 72 --angles 30,75,315 --eps 5 --r 0.8 --model event \
       --epoch 1000
+  bouncesim coverage two_room.json --orientations 72 --angles 30,75,315 --eps 5 --r 0.8 \
+      --model event --horizon 2000 --start 0.51,1.19,0
 
 """ + TARGET_FORMATS
 
@@ -117,6 +130,16 @@ def register(sub) -> None:
                    help="also predict the mix as it is executed: epochs of STEPS steps, each "
                    "with one angle drawn with probabilities alpha (docs/model.md section 8); "
                    "positions only")
+    p.add_argument("--horizon", type=int, default=None, metavar="STEPS",
+                   help="coverage of the first STEPS steps instead of the limit, alpha fitted "
+                   "to it, and each policy's steps_to_limit (docs/model.md section 17)")
+    p.add_argument("--start", default=None, metavar="S",
+                   help="with --horizon: start configuration z or pose X,Y,DEG (default: "
+                   "uniform over the configurations)")
+    p.add_argument("--limit-cap", type=int, default=CAP, metavar="STEPS",
+                   help=f"largest T steps_to_limit tries (default {CAP:.0e})")
+    p.add_argument("--limit-seconds", type=float, default=60.0, metavar="S",
+                   help="time budget of steps_to_limit per policy [s] (default 60)")
     add_output(p, "--out", folder=True, default=None, metavar="DIR",
                help="output folder (CSV, JSON, PNG); without it only the table is printed")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG heatmaps")
@@ -158,6 +181,18 @@ def run(args) -> int:
         if args.target_space != "positions":
             raise UserError("--epoch predicts coverage over position cells only; use "
                             "--target-space positions.")
+    start = None
+    if args.horizon is not None:
+        if args.horizon < 1:
+            raise UserError(f"--horizon must be at least one step, got {args.horizon}.")
+        if args.target_space != "positions":
+            raise UserError("--horizon predicts coverage over position cells only; use "
+                            "--target-space positions.")
+        if args.start is not None:
+            from .plan import parse_config
+            start = parse_config(args.start, cs, "start")
+    elif args.start is not None:
+        raise UserError("--start needs --horizon (the limit does not depend on the start).")
     check_fits(args, cs, angles, task="coverage", eps_deg=args.eps, model=args.model,
                settings=settings)
     if args.out is not None:
@@ -165,7 +200,8 @@ def run(args) -> int:
     flush_warnings()
     model = model_for(cs, args.model, settings)
     result = design_mix(model, angles, noise, target=target, space=args.target_space,
-                        progress=_progress(len(angles)))
+                        progress=_progress(len(angles)), horizon=args.horizon,
+                        epoch=args.epoch, start=start)
     summary = summarise(result, cs, env.name, target_desc)
     summary["model"] = args.model
     summary["states"] = {"kind": STATE_KINDS.get(args.model, "states"),
@@ -185,6 +221,8 @@ def run(args) -> int:
             "tv_to_A_alpha": tv_distance(ts.q, result.mixed_q()),
             "epoch_iterations": ts.epochs, "converged": ts.converged,
             "error_estimate": ts.error_estimate, "counted_fraction": ts.counted_fraction}
+    if args.horizon is not None:
+        summary["horizon"] = horizon_report(model, result, args, start, timeshared)
     if args.out is not None:
         write_outputs(result, cs, args.out, summary, plots=not args.no_plots,
                       timeshared=timeshared)
@@ -196,6 +234,33 @@ def run(args) -> int:
             print(f"wrote {args.out}/coverage.csv, alpha.json"
                   + ("" if args.no_plots else " and heatmaps"))
     return 0
+
+
+def horizon_report(model, result: MixDesign, args, start, timeshared_q) -> dict:
+    """alpha.json's "horizon": T, start, per-angle and mix TV to the limit and steps_to_limit
+    (docs/model.md section 17); warns on stderr when T is far below a steps_to_limit.
+    """
+    hz = Horizon(model)
+    T, noise = int(args.horizon), result.noise
+    kw = {"noise": noise, "cap": args.limit_cap, "max_seconds": args.limit_seconds}
+    per = []
+    limits = [per_step_limit(model, a) for a in result.per_angle]
+    for a, col, lim in zip(result.per_angle, result.A.T, limits):
+        stl = steps_to_limit(hz, [a.angle], lim, **kw)
+        per.append({"angle": _num(a.angle), "tv_to_limit": tv_distance(col, lim), **stl})
+    mix_limit = limits[0] if len(result.angles) == 1 else (
+        timeshared_q if timeshared_q is not None else np.column_stack(limits) @ result.alpha)
+    stl = steps_to_limit(hz, result.angles, mix_limit, alpha=result.alpha,
+                         epoch=args.epoch, **kw)
+    mix = {"tv_to_limit": tv_distance(result.mixed, mix_limit), **stl}
+    for name, r in [*((f"{p['angle']}°", p) for p in per), ("the mix", mix)]:
+        if r["steps"] is None or T < r["steps"] / 4:
+            need = (f"more than {r['last']}" if r["steps"] is None else str(r["steps"]))
+            print(f"warning: --horizon {T} is far below the {need} steps {name} needs to come "
+                  f"within TV {r['tol']} of its limit (TV at T: {r['tv_to_limit']:.3f}); "
+                  "the limit does not describe this horizon.", file=sys.stderr)
+    return {"T": T, "start": "uniform" if start is None else int(start), "epoch": args.epoch,
+            "convergence": result.convergence, "per_angle": per, "mix": mix}
 
 
 def parse_model_options(model: str, options) -> object | None:
@@ -252,6 +317,14 @@ def format_table(summary: dict) -> str:
                      f"share of the {states['count']} {states['kind']} in no group")
     lines.append(f"residual ||A alpha - b||_2 = {summary['residual']:.6g}, "
                  f"TV = {summary['tv']:.6g}")
+    hz = summary.get("horizon")
+    if hz:
+        lines.append(f"over the first {hz['T']} steps (start {hz['start']}); steps to the "
+                     "limit (TV <= 0.05):")
+        for r in [*hz["per_angle"], {**hz["mix"], "angle": "mix"}]:
+            stl = r["steps"] if r["steps"] is not None else f"> {r['last']}"
+            lines.append(f"{str(r['angle']):>7}  TV(q_T, limit) = {r['tv_to_limit']:.4f}  "
+                         f"steps_to_limit = {stl}")
     ts = summary.get("timeshared")
     if ts:
         note = "" if ts["converged"] else \
@@ -271,7 +344,8 @@ def write_outputs(result: MixDesign, cs: CellSpace, out_dir, summary: dict,
     mixed = result.mixed_q()
     target_q = result.target if result.space == "positions" else \
         result.target.reshape(cs.K, cs.P).sum(axis=0)
-    series = [(_num(a.angle), a.q) for a in result.per_angle]
+    qs = [a.q for a in result.per_angle] if result.horizon is None else list(result.columns.T)
+    series = [(_num(a.angle), q) for a, q in zip(result.per_angle, qs)]
     series += [("mix", mixed), ("target", target_q)]
     if timeshared is not None:
         series.append(("mix_epochs", timeshared))
@@ -295,9 +369,10 @@ def write_outputs(result: MixDesign, cs: CellSpace, out_dir, summary: dict,
     (out / "alpha.json").write_text(json.dumps(summary, indent=2) + "\n")
     if plots:
         from bouncesim.coverage_plots import save_heatmap, save_mix_vs_target
-        for a in result.per_angle:
-            save_heatmap(out / f"heatmap_angle_{_num(a.angle)}.png", cs, a.q,
-                         title=f"{cs.env.name}: coverage of {_num(a.angle)}° "
+        over = "" if result.horizon is None else f" over {result.horizon} steps"
+        for a, q in zip(result.per_angle, qs):
+            save_heatmap(out / f"heatmap_angle_{_num(a.angle)}.png", cs, q,
+                         title=f"{cs.env.name}: coverage of {_num(a.angle)}°{over} "
                          f"(eps {_num(result.eps)}°, r {result.r:g})")
         alpha_title = "alpha = " + ", ".join(f"{_num(a)}°: {al:.3f}" for a, al in
                                              zip(result.angles, result.alpha))

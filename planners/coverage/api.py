@@ -37,6 +37,7 @@ from ..plan import PolicyMix
 from ..timeshare import TimeSharedCoverage, timeshared
 from .base import CoverageModel
 from .event import EventModel
+from .horizon import Horizon, fit_horizon_mix
 from .mix import MixDesign, solve_mix
 from .noise import TurnNoise
 from .sampled import SampledModel
@@ -107,7 +108,9 @@ def check_angles(K: int, angles: Iterable[float], noise: TurnNoise) -> tuple:
 
 def design_mix(model: CoverageModel, angles: Iterable[float], noise: TurnNoise = _EXACT,
                target: ArrayLike | None = None, space: str = "positions",
-               progress: Callable[[Iterable], Iterable] | None = None) -> MixDesign:
+               progress: Callable[[Iterable], Iterable] | None = None,
+               horizon: int | None = None, epoch: int | None = None,
+               start=None) -> MixDesign:
     """Algorithm 3 on any model: every angle's coverage, and the mix that best meets a target.
 
     Parameters
@@ -121,6 +124,17 @@ def design_mix(model: CoverageModel, angles: Iterable[float], noise: TurnNoise =
         Fit Aα to b over position cells (A's columns are q) or over configurations (π);
         configurations only for models whose states are the configurations (``step``).
     progress : callable, optional   wraps the iterable of angles (e.g. ``tqdm``)
+    horizon : int, optional
+        Fit α to the coverage expected over the first ``horizon`` steps (docs/model.md §17)
+        instead of the limit; positions only. The per-angle limits are still in
+        ``per_angle``.
+    epoch : int, optional
+        With a horizon: steps per epoch of the executed mix (docs/model.md §8). Then q_T(α) is
+        not linear in α: the linear fit on the angles' q_T is the start of an SLSQP on the
+        simplex (scipy, finite-difference gradient) of ‖q_T(α) − b‖₂², reported in
+        ``convergence``. Without it (or with epoch ≥ horizon) each run keeps one angle and
+        the fit is the exact linear one.
+    start : optional   start of the horizon (:func:`~planners.coverage.horizon.start_distribution`)
 
     Returns
     -------
@@ -137,10 +151,16 @@ def design_mix(model: CoverageModel, angles: Iterable[float], noise: TurnNoise =
     it = progress(angles) if progress else angles
     per = tuple(model.analyse(a, noise) for a in it)
     A = np.column_stack([a.q if space == "positions" else a.pi for a in per])
-    fit = solve_mix(A, b)
-    return MixDesign(model=model.name, angles=angles, noise=noise, space=space,
-                     per_angle=per, target=b, alpha=fit.alpha, residual=fit.residual,
-                     tv=fit.tv, mixed=fit.mixed, method=fit.method)
+    if horizon is None:
+        fit = solve_mix(A, b)
+        return MixDesign(model=model.name, angles=angles, noise=noise, space=space,
+                         per_angle=per, target=b, alpha=fit.alpha, residual=fit.residual,
+                         tv=fit.tv, mixed=fit.mixed, method=fit.method)
+    if space != "positions":
+        raise UserError("a horizon predicts coverage over position cells only; use "
+                        "--target-space positions.")
+    return fit_horizon_mix(Horizon(model), angles, noise, b, int(horizon), epoch, per,
+                           start=start)
 
 
 def timeshared_coverage(model: CoverageModel, mix: PolicyMix, epoch: int = 1000, **kw

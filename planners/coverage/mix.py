@@ -158,8 +158,16 @@ class MixDesign(NoiseView):
     alpha : ndarray (m,)          the mix (α ≥ 0, Σα = 1)
     residual : float              ‖Aα − b‖₂ (2-norm, not squared)
     tv : float                    ½‖Aα − b‖₁, the promised TV to the target
-    mixed : ndarray               Aα over the space
-    method : str                  the solver (see :func:`solve_mix`)
+    mixed : ndarray               Aα over the space (for a horizon: q_T(α), as executed)
+    method : str                  the solver (see :func:`solve_mix`; "slsqp-horizon" when a
+                                  horizon with epochs made the fit non-linear)
+    horizon : int or None         T [steps] the mix was designed for (docs/model.md §17);
+                                  None: the limit
+    epoch : int or None           steps per epoch the horizon fit assumed (None: one angle
+                                  per run, linear in α)
+    columns : ndarray or None     (P, m) the angles' coverage over the horizon (A's columns)
+    convergence : dict or None    horizon fit with epochs: iterations, projected gradient
+                                  norm, objective, SLSQP status and message
     """
 
     model: str
@@ -173,6 +181,10 @@ class MixDesign(NoiseView):
     tv: float
     mixed: np.ndarray
     method: str
+    horizon: int | None = None
+    epoch: int | None = None
+    columns: np.ndarray | None = None
+    convergence: dict | None = None
 
     @property
     def mix(self) -> PolicyMix:
@@ -182,10 +194,14 @@ class MixDesign(NoiseView):
 
     @property
     def A(self) -> np.ndarray:
-        """The matrix the mix was fitted on: one column per angle (q or π)."""
+        """The matrix the mix was fitted on: one column per angle (q, q_T or π)."""
+        if self.columns is not None:
+            return self.columns
         cols = [a.q if self.space == "positions" else a.pi for a in self.per_angle]
         return np.column_stack(cols)
 
     def mixed_q(self) -> np.ndarray:
-        """Mixed coverage over position cells, Σ α_i q_i."""
+        """Mixed coverage over position cells, Σ α_i q_i (for a horizon: q_T(α))."""
+        if self.horizon is not None:
+            return self.mixed
         return np.column_stack([a.q for a in self.per_angle]) @ self.alpha

@@ -1,0 +1,428 @@
+"""Coverage over a horizon of T steps, and the time a policy needs to reach its limit
+(docs/model.md §17).
+
+docs/model.md §7 predicts the *limiting* coverage. On a map whose rooms exchange the robot
+rarely the limit can be days of driving away; a user who runs the robot for T steps wants
+the expected fraction of *those* T steps spent in each cell. This module computes it with
+the model's own dynamics, step by step, through the delay chain of :mod:`planners.timeshare`
+(a horizon is one run of T steps from the start, no fixed point):
+
+- :class:`Horizon`: a model's delay chain extended for horizons: per-step rewards, so that a
+  flight cut by T counts only the steps made before T, and (event model) the first flights
+  from the cell-centre starts, whose steps are counted too.
+- :func:`horizon_coverage`: q_T of one angle or of a mix executed in epochs (docs/model.md §8),
+  from the uniform start or a given start.
+- :func:`steps_to_limit`: the smallest T (on a geometric grid of ratio 2^(1/8) from 100) at
+  which q_T from the uniform start is within TV ``tol`` (0.05) of the limit, or None above
+  the cap. One pass of the recursion serves every grid point.
+
+Two cells in a row at K = 4 with φ = 180°: from the uniform start half of the robots shuttle
+east-west, half north-south, and the step model's q_T is uniform at every T:
+
+>>> import envs
+>>> from planners.cells import CellSpace
+>>> from planners.coverage import model_for
+>>> env = envs.Environment.from_dict({"boundary": [[0, 0], [0.68, 0], [0.68, 0.34],
+...     [0, 0.34]], "discretization": {"cell_size": 0.34, "orientations": 4}})
+>>> hz = Horizon(model_for(CellSpace(env), "step"))
+>>> hz.coverage([180], horizon=3).q.round(6).tolist()
+[0.5, 0.5]
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.optimize import minimize
+
+from envs import UserError
+from envs.motion import casters, flight_steps, unit
+
+from ..metrics import tv_distance
+from ..timeshare import DelayChain, TimeShared
+from .event import _INTO_TOL, _cast  # the event model's own caster and test
+from .mix import MixDesign, solve_mix
+from .noise import TurnNoise
+
+__all__ = ["Horizon", "HorizonCoverage", "horizon_coverage", "steps_to_limit",
+           "start_distribution", "fit_horizon_mix", "per_step_limit", "CAP", "LIMIT_TV", "grid"]
+
+CAP = 10_000_000        # default cap [steps] of steps_to_limit
+LIMIT_TV = 0.05         # default TV at which q_T counts as at the limit
+_GRID0 = 100            # first horizon of the steps_to_limit grid [steps]
+_GRID_RATIO = 2 ** (1 / 8)
+_EXACT = TurnNoise()
+
+
+@dataclass(frozen=True, eq=False)
+class HorizonCoverage:
+    """Expected coverage of the first T steps (docs/model.md §17).
+
+    Attributes
+    ----------
+    q : (P,) ndarray            expected fraction of the counted steps in each cell (sum 1)
+    horizon : int               T [steps]
+    epoch : int                 steps per epoch (T for one angle)
+    counted_fraction : float    expected share of the T steps counted in a free cell
+    seconds : float
+    """
+
+    q: np.ndarray
+    horizon: int
+    epoch: int
+    counted_fraction: float
+    seconds: float
+
+
+def grid(cap: int = CAP) -> list[int]:
+    """The horizons steps_to_limit tests: round(100 · 2^(k/8)) up to ``cap``, distinct.
+
+    >>> grid(200)
+    [100, 109, 119, 130, 141, 154, 168, 183, 200]
+    """
+    out, k = [], 0
+    while True:
+        t = int(round(_GRID0 * _GRID_RATIO ** k))
+        if t > cap:
+            break
+        if not out or t > out[-1]:
+            out.append(t)
+        k += 1
+    return out
+
+
+def start_distribution(cs, start=None) -> np.ndarray:
+    """A start as a distribution over the N configurations (docs/model.md §17).
+
+    ``None``: uniform (docs/model.md §9); an int z: that configuration; an array of N
+    non-negative weights: normalised.
+    """
+    if start is None:
+        return np.full(cs.N, 1.0 / cs.N)
+    if np.ndim(start) == 0:
+        z = int(start)
+        if not 0 <= z < cs.N:
+            raise UserError(f"start {z} is out of range: configurations are 0 to {cs.N - 1}.")
+        out = np.zeros(cs.N)
+        out[z] = 1.0
+        return out
+    w = np.asarray(start, dtype=float).ravel()
+    if w.shape != (cs.N,) or not np.all(np.isfinite(w)) or (w < 0).any() or not w.sum() > 0:
+        raise UserError(f"a start distribution needs {cs.N} non-negative weights with a "
+                        "positive sum.")
+    return w / w.sum()
+
+
+def _event_steps(model):
+    """Per-step cells of the event model's flights and of its first flights from the cell
+    centres: (flight, offset m, cell, weight) of every counted step, delays of the first
+    flights and their landing (pre-turn) states.
+
+    The flight geometry is recomputed exactly as :class:`~planners.coverage.event.EventModel`
+    builds it (same start points, casts and step rule) and checked against its flights.
+    """
+    cs, st, bd = model.cs, model.settings, model.boundary
+    K, n, h = cs.K, model.n_states, cs.h
+    S = int(st.samples)
+    state = np.repeat(np.arange(n), S)
+    b, k = state // K, state % K
+    frac = np.tile((np.arange(S) + 0.5) / S, n)
+    pts, seg = bd.points(b, frac, return_segment=True)
+    uk = unit(np.arange(K) * cs.delta_deg)
+    u = uk[k]
+    into = (u * bd.seg_inward[seg]).sum(axis=1) < -_INTO_TOL
+    caster = casters(cs.env)[0]
+    dist = np.zeros(len(pts))
+    dist[~into] = _cast(caster, pts[~into], u[~into])
+    n_fwd = flight_steps(dist, h)
+    if not np.array_equal(n_fwd + 1, np.asarray(model.flights[2])):
+        raise RuntimeError("the event model's flights differ from their recomputation.")
+    # first flights from the cell centres, configuration z = k·P + p
+    p0 = np.tile(np.arange(cs.P), K)
+    k0 = np.repeat(np.arange(K), cs.P)
+    c0 = cs.centres[p0]
+    d0 = _cast(caster, c0, uk[k0])
+    n0 = flight_steps(d0, h)
+    land0 = bd.bin_of(c0 + d0[:, None] * uk[k0]) * K + k0
+    # every counted step: flights f < F, then first flights F + z
+    F = state.size
+    pos = np.concatenate([pts, c0])
+    uu = np.concatenate([u, uk[k0]])
+    nf = np.concatenate([n_fwd, n0])
+    dd = np.concatenate([dist, d0])
+    w = np.concatenate([np.full(F, 1.0 / S), np.ones(cs.N)])
+    idx = np.repeat(np.arange(nf.size), nf)
+    m = np.arange(idx.size) - np.repeat(np.cumsum(nf) - nf, nf)
+    fcell = cs.cell_of_point(pos[idx] + (m * h)[:, None] * uu[idx])
+    bcell = cs.cell_of_point(pos + dd[:, None] * uu)
+    fl = np.concatenate([idx, np.arange(nf.size)])
+    off = np.concatenate([m, nf])
+    cell = np.concatenate([fcell, bcell])
+    ok = cell >= 0
+    return (fl[ok], off[ok], cell[ok], w[fl[ok]]), n0 + 1, land0
+
+
+class Horizon:
+    """A coverage model prepared for horizons: its delay chain with per-step rewards.
+
+    Parameters
+    ----------
+    model : CoverageModel   any of :data:`planners.coverage.MODELS`
+
+    Notes
+    -----
+    State of the recursion (docs/model.md §12): the departures v_{t−1} … v_{t−D}. A departure
+    at t makes its flight's steps at t + 1 … t + d; so the steps 0 … T−1 are those of the
+    departures at −1 … T−2, and the count of the first T steps is
+    Rᵀ(v_{−1} + Σ_{t<T} v_t) − Σ_j Q_jᵀ v_{T−1−j}, with Q_j (n × P) the steps a flight makes
+    at offsets m ≥ j (Q_0 = R). For the step and sampled models v_{−1} is the start
+    distribution over the configurations (D = 1); for the event model it sits on N extra
+    states, the first flights from the cell centres, whose steps are counted too.
+    """
+
+    def __init__(self, model) -> None:
+        t0 = time.perf_counter()
+        self.model = model
+        cs = model.cs
+        base = model.delay_chain()
+        n = base.n
+        if n == cs.N and int(np.max(base.delay)) == 1:          # step, sampled
+            self.chain = base
+            self.offset = 0
+            self.n = n
+            tails = sp.csr_matrix(base.reward)
+        else:                                                     # event
+            (fl, off, cell, w), d0, land0 = _event_steps(model)
+            src = np.concatenate([base.src, n + np.arange(cs.N)])
+            self.n = nt = n + cs.N
+            self.offset = n
+            srcf = src[fl]
+            reward = sp.csr_matrix((w, (srcf, cell)), shape=(nt, cs.P))
+            reward.sum_duplicates()
+            if abs(reward[:n] - base.reward).max() > 1e-9:
+                raise RuntimeError("the event model's rewards differ from their recomputation.")
+            self.chain = DelayChain(src=src, dst=np.concatenate([base.dst, land0]),
+                                    delay=np.concatenate([base.delay, d0]),
+                                    weight=np.concatenate([base.weight, np.ones(cs.N)]),
+                                    reward=sp.csr_matrix(reward), start=np.zeros(nt))
+            # Q_j: rows j·nt + src of every step at offset m ≥ j
+            rep = off + 1
+            j = np.arange(rep.sum()) - np.repeat(np.cumsum(rep) - rep, rep)
+            rows = j * nt + np.repeat(srcf, rep)
+            tails = sp.csr_matrix((np.repeat(w, rep), (rows, np.repeat(cell, rep))),
+                                  shape=(int(self.chain.delay.max()) * nt, cs.P))
+            tails.sum_duplicates()
+        self.ts = TimeShared(self.chain)
+        D = self.ts.D
+        if tails.shape[0] < D * self.n:
+            tails = sp.vstack([tails, sp.csr_matrix((D * self.n - tails.shape[0], cs.P))])
+        self.tailsT = sp.csr_matrix(tails.T)
+        self.seconds = time.perf_counter() - t0
+
+    def _turns(self, angles, noise: TurnNoise) -> list:
+        out = []
+        for a in angles:
+            W = self.model.turn_matrix(a, noise)
+            if self.offset:
+                W = sp.block_diag((W, sp.csr_matrix((self.model.cs.N,) * 2)), format="csr")
+            out.append(sp.csr_matrix(W.T).astype(np.float32))
+        return out
+
+    def run(self, angles, horizons, *, noise: TurnNoise = _EXACT, alpha=None,
+            epoch: int | None = None, start=None, stop=None):
+        """Counted steps per cell of the first T steps for every T in ``horizons``, in one pass.
+
+        Parameters
+        ----------
+        angles : sequence of float   bouncing angles [deg]
+        horizons : sequence of int   horizons T ≥ 1 [steps]
+        noise : TurnNoise
+        alpha : (m,) array, optional  the mix (default: one angle, m = 1)
+        epoch : int, optional        steps per epoch of a mix (default: each run keeps one
+                                     angle, drawn at step 0)
+        start : see :func:`start_distribution`
+        stop : callable, optional    stop(T, counts) → True ends the pass after that T
+
+        Yields
+        ------
+        (T, counts (P,), total steps)
+        """
+        cs = self.model.cs
+        angles = tuple(float(a) for a in angles)
+        alpha = np.ones(1) if alpha is None else np.asarray(alpha, dtype=float).ravel()
+        if alpha.size != len(angles) or (alpha < 0).any() or not alpha.sum() > 0:
+            raise UserError("a mix needs one non-negative α per angle, with a positive sum.")
+        alpha = alpha / alpha.sum()
+        use = [i for i in range(alpha.size) if alpha[i] > 0]
+        horizons = sorted({int(t) for t in horizons})
+        if not horizons or horizons[0] < 1:
+            raise UserError("a horizon must be at least one step.")
+        if epoch is not None and int(epoch) < 1:
+            raise UserError(f"an epoch must be at least one step, got {epoch}.")
+        E = int(epoch) if len(use) > 1 and epoch is not None else horizons[-1]
+        WT = dict(zip(use, self._turns([angles[i] for i in use], noise)))
+        D, n = self.ts.D, self.n
+        p0 = start_distribution(cs, start)
+        hist = np.zeros((D, n), dtype=np.float32)
+        hist[0, self.offset:self.offset + cs.N] = p0
+        dep = hist[0].astype(float)
+        RT = self.ts.RT
+        t, todo = 0, list(horizons)
+        while todo:
+            end = todo[0] if len(use) == 1 else t + min(E - t % E, todo[-1] - t)
+            hs = dict.fromkeys(use, hist)
+            ds = {i: dep.copy() for i in use}
+            stops = [T for T in todo if t < T <= end]
+            if not stops or stops[-1] != end:
+                stops.append(end)
+            s = t
+            for T in stops:                  # angles in lockstep: stop() can end the pass
+                for i in use:
+                    hs[i], dd = self.ts.advance(WT[i], hs[i], T - s)
+                    ds[i] += dd
+                s = T
+                if T in todo:
+                    counts = sum(alpha[i] * (RT @ ds[i] - self.tailsT
+                                             @ hs[i].reshape(-1).astype(float)) for i in use)
+                    todo.remove(T)
+                    yield T, counts, float(T)
+                    if stop is not None and stop(T, counts):
+                        return
+            hist = sum(np.float32(alpha[i]) * hs[i] for i in use).astype(np.float32)
+            dep = sum(alpha[i] * ds[i] for i in use)
+            t = end
+
+    def coverage(self, angles, horizon: int, *, noise: TurnNoise = _EXACT, alpha=None,
+                 epoch: int | None = None, start=None) -> HorizonCoverage:
+        """:class:`HorizonCoverage` of the first ``horizon`` steps (see :meth:`run`)."""
+        t0 = time.perf_counter()
+        (T, counts, total), = self.run(angles, [horizon], noise=noise, alpha=alpha,
+                                       epoch=epoch, start=start)
+        c = float(counts.sum())
+        if not c > 0:
+            raise UserError("the horizon counts no step in a free cell.")
+        return HorizonCoverage(q=counts / c, horizon=T, epoch=int(epoch or T),
+                               counted_fraction=c / total,
+                               seconds=time.perf_counter() - t0)
+
+
+def horizon_coverage(model, angles, horizon: int, **kw) -> HorizonCoverage:
+    """:meth:`Horizon.coverage` on a fresh :class:`Horizon` of ``model``."""
+    return Horizon(model).coverage(angles, horizon, **kw)
+
+
+def steps_to_limit(hz: Horizon, angles, limit_q, *, noise: TurnNoise = _EXACT, alpha=None,
+                   epoch: int | None = None, tol: float = LIMIT_TV, cap: int = CAP,
+                   max_seconds: float | None = None) -> dict:
+    """The smallest T on :func:`grid` at which q_T from the uniform start is within TV
+    ``tol`` of ``limit_q`` (docs/model.md §17).
+
+    Returns
+    -------
+    dict  ``steps`` (int, or None when no grid T up to the cap — or the time budget — gets
+          there), ``tv`` (TV at that T, or at the last T tried), ``last`` (last T tried),
+          ``cap``, ``seconds``
+    """
+    t0 = time.perf_counter()
+    limit_q = np.asarray(limit_q, dtype=float)
+    state = {"steps": None, "tv": math.nan, "last": 0}
+
+    def stop(T, counts):
+        tv = tv_distance(counts, limit_q)
+        state.update(last=T, tv=tv)
+        if tv <= tol:
+            state["steps"] = T
+            return True
+        return max_seconds is not None and time.perf_counter() - t0 > max_seconds
+
+    for _ in hz.run(angles, grid(cap), noise=noise, alpha=alpha, epoch=epoch, stop=stop):
+        pass
+    return {**state, "cap": int(cap), "tol": tol, "seconds": time.perf_counter() - t0}
+
+
+def fit_horizon_mix(hz: Horizon, angles, noise: TurnNoise, target, horizon: int,
+                    epoch: int | None, per_angle: tuple, *, start=None) -> MixDesign:
+    """α for a horizon (docs/model.md §17): the mix whose expected coverage of the first
+    ``horizon`` steps, executed in epochs of ``epoch`` steps, best meets ``target``.
+
+    The angles' q_T are A's columns and :func:`~planners.coverage.mix.solve_mix` gives the
+    exact linear fit, which is the answer when every run keeps one angle (``epoch`` None or
+    ≥ T). With shorter epochs q_T(α) is non-linear in α: scipy's SLSQP minimises
+    ‖q_T(α) − b‖₂² over the simplex from the linear α (gradient by central differences of
+    step 1e-4, each q_T(α) one horizon run); ``convergence`` reports its iterations, the
+    norm of the projected gradient at the end, the objective and SLSQP's status.
+    """
+    cols = np.column_stack([hz.coverage([a], horizon, noise=noise, start=start).q
+                            for a in angles])
+    fit = solve_mix(cols, target)
+    alpha, mixed, method, conv = fit.alpha, fit.mixed, fit.method, None
+    m = len(angles)
+    if epoch is not None and int(epoch) < horizon and m > 1:
+        def q_of(al):
+            al = np.clip(al, 0.0, None)
+            return hz.coverage(angles, horizon, noise=noise, alpha=al / al.sum(),
+                               epoch=epoch, start=start).q
+
+        def obj(al):
+            d = q_of(al) - target
+            return float(d @ d)
+
+        def grad(al, h=1e-4):
+            g = np.zeros(m)
+            for i in range(m):
+                e = np.zeros(m)
+                e[i] = h
+                g[i] = (obj(al + e) - obj(np.clip(al - e, 0.0, None))) / (2 * h)
+            return g
+
+        x0 = np.clip(fit.alpha, 1e-6, None)
+        x0 /= x0.sum()
+        res = minimize(obj, x0, jac=grad, method="SLSQP", bounds=[(0.0, 1.0)] * m,
+                       constraints=[{"type": "eq", "fun": lambda al: al.sum() - 1.0,
+                                     "jac": lambda al: np.ones_like(al)}],
+                       options={"ftol": 1e-10, "maxiter": 50})
+        alpha = np.clip(res.x, 0.0, None)
+        alpha /= alpha.sum()
+        if obj(alpha) > obj(fit.alpha):              # never worse than the linear start
+            alpha = fit.alpha
+        mixed = q_of(alpha)
+        g = grad(alpha)
+        free = alpha > 1e-6                          # projected gradient on the simplex face
+        pg = g[free] - g[free].mean() if free.any() else g
+        conv = {"iterations": int(res.nit), "projected_gradient_norm": float(np.linalg.norm(pg)),
+                "objective": obj(alpha), "linear_objective": obj(fit.alpha),
+                "status": int(res.status), "message": str(res.message)}
+        method = "slsqp-horizon"
+    diff = mixed - target
+    return MixDesign(model=hz.model.name, angles=tuple(angles), noise=noise, space="positions",
+                     per_angle=per_angle, target=target, alpha=alpha,
+                     residual=float(np.linalg.norm(diff)),
+                     tv=tv_distance(mixed, target, normalise=False), mixed=mixed,
+                     method=method, horizon=int(horizon), epoch=None if epoch is None
+                     else int(epoch), columns=cols, convergence=conv)
+
+
+def per_step_limit(model, coverage) -> np.ndarray:
+    """The limit of q_T as T → ∞: Σ_g a_g q_g, every closed class g's own coverage q_g
+    weighted by the probability a_g of ending in it (docs/model.md §17).
+
+    A run that ends in g spends all its late steps there, so g's share of the steps is a_g.
+    ``coverage.q`` of the event model normalises Rᵀ Σ_g a_g π_g instead, which weighs g by
+    a_g times its mean steps per flight; with one class (or the one-step models) the two
+    are the same.
+    """
+    an = coverage.analysis
+    if an.n_groups <= 1 or not hasattr(model, "reward") or not hasattr(model, "length"):
+        return coverage.q
+    out = np.zeros_like(coverage.q)
+    for g, a in zip(an.groups, an.absorption):
+        pig = np.zeros(model.n_states)
+        pig[g] = coverage.pi[g]
+        qg = np.asarray(model.reward.T @ pig).ravel()
+        if qg.sum() > 0:
+            out += a * qg / qg.sum()
+    return out / out.sum()

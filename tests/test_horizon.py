@@ -1,0 +1,221 @@
+"""Coverage over a horizon and the time to the limit (docs/model.md §17).
+
+Independent evidence: dense matrix powers of the step model's chain (and a dense epoch
+recursion for mixes), hand-counted first steps, the kinematic twin's Monte-Carlo histograms
+(within their seed-to-seed noise floor) and the limit of §7 / §10.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import numpy as np
+import pytest
+
+import envs
+from bouncesim.robots.kinematic import KinematicBatch
+from bouncesim.robots.noise import SteppedNoise
+from experiments.coverage_horizon import two_room
+from planners.cells import CellSpace
+from planners.coverage import Horizon, TurnNoise, design_mix, model_for, steps_to_limit
+from planners.coverage.horizon import per_step_limit
+from planners.coverage.step import transition_matrix
+from planners.metrics import tv_distance
+
+from .conftest import random_room
+
+NOISE8 = TurnNoise(45, 0.8)
+
+
+def _dense_horizon(cs, Ws, alpha, epoch, T, p0):
+    """(1/T) Σ_{t<T} p_t per cell for a mix run in epochs: dense, branch per epoch."""
+    Ws = [W.toarray() for W in Ws]
+    p, counts = p0.copy(), np.zeros(cs.N)
+    t = 0
+    while t < T:
+        L = min(epoch, T - t)
+        ends = []
+        for W, a in zip(Ws, alpha):
+            x = p.copy()
+            for _ in range(L):
+                counts += a * x
+                x = x @ W
+            ends.append(a * x)
+        p, t = sum(ends), t + L
+    q = counts.reshape(cs.K, cs.P).sum(axis=0)
+    return q / q.sum()
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_step_model_is_the_chain_averaged_over_the_first_T_steps(seed):
+    rng = np.random.default_rng(seed)
+    cs = CellSpace(random_room(rng, K=8))
+    hz = Horizon(model_for(cs, "step"))
+    angle = float(rng.choice([90, 135, 225]))
+    W = transition_matrix(cs, angle, NOISE8)
+    z = int(rng.integers(cs.N))
+    for T in (1, 2, 7, 60):
+        for start, p0 in ((None, np.full(cs.N, 1 / cs.N)), (z, np.eye(cs.N)[z])):
+            got = hz.coverage([angle], T, noise=NOISE8, start=start).q
+            want = _dense_horizon(cs, [W], [1.0], T, T, p0)
+            np.testing.assert_allclose(got, want, atol=2e-6)
+
+
+def test_mix_in_epochs_matches_a_dense_epoch_recursion():
+    cs = CellSpace(envs.load("lab"))
+    hz = Horizon(model_for(cs, "step"))
+    angles, alpha = (90.0, 135.0), np.array([0.3, 0.7])
+    Ws = [transition_matrix(cs, a, NOISE8) for a in angles]
+    p0 = np.full(cs.N, 1 / cs.N)
+    for epoch, T in ((1, 9), (3, 10), (7, 50)):
+        got = hz.coverage(angles, T, noise=NOISE8, alpha=alpha, epoch=epoch).q
+        np.testing.assert_allclose(got, _dense_horizon(cs, Ws, alpha, epoch, T, p0),
+                                   atol=2e-6)
+
+
+def test_first_step_is_counted_where_the_robot_starts():
+    # from a cell centre the first step is forward (counted in the start cell) or a bump at
+    # a wall of that cell (counted there too): q_1 is the start cell, for every model
+    cs = CellSpace(envs.load("lab", orientations=16))
+    for name in ("step", "event"):
+        hz = Horizon(model_for(cs, name))
+        for z in (0, 5, cs.N - 1):
+            q = hz.coverage([90], 1, noise=TurnNoise(22.5, 0.8), start=z).q
+            assert q[z % cs.P] == pytest.approx(1.0, abs=1e-6)
+
+
+def test_corridor_event_horizon_by_hand():
+    # docs/model.md §10's corridor (K = 4, φ = 90°) from the east-facing centre of the west
+    # cell: steps 0, 1 forward (cells 0, 1), bump step 2 in cell 2, then north: a 0.06 m
+    # flight, one bump step in cell 2 (step 3), west: two forward steps (cells 2, 1) and the
+    # bump in cell 0 (steps 4-6). First 5 steps: cells 0, 1, 2, 2, 2.
+    env = envs.Environment.from_dict({
+        "boundary": [[0, 0], [1.1, 0], [1.1, 0.4], [0, 0.4]], "robot_radius": 0.17,
+        "discretization": {"cell_size": 0.34, "orientations": 4}})
+    cs = CellSpace(env)
+    hz = Horizon(model_for(cs, "event", {"bin_length": 0.01}))
+    z = 0 * cs.P + 0
+    np.testing.assert_allclose(hz.coverage([90], 5, start=z).q, [0.2, 0.2, 0.6], atol=1e-6)
+    np.testing.assert_allclose(hz.coverage([90], 7, start=z).q, [2 / 7, 2 / 7, 3 / 7],
+                               atol=1e-6)
+
+
+def test_long_horizon_reproduces_the_limit():
+    cs = CellSpace(envs.load("lab", orientations=16))
+    noise = TurnNoise(22.5, 0.8)
+    for name in ("step", "event"):
+        model = model_for(cs, name)
+        lim = model.analyse(135, noise).q
+        hz = Horizon(model)
+        tv = {T: tv_distance(c, lim) for T, c, _ in hz.run([135], [500, 5000], noise=noise)}
+        assert tv[5000] < 0.01 and tv[5000] < tv[500]
+
+
+def _twin(env, cs, angle, T, robots, noise, seed):
+    batch = KinematicBatch(env, robots, np.random.default_rng(seed), cells=cs)
+    return batch.run(angle, T, noise=SteppedNoise(noise.eps_deg, noise.r, cs.delta_deg)).counts
+
+
+def _check_twin(env, angle, noise, horizons):
+    cs = CellSpace(env)
+    hz = Horizon(model_for(cs, "event"))
+    for T, robots in horizons:
+        q = hz.coverage([angle], T, noise=noise).q
+        h0, h1 = (_twin(env, cs, angle, T, robots, noise, s) for s in (1, 2))
+        floor = tv_distance(h0, h1)
+        tv = tv_distance(q, h0 + h1)
+        # the goal (TV 0.05) plus the pooled sample's own noise (≈ floor/√2)
+        assert tv < 0.05 + floor, (env.name, T, tv, floor)
+
+
+@pytest.mark.parametrize("seed", [3])
+def test_event_horizon_matches_the_twin_on_random_rooms(seed):
+    rng = np.random.default_rng(seed)
+    env = random_room(rng, K=36)
+    _check_twin(env, 130.0, TurnNoise(10, 0.8), [(100, 600), (2000, 60)])
+
+
+@pytest.mark.slow
+def test_event_horizon_matches_the_twin_on_two_rooms_with_a_robot_wide_door():
+    _check_twin(two_room(0.34, 72), 30.0, TurnNoise(5, 0.8), [(100, 600), (2000, 80)])
+
+
+@pytest.mark.slow
+def test_event_horizon_matches_the_twin_at_20000_steps():
+    _check_twin(two_room(0.34, 72), 75.0, TurnNoise(5, 0.8), [(20_000, 12)])
+
+
+def test_steps_to_limit_shrinks_as_the_door_widens():
+    noise = TurnNoise(22.5, 0.8)
+    got = []
+    for door in (0.34, 0.68, 1.02):
+        model = model_for(CellSpace(two_room(door, 16)), "step")
+        lim = model.analyse(135, noise).q
+        res = steps_to_limit(Horizon(model), [135], lim, noise=noise, cap=200_000)
+        assert res["steps"] is not None and res["tv"] <= 0.05
+        got.append(res["steps"])
+    assert got[0] > got[1] > got[2]
+
+
+def test_steps_to_limit_reports_the_cap_honestly():
+    noise = TurnNoise(22.5, 0.8)
+    model = model_for(CellSpace(two_room(0.34, 16)), "step")
+    lim = model.analyse(135, noise).q
+    res = steps_to_limit(Horizon(model), [135], lim, noise=noise, cap=1000)
+    assert res["steps"] is None and res["tv"] > 0.05 and res["last"] <= 1000
+
+
+def test_alpha_for_a_horizon():
+    cs = CellSpace(envs.load("lab"))
+    model = model_for(cs, "step")
+    angles = (90, 135)
+    lin = design_mix(model, angles, NOISE8, horizon=200)
+    # each run keeps one angle: the fit is linear in the angles' q_T columns
+    np.testing.assert_allclose(lin.mixed, lin.columns @ lin.alpha, atol=1e-12)
+    assert lin.horizon == 200 and lin.convergence is None
+    ep = design_mix(model, angles, NOISE8, horizon=200, epoch=20)
+    hz = Horizon(model)
+    executed = hz.coverage(angles, 200, noise=NOISE8, alpha=ep.alpha, epoch=20).q
+    np.testing.assert_allclose(ep.mixed, executed, atol=1e-9)
+    conv = ep.convergence
+    assert ep.method == "slsqp-horizon"
+    assert conv["objective"] <= conv["linear_objective"] + 1e-12
+    assert conv["projected_gradient_norm"] < 1e-3
+
+
+def test_two_sealed_rooms_share_the_steps_as_the_start_does():
+    # two rooms with no door: a robot never changes room, so at every T the left room's
+    # share of the steps is its share of the start configurations, P_left / P (by hand); the
+    # per-step limit says the same, for every model
+    env = envs.Environment.from_dict({
+        "boundary": [[0, 0], [2.72, 0], [2.72, 1.02], [0, 1.02]],
+        "obstacles": [[[1.02, 0], [1.36, 0], [1.36, 1.02], [1.02, 1.02]]],
+        "robot_radius": 0.17, "discretization": {"cell_size": 0.34, "orientations": 8}})
+    cs = CellSpace(env)
+    left = cs.centres[:, 0] < 1.02
+    share = left.sum() / cs.P
+    for name in ("step", "event"):
+        model = model_for(cs, name)
+        for _, counts, _ in Horizon(model).run([135], [1, 10, 300], noise=NOISE8):
+            assert counts[left].sum() / counts.sum() == pytest.approx(share, abs=1e-5)
+        lim = per_step_limit(model, model.analyse(135, NOISE8))
+        assert lim[left].sum() == pytest.approx(share, abs=1e-6)
+
+
+def test_cli_horizon_writes_q_T_and_steps_to_limit(tmp_path, capsys):
+    from bouncesim.cli import main
+    out = tmp_path / "o"
+    rc = main(["coverage", "lab", "--angles", "90,135", "--eps", "45", "--r", "0.8",
+               "--horizon", "50", "--start", "8", "--limit-cap", "5000", "--out", str(out),
+               "--no-plots", "--json"])
+    assert rc == 0
+    summary = json.loads(capsys.readouterr().out)
+    hz = summary["horizon"]
+    assert hz["T"] == 50 and hz["start"] == 8 and len(hz["per_angle"]) == 2
+    cs = CellSpace(envs.load("lab"))
+    want = Horizon(model_for(cs, "step")).coverage([90], 50, noise=NOISE8, start=8).q
+    rows = [r for r in csv.DictReader(open(out / "coverage.csv")) if r["angle"] == "90"]
+    np.testing.assert_allclose([float(r["q"]) for r in rows], want, atol=1e-12)
+    for r in hz["per_angle"]:
+        assert r["steps"] is None or r["tv"] <= 0.05
