@@ -87,6 +87,9 @@ def register(sub) -> None:
     p.add_argument("--r", type=float, default=1.0, metavar="R",
                    help="reliability: probability of turning by exactly the angle, in [0, 1] "
                    "(default 1)")
+    p.add_argument("--noise", default=None, metavar="SPEC",
+                   help="rotation noise instead of --eps/--r: gauss:SIGMA, a Gaussian turn "
+                   "error of SIGMA deg (docs/model.md section 13), or model:eps=E,r=R")
     p.add_argument("--target", type=Path, default=None, metavar="FILE",
                    help="target distribution file (formats below; default uniform)")
     p.add_argument("--target-space", choices=SPACES,
@@ -131,6 +134,12 @@ def run(args) -> int:
     env = load_env(args)
     cs = make_cells(args, env)
     noise = TurnNoise(args.eps, args.r)
+    if getattr(args, "noise", None) is not None:
+        if not noise.exact:
+            raise UserError("give the rotation noise either as --noise or as --eps/--r.")
+        noise = TurnNoise.from_spec(args.noise)
+        if noise.gaussian and args.epoch is not None:
+            raise UserError("--epoch does not support Gaussian noise yet; use --eps/--r.")
     angles = check_angles(cs.K, parse_angles(args.angles), noise)   # before any heavy work
     target, target_desc = None, f"uniform over {args.target_space}"
     if args.target is not None:
@@ -146,7 +155,8 @@ def run(args) -> int:
         if args.target_space != "positions":
             raise UserError("--epoch predicts coverage over position cells only; use "
                             "--target-space positions.")
-    check_memory(cs, angles, task="coverage", eps_deg=args.eps, model=args.model,
+    spread = float(noise.support(cs.K)[0].max()) * cs.delta_deg    # ε, or the Gaussian's ±M·Δ
+    check_memory(cs, angles, task="coverage", eps_deg=spread, model=args.model,
                  settings=settings, max_memory=max_memory(args))
     if args.out is not None:
         writable_path(args.out, "--out", folder=True)
@@ -155,6 +165,7 @@ def run(args) -> int:
                         progress=_progress(len(angles)))
     summary = summarise(result, cs, env.name, target_desc)
     summary["model"] = args.model
+    summary["noise"] = str(noise)
     if settings is not None:
         summary["model_settings"] = {k: getattr(settings, k)
                                      for k in settings.__dataclass_fields__}
