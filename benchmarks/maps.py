@@ -12,9 +12,10 @@ door is a knife edge (docs/model.md §13): only a flight along the door's axis p
 
 from __future__ import annotations
 
+import envs
 from envs import Environment
 
-__all__ = ["office"]
+__all__ = ["MAPS", "load_map", "office"]
 
 H = 0.34                     # [m] cell size = robot diameter
 R = 0.17                     # [m] robot radius
@@ -45,3 +46,18 @@ def office(door: float = 2 * R, orientations: int = 360) -> Environment:
         "boundary": [[0, 0], [W, 0], [W, Hh], [0, Hh]], "obstacles": obstacles,
         "robot_radius": R,
         "discretization": {"cell_size": H, "orientations": int(orientations)}})
+
+
+MAPS = {"office": lambda K: office(2 * R, K),
+        "office-pinhole": lambda K: office(2 * R + 1e-7, K),
+        "office-wide": lambda K: office(0.40, K)}
+"""The benchmark maps by name: the office with a door one robot wide (a knife edge, the
+rooms are separate), 0.1 µm wider (joined by the flights along the door's axis only: a
+slowly mixing chain) and 0.40 m wide."""
+
+
+def load_map(name: str, orientations: int) -> Environment:
+    """A benchmark map (:data:`MAPS`) or a catalogue map, at K = ``orientations``."""
+    if name in MAPS:
+        return MAPS[name](orientations)
+    return envs.load(name, orientations=orientations)
