@@ -73,7 +73,8 @@ _SNAP = 2e-3             # [m] a landing point must lie this close to the C-spac
 _NUDGE = CONTACT_GAP    # [m] flight starts sit this far off the ring, on the free side
 _INTO_TOL = 0.03         # u · inward normal below −this: a flight of length 0 (> sin 1.41°,
 #                          the angle between a rounded corner's chords and the true circle)
-_DIRECT_MAX = 20000      # closed classes up to this size are solved directly
+_DIRECT_MAX = 20000      # closed classes up to this size are solved directly (power method)
+_AGG_MIN = 2000          # aggregation method: classes above this size are aggregated
 _POWER_TOL = 1e-6        # L1 error bound at which the power iteration stops
 _POWER_MAX = 200000      # iterations cap
 _LAZY = 0.05             # weight of the current iterate (damps periodic modes)
@@ -564,23 +565,25 @@ def analyse_contact_chain(T, start, aggregates=None, method: str = "aggregation"
     """:func:`planners.markov.analyse_chain` for large contact chains.
 
     Closed classes and absorption (from ``start``, only needed with several classes) as in
-    :mod:`planners.markov`; smaller classes (up to 20000 states) are solved directly
-    (:func:`planners.markov.stationary_distributions`). The stationary distribution of a
-    larger class, where a sparse LU fills in and ILU-preconditioned GMRES is slow, comes from
-    iterative aggregation–disaggregation over ``aggregates`` (one label per state, e.g. the
-    contact bin; error < 1e-6 in L1), or with ``method="power"`` (or no aggregates) from the
-    damped power iteration, which stalls on slowly mixing classes (two rooms joined by a
-    door of one robot width: docs/model.md §10).
+    :mod:`planners.markov`. The stationary distribution of a class of more than 2000 states,
+    where a sparse LU fills in and ILU-preconditioned GMRES is slow (42 s for 12 000 states
+    under Gaussian noise), comes from iterative aggregation–disaggregation over
+    ``aggregates`` (one label per state, e.g. the contact bin; error < 1e-6 in L1); smaller
+    ones are solved directly (:func:`planners.markov.stationary_distributions`). With
+    ``method="power"`` (or no aggregates), the method before: classes above 20000 states by
+    the damped power iteration, which stalls on slowly mixing classes (two rooms joined by
+    a door few flights pass: docs/model.md §10), smaller ones directly.
     """
     if method not in ("aggregation", "power"):
         raise ValueError(f"method must be 'aggregation' or 'power', got {method!r}.")
     T = check_stochastic(T)
     n = T.shape[0]
     _, groups = closed_classes(T)
-    small = [g for g in groups if len(g) <= _DIRECT_MAX]
+    direct = _DIRECT_MAX if aggregates is None or method == "power" else _AGG_MIN
+    small = [g for g in groups if len(g) <= direct]
     stat = stationary_distributions(T, small) if small else np.zeros(n)
     for g in groups:
-        if len(g) > _DIRECT_MAX:
+        if len(g) > direct:
             if aggregates is None or method == "power":
                 stat[g], _ = _power_stationary(T[g][:, g])
             else:
