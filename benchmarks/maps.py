@@ -3,7 +3,7 @@
 :func:`office` is the map of the issue that found the event model's performance cliff: a
 4.08 m × 2.72 m office (12 × 8 cells of 0.34 m) split by a partition with one door, and a
 pillar in each room. With the default door width 2r = 0.34 m (exactly one robot wide) the
-door is a knife edge (docs/model.md §13): only a flight along the door's axis passes it.
+door is a knife edge (docs/model.md §14): only a flight along the door's axis passes it.
 
 >>> env = office(orientations=8)
 >>> env.name, env.grid_shape, round(env.robot_radius, 2)

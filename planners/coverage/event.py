@@ -337,7 +337,7 @@ class EventModel:
         Every sampled flight: (start state, landing pre-turn state, steps including the bump
         step, weight 1/samples); ``flight``, ``reward`` and ``length`` are its sums.
     build_seconds : float
-    knife_edge_flights : int      sampled flights (last set built) closed by docs/model.md §14
+    knife_edge_flights : int      sampled flights (last set built) that pass a knife edge (§14)
     stationary_method : str
         "aggregation" (default) or "power": how classes above 20000 states are solved
         (:func:`analyse_contact_chain`).
@@ -407,12 +407,8 @@ class EventModel:
         land = pts + dist[:, None] * u
         lb = b.copy()                        # an immediate bump lands in its own bin
         lb[~into] = bd.bin_of(land[~into])
-        # a flight into another part of C-space threads a knife-edge passage exactly on its
-        # axis, a start set of measure zero; by docs/model.md §14 the passage is closed: the
-        # flight bumps at once, as starts just off the axis do at the jamb (≤ 0.02 m away)
-        cross = bd.part_of_bin[lb] != bd.part_of_bin[b]
-        self.knife_edge_flights = int(cross.sum())
-        lb[cross], dist[cross] = b[cross], 0.0
+        # flights into another part of C-space thread a knife edge exactly on its axis (§14)
+        self.knife_edge_flights = int((bd.part_of_bin[lb] != bd.part_of_bin[b]).sum())
         w = np.full(state.size, 1.0 / (S * nt))
         flight = sp.csr_matrix((w, (state, lb * K + k)), shape=(n, n))
         flight.sum_duplicates()
