@@ -2,6 +2,7 @@
 
     python -m benchmarks.bench_models                 # complex, K = 360, 0.34 m cells
     python -m benchmarks.bench_models --env lab --twin-steps 1000000
+    python -m benchmarks.bench_models --env office-pinhole   # the slowly mixing two rooms
 
 For each model (step = the paper's chain and the straightforward reference; sampled =
 generalized cell mapping; event = bump-to-bump) at its default settings: the wall and CPU
@@ -21,7 +22,6 @@ import time
 
 import numpy as np
 
-import envs
 from planners.cells import CellSpace
 from planners.coverage import (
     MODELS,
@@ -32,6 +32,8 @@ from planners.coverage import (
     timeshared_coverage,
 )
 from planners.metrics import tv_distance
+
+from .maps import load_map
 
 ANGLES = (30.0, 75.0, 315.0)
 EPS, R = 5.0, 0.8
@@ -52,7 +54,9 @@ def main(argv=None) -> int:
     """Run the model benchmark and print its table (exit status)."""
     ap = argparse.ArgumentParser(prog="python -m benchmarks.bench_models",
                                  description=__doc__.split("\n\n")[0])
-    ap.add_argument("--env", default="complex")
+    ap.add_argument("--env", default="complex",
+                    help="a catalogue map or a map of benchmarks.maps (office, office-pinhole, "
+                    "office-wide)")
     ap.add_argument("--orientations", type=int, default=360)
     ap.add_argument("--twin-steps", type=int, default=2_000_000,
                     help="twin steps per angle for the accuracy column (default 2e6)")
@@ -62,13 +66,13 @@ def main(argv=None) -> int:
                     help="steps per epoch of the time-shared mix column (default 1000; 0 skips)")
     args = ap.parse_args(argv)
     rows = []
-    cs0 = CellSpace(envs.load(args.env, orientations=args.orientations))
+    cs0 = CellSpace(load_map(args.env, args.orientations))
     _ = cs0.forward
     hist = {a: twin_counts(cs0, a, args.twin_steps, 0) for a in ANGLES}
     floor = max(tv_distance(hist[a], twin_counts(cs0, a, args.twin_steps, 1)) for a in ANGLES)
     for model in args.models.split(","):
         clear_cache()
-        cs = CellSpace(envs.load(args.env, orientations=args.orientations))
+        cs = CellSpace(load_map(args.env, args.orientations))
         w0, c0 = time.perf_counter(), time.process_time()
         _ = cs.forward
         cm = model_for(cs, model)

@@ -112,6 +112,9 @@ def register(sub) -> None:
     p.add_argument("--r", type=float, default=1.0, metavar="R",
                    help="reliability: probability of turning by exactly the angle, in [0, 1] "
                    "(default 1)")
+    p.add_argument("--noise", default=None, metavar="SPEC",
+                   help="rotation noise instead of --eps/--r: gauss:SIGMA, a Gaussian turn "
+                   "error of SIGMA deg (docs/model.md section 18), or model:eps=E,r=R")
     p.add_argument("--target", type=Path, default=None, metavar="FILE",
                    help="target distribution file (formats below; default uniform)")
     p.add_argument("--target-space", choices=SPACES,
@@ -166,6 +169,12 @@ def run(args) -> int:
     env = load_env(args)
     cs = make_cells(args, env)
     noise = TurnNoise(args.eps, args.r)
+    if getattr(args, "noise", None) is not None:
+        if not noise.exact:
+            raise UserError("give the rotation noise either as --noise or as --eps/--r.")
+        noise = TurnNoise.from_spec(args.noise)
+        if noise.gaussian and args.epoch is not None:
+            raise UserError("--epoch does not support Gaussian noise yet; use --eps/--r.")
     angles = check_angles(cs.K, parse_angles(args.angles), noise)   # before any heavy work
     target, target_desc = None, f"uniform over {args.target_space}"
     if args.target is not None:
@@ -193,7 +202,8 @@ def run(args) -> int:
             start = parse_config(args.start, cs, "start")
     elif args.start is not None:
         raise UserError("--start needs --horizon (the limit does not depend on the start).")
-    check_fits(args, cs, angles, task="coverage", eps_deg=args.eps, model=args.model,
+    spread = float(noise.support(cs.K)[0].max()) * cs.delta_deg    # ε, or the Gaussian's ±M·Δ
+    check_fits(args, cs, angles, task="coverage", eps_deg=spread, model=args.model,
                settings=settings)
     if args.out is not None:
         writable_path(args.out, "--out", folder=True)
@@ -208,6 +218,7 @@ def run(args) -> int:
                          "count": int(result.per_angle[0].pi.size) if result.per_angle else 0}
     for pa, cov in zip(summary["per_angle"], result.per_angle):   # positions, every model
         pa["group_cells"] = group_cells(model, cov).tolist()
+    summary["noise"] = str(noise)
     if settings is not None:
         summary["model_settings"] = {k: getattr(settings, k)
                                      for k in settings.__dataclass_fields__}

@@ -73,10 +73,13 @@ _SNAP = 2e-3             # [m] a landing point must lie this close to the C-spac
 _NUDGE = CONTACT_GAP    # [m] flight starts sit this far off the ring, on the free side
 _INTO_TOL = 0.03         # u · inward normal below −this: a flight of length 0 (> sin 1.41°,
 #                          the angle between a rounded corner's chords and the true circle)
-_DIRECT_MAX = 20000      # closed classes up to this size are solved directly
+_DIRECT_MAX = 20000      # closed classes up to this size are solved directly (power method)
+_AGG_MIN = 2000          # aggregation method: classes above this size are aggregated
 _POWER_TOL = 1e-6        # L1 error bound at which the power iteration stops
 _POWER_MAX = 200000      # iterations cap
 _LAZY = 0.05             # weight of the current iterate (damps periodic modes)
+_AGG_SWEEPS = 10         # damped power steps per aggregation-disaggregation cycle
+_AGG_MAX = 20000         # cycles cap
 
 
 @dataclass(frozen=True)
@@ -91,16 +94,24 @@ class EventSettings:
     samples : int
         Flight start points per bin, spread evenly across it at arc-length fractions
         (j + ½)/samples; 1 means the bin centre only.
+    heading_samples : int
+        Gaussian noise only (docs/model.md §18): flight headings per heading bin, spread
+        evenly inside it at θ_k + ((l + ½)/n_θ − ½)Δ, each crossed with the ``samples``
+        start points. Grid noise keeps the exact heading θ_k.
     """
 
     bin_length: float = 0.03
     samples: int = 2
+    heading_samples: int = 2
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.bin_length) and self.bin_length > 0):
             raise UserError(f"the contact bin length must be positive, got {self.bin_length}.")
         if int(self.samples) != self.samples or self.samples < 1:
             raise UserError(f"samples per bin must be a positive integer, got {self.samples}.")
+        if int(self.heading_samples) != self.heading_samples or self.heading_samples < 1:
+            raise UserError(f"heading samples per bin must be a positive integer, got "
+                            f"{self.heading_samples}.")
 
 
 # ============================================================================ boundary
@@ -131,12 +142,14 @@ class Boundary:
 
     def __init__(self, env, bin_length: float) -> None:
         rings = []
+        part = []
         for poly in shapely.get_parts(env.cspace):
             if poly.is_empty:
                 continue
             poly = orient(poly, sign=1.0)        # free side on the left of every ring
             rings.append(np.asarray(poly.exterior.coords))
             rings.extend(np.asarray(i.coords) for i in poly.interiors)
+            part.extend([len(set(part))] * (1 + len(poly.interiors)))
         if not rings:
             raise UserError(f"{env.name} has no free C-space for the robot.")
         A, B, rid, s0 = [], [], [], []
@@ -164,6 +177,7 @@ class Boundary:
         self.ring_first_bin = np.concatenate([[0], np.cumsum(self.ring_bins)[:-1]])
         self.n_bins = int(self.ring_bins.sum())
         self.ring_of_bin = np.repeat(np.arange(len(rings)), self.ring_bins)
+        self.part_of_bin = np.asarray(part)[self.ring_of_bin]   # connected part of C-space
         self._ring_seg_first = np.concatenate(
             [[0], np.cumsum(np.bincount(self.seg_ring, minlength=len(rings)))[:-1]])
         self._build_grid(max(min(0.05, env.cell_size / 4), 1e-3))
@@ -287,6 +301,17 @@ def _step_cells(cs: CellSpace, start, u, n_fwd, dist, owner, weight):
     return own[ok], cells[ok], w[ok]
 
 
+@dataclass(frozen=True, eq=False)
+class _Flights:
+    """One set of sampled flights of an :class:`EventModel` (see its attributes)."""
+
+    flight: sp.csr_matrix
+    flights: tuple
+    reward: sp.csr_matrix
+    length: np.ndarray
+    mean_flight: float
+
+
 @dataclass(eq=False)
 class EventModel:
     """The angle-independent part of the event model of one environment.
@@ -312,6 +337,10 @@ class EventModel:
         Every sampled flight: (start state, landing pre-turn state, steps including the bump
         step, weight 1/samples); ``flight``, ``reward`` and ``length`` are its sums.
     build_seconds : float
+    knife_edge_flights : int      sampled flights (last set built) that pass a knife edge (§19)
+    stationary_method : str
+        "aggregation" (default) or "power": how classes above 20000 states are solved
+        (:func:`analyse_contact_chain`).
     """
 
     name: ClassVar[str] = "event"
@@ -322,6 +351,7 @@ class EventModel:
 
     cs: CellSpace
     settings: EventSettings = field(default_factory=EventSettings)
+    stationary_method: str = "aggregation"
 
     def __post_init__(self) -> None:
         t0 = time.perf_counter()
@@ -332,34 +362,9 @@ class EventModel:
         nb = bd.n_bins
         self.n_states = n = nb * K
         caster = casters(env)[0]
-        S = int(st.samples)
-        # flight starts: every (bin, heading) x sample; state i = b*K + k
-        state = np.repeat(np.arange(n), S)
-        b = state // K
-        k = state % K
-        frac = np.tile((np.arange(S) + 0.5) / S, n)
-        pts, seg = bd.points(b, frac, return_segment=True)
         uk = unit(np.arange(K) * cs.delta_deg)
-        u = uk[k]
-        # a start heading into its own wall (u · inward normal < 0) bumps at once: the twin's
-        # cast gives ~1e-9 m there (the start sits CONTACT_GAP off the ring); skip the cast
-        into = (u * bd.seg_inward[seg]).sum(axis=1) < -_INTO_TOL
-        dist = np.zeros(len(pts))
-        dist[~into] = _cast(caster, pts[~into], u[~into])
-        land = pts + dist[:, None] * u
-        lb = b.copy()                        # an immediate bump lands in its own bin
-        lb[~into] = bd.bin_of(land[~into])
-        w = np.full(state.size, 1.0 / S)
-        self.flight = sp.csr_matrix((w, (state, lb * K + k)), shape=(n, n))
-        self.flight.sum_duplicates()
-        n_fwd = flight_steps(dist, cs.h)
-        # every sampled flight: (start state, landing pre-turn state, steps incl. the bump)
-        self.flights = (state, lb * K + k, n_fwd + 1, w)
-        own, cells, ww = _step_cells(cs, pts, u, n_fwd, dist, state, w)
-        self.reward = sp.csr_matrix((ww, (own, cells)), shape=(n, cs.P))
-        self.reward.sum_duplicates()
-        self.length = np.bincount(state, weights=w * (n_fwd + 1), minlength=n)
-        self.mean_flight = float(np.mean(dist))
+        self._flight_sets: dict = {}
+        self._use(self._flight_set(False))
         # first flights from the cell centres (uniform over the N configurations)
         p0 = np.tile(np.arange(cs.P), K)
         k0 = np.repeat(np.arange(K), cs.P)
@@ -368,6 +373,54 @@ class EventModel:
         lb0 = bd.bin_of(c0 + d0[:, None] * uk[k0])
         self.start_pre = np.bincount(lb0 * K + k0, minlength=n) / float(p0.size)
         self.build_seconds = time.perf_counter() - t0
+
+    def _use(self, fs: "_Flights") -> None:
+        self.flight, self.flights, self.reward = fs.flight, fs.flights, fs.reward
+        self.length, self.mean_flight = fs.length, fs.mean_flight
+
+    def _flight_set(self, continuous: bool) -> "_Flights":
+        """The sampled flights: from the exact grid headings θ_k (grid noise, docs/model.md
+        §10), or with ``continuous`` from ``heading_samples`` headings spread evenly inside
+        each heading bin, θ_k + ((l + ½)/n_θ − ½)Δ (Gaussian noise, §18). Cached.
+        """
+        if continuous in self._flight_sets:
+            return self._flight_sets[continuous]
+        cs, st, bd = self.cs, self.settings, self.boundary
+        K, n = cs.K, self.n_states
+        caster = casters(cs.env)[0]
+        S = int(st.samples)
+        nt = int(st.heading_samples) if continuous else 1
+        # flight starts: every (bin, heading) x sample x heading sample; state i = b*K + k
+        state = np.repeat(np.arange(n), S * nt)
+        b = state // K
+        k = state % K
+        frac = np.tile(np.repeat((np.arange(S) + 0.5) / S, nt), n)
+        off = np.tile(((np.arange(nt) + 0.5) / nt - 0.5) * cs.delta_deg, n * S) \
+            if continuous else 0.0
+        pts, seg = bd.points(b, frac, return_segment=True)
+        u = unit(k * cs.delta_deg + off)
+        # a start heading into its own wall (u · inward normal < 0) bumps at once: the twin's
+        # cast gives ~1e-9 m there (the start sits CONTACT_GAP off the ring); skip the cast
+        into = (u * bd.seg_inward[seg]).sum(axis=1) < -_INTO_TOL
+        dist = np.zeros(len(pts))
+        dist[~into] = _cast(caster, pts[~into], u[~into])
+        land = pts + dist[:, None] * u
+        lb = b.copy()                        # an immediate bump lands in its own bin
+        lb[~into] = bd.bin_of(land[~into])
+        # flights into another part of C-space thread a knife edge exactly on its axis (§19)
+        self.knife_edge_flights = int((bd.part_of_bin[lb] != bd.part_of_bin[b]).sum())
+        w = np.full(state.size, 1.0 / (S * nt))
+        flight = sp.csr_matrix((w, (state, lb * K + k)), shape=(n, n))
+        flight.sum_duplicates()
+        n_fwd = flight_steps(dist, cs.h)
+        own, cells, ww = _step_cells(cs, pts, u, n_fwd, dist, state, w)
+        reward = sp.csr_matrix((ww, (own, cells)), shape=(n, cs.P))
+        reward.sum_duplicates()
+        fs = _Flights(flight=flight, flights=(state, lb * K + k, n_fwd + 1, w), reward=reward,
+                      length=np.bincount(state, weights=w * (n_fwd + 1), minlength=n),
+                      mean_flight=float(np.mean(dist)))
+        self._flight_sets[continuous] = fs
+        return fs
 
     @classmethod
     def build(cls, cs: CellSpace, settings: EventSettings) -> "EventModel":
@@ -386,19 +439,21 @@ class EventModel:
         M.sum_duplicates()
         return M
 
-    def delay_chain(self) -> DelayChain:
+    def delay_chain(self, noise: TurnNoise = _EXACT) -> DelayChain:
         """The model as a :class:`planners.timeshare.DelayChain`: the sampled flights with
-        their steps (forward steps + the bump step), the flight rewards and the first landing.
+        their steps (forward steps + the bump step), the flight rewards and the first landing
+        (for Gaussian ``noise`` the flights with headings inside their bins, §18).
         """
-        src, dst, delay, w = self.flights
-        return DelayChain(src=src, dst=dst, delay=delay, weight=w, reward=self.reward,
+        fs = self._flight_set(noise.gaussian)
+        src, dst, delay, w = fs.flights
+        return DelayChain(src=src, dst=dst, delay=delay, weight=w, reward=fs.reward,
                           start=self.start_pre)
 
     def chain(self, angle_deg: float, noise: TurnNoise = _EXACT
               ) -> tuple[sp.csr_matrix, np.ndarray]:
         """(transition matrix over contact states, start distribution) of one angle."""
         W = self.turn_matrix(angle_deg, noise)
-        T = sp.csr_matrix(self.flight @ W)
+        T = sp.csr_matrix(self._flight_set(noise.gaussian).flight @ W)
         mu = np.asarray(W.T @ self.start_pre).ravel()
         return T, mu
 
@@ -411,19 +466,22 @@ class EventModel:
         """
         t0 = time.process_time()
         T, mu = self.chain(angle_deg, noise)
-        res = analyse_contact_chain(T, mu)
-        q = np.asarray(self.reward.T @ res.pi).ravel()
+        res = analyse_contact_chain(T, mu, np.arange(self.n_states) // self.cs.K,
+                                    method=self.stationary_method)
+        fs = self._flight_set(noise.gaussian)
+        q = np.asarray(fs.reward.T @ res.pi).ravel()
         tot = q.sum()
         if not tot > 0:
             raise UserError("the event model counts no step in a free cell.")
         return AngleCoverage(model=self.name, angle=float(angle_deg), noise=noise,
                              q=q / tot, pi=res.pi, analysis=res,
                              seconds=time.process_time() - t0, settings=self.settings,
-                             steps_per_flight=float(self.length @ res.pi))
+                             steps_per_flight=float(fs.length @ res.pi))
 
 
 def _power_stationary(Tg: sp.csr_matrix) -> tuple[np.ndarray, int]:
-    """Stationary distribution of one irreducible class by damped power iteration.
+    """Stationary distribution of one irreducible class by damped power iteration (the
+    method before the aggregation solver; kept as the benchmark's reference).
 
     x ← (1 − β) Tᵀx + βx with β = 0.05 (same fixed point; eigenvalues on the unit circle
     other than 1 move inside it, so periodic classes converge). Stops when the geometric
@@ -454,24 +512,78 @@ def _power_stationary(Tg: sp.csr_matrix) -> tuple[np.ndarray, int]:
     return y / y.sum(), it
 
 
-def analyse_contact_chain(T, start) -> ChainAnalysis:
-    """:func:`planners.markov.analyse_chain` for large, well-mixing contact chains.
+def _aggregated_stationary(Tg: sp.csr_matrix, agg: np.ndarray) -> tuple[np.ndarray, int]:
+    """Stationary distribution of one irreducible class by iterative aggregation–
+    disaggregation (Takahashi's method; docs/model.md §10).
+
+    ``agg`` maps every state of the class to an aggregate (its contact bin). One cycle: the
+    coarse chain C_IJ = Σ_{i∈I} x_i T_ij(J) / X_I over the aggregates, weighted by the current
+    iterate x, is solved exactly (sparse LU, a few hundred to a few thousand unknowns); x is
+    rescaled inside each aggregate to the coarse solution, then smoothed by 10 damped power
+    steps x ← 0.95·Tᵀx + 0.05·x. π is a fixed point of the cycle. The coarse solve carries
+    mass between weakly coupled regions (two rooms joined by a door few flights pass), the
+    slow modes that stall the plain power iteration; the smoothing removes the fast ones.
+    Stops when d·ρ/(1 − ρ) < 1e-6 in L1 (d: the change over a cycle, ρ: its observed
+    contraction), as the power iteration did. Returns (π, cycles).
+    """
+    n = Tg.shape[0]
+    _, agg = np.unique(np.asarray(agg), return_inverse=True)
+    m = int(agg.max()) + 1
+    A = sp.csr_matrix((np.ones(n), (np.arange(n), agg)), shape=(n, m))
+    TA = sp.csr_matrix(Tg @ A)                              # state -> aggregate
+    TT = sp.csr_matrix(Tg.T)
+    x = np.full(n, 1.0 / n)
+    prev = None
+    cycles = 0
+    while cycles < _AGG_MAX:
+        cycles += 1
+        X = np.bincount(agg, weights=x, minlength=m)
+        C = sp.csr_matrix(A.T @ sp.diags(x / X[agg]) @ TA)
+        xi = stationary_distributions(C, [np.arange(m)])
+        y = x * (xi / X)[agg]
+        for _ in range(_AGG_SWEEPS):
+            y = (1.0 - _LAZY) * (TT @ y) + _LAZY * y
+        y /= y.sum()
+        d = float(np.abs(y - x).sum())
+        x = y
+        if d == 0.0:
+            break
+        if prev is not None and d < prev:
+            rho = d / prev
+            if d * rho / (1 - rho) < _POWER_TOL:
+                break
+        prev = d
+    return x, cycles
+
+
+def analyse_contact_chain(T, start, aggregates=None, method: str = "aggregation"
+                          ) -> ChainAnalysis:
+    """:func:`planners.markov.analyse_chain` for large contact chains.
 
     Closed classes and absorption (from ``start``, only needed with several classes) as in
-    :mod:`planners.markov`; the stationary distribution of a class with more than 20000
-    states comes from a damped power iteration (error < 1e-6 in L1), smaller classes are
-    solved directly (:func:`planners.markov.stationary_distributions`). The big classes of
-    the noisy chains are irreducible and mix in a few hundred flights, where a sparse LU
-    fills in and unpreconditioned Krylov solvers stall (measured in the docs).
+    :mod:`planners.markov`. The stationary distribution of a class of more than 2000 states,
+    where a sparse LU fills in and ILU-preconditioned GMRES is slow (42 s for 12 000 states
+    under Gaussian noise), comes from iterative aggregation–disaggregation over
+    ``aggregates`` (one label per state, e.g. the contact bin; error < 1e-6 in L1); smaller
+    ones are solved directly (:func:`planners.markov.stationary_distributions`). With
+    ``method="power"`` (or no aggregates), the method before: classes above 20000 states by
+    the damped power iteration, which stalls on slowly mixing classes (two rooms joined by
+    a door few flights pass: docs/model.md §10), smaller ones directly.
     """
+    if method not in ("aggregation", "power"):
+        raise ValueError(f"method must be 'aggregation' or 'power', got {method!r}.")
     T = check_stochastic(T)
     n = T.shape[0]
     _, groups = closed_classes(T)
-    small = [g for g in groups if len(g) <= _DIRECT_MAX]
+    direct = _DIRECT_MAX if aggregates is None or method == "power" else _AGG_MIN
+    small = [g for g in groups if len(g) <= direct]
     stat = stationary_distributions(T, small) if small else np.zeros(n)
     for g in groups:
-        if len(g) > _DIRECT_MAX:
-            stat[g], _ = _power_stationary(T[g][:, g])
+        if len(g) > direct:
+            if aggregates is None or method == "power":
+                stat[g], _ = _power_stationary(T[g][:, g])
+            else:
+                stat[g], _ = _aggregated_stationary(T[g][:, g], np.asarray(aggregates)[g])
     if len(groups) > 1:
         a = absorption_probabilities(T, groups, start)
     else:

@@ -1,4 +1,5 @@
-"""The rotation noise of a bump turn (docs/model.md §7), validated once and shared by every model.
+"""The rotation noise of a bump turn (docs/model.md §7, §18), validated once and shared by every
+model.
 
 A bump turn commanded as φ is exact with probability r; otherwise it is off by δ, drawn
 uniformly from the non-zero multiples of Δ = 360°/K in [−ε, ε]: each of the 2ε/Δ values has
@@ -16,6 +17,14 @@ the robot keeps its heading and bumps again at once (a valid self-loop); if 2ε 
 >>> sorted(set(TurnNoise(2, 0.0).sample(np.random.default_rng(1), 90.0, 1000,
 ...                                     delta_deg=1).tolist()))
 [88.0, 89.0, 91.0, 92.0]
+
+Gaussian turn noise (docs/model.md §18): the turn is φ + N(0, σ²), on the K grid the Gaussian
+integrated over each orientation bin, Φ((j + ½)Δ/σ) − Φ((j − ½)Δ/σ) for j steps:
+
+>>> g = TurnNoise.gauss(1.0)
+>>> d, p = g.support(360)                  # Δ = 1°: offsets −5 … 5
+>>> d[[0, -1]].tolist(), p[5].round(4), p[6].round(4), g.exact, str(g)
+([-5, 5], np.float64(0.3829), np.float64(0.2417), False, 'gauss:1')
 >>> TurnNoise(-5, 0.8)
 Traceback (most recent call last):
 ...
@@ -29,6 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
+from scipy.special import ndtr, ndtri
 
 from envs import UserError
 
@@ -56,16 +66,23 @@ def _fmt(x: float) -> str:
 R_RESOLUTION = 1e-9
 """Reliabilities closer than this to 0 or 1 (but not equal) are refused."""
 
+GAUSS_TAIL = 1e-6
+"""Gaussian noise on the K grid: offsets are kept out to the smallest ±M whose two tails
+beyond (M + ½)Δ hold at most this much probability; the kept ones are renormalised."""
+
 
 @dataclass(frozen=True)
 class TurnNoise:
     """docs/model.md §7 rotation noise: exact with probability ``r``, else off by a uniform non-zero
-    multiple of Δ within ±``eps_deg``.
+    multiple of Δ within ±``eps_deg``; or, with ``sigma_deg`` > 0, the Gaussian noise of
+    docs/model.md §18 (:meth:`gauss`).
 
     Parameters
     ----------
     eps_deg : float   error range ε [deg], non-negative (a multiple of Δ where it is used)
     r : float         reliability in [0, 1]: probability of turning by exactly φ
+    sigma_deg : float standard deviation σ [deg] of a Gaussian turn error (default 0: none);
+                      σ > 0 requires ε = 0 and r = 1 (one noise kind at a time)
 
     Bad values raise a one-sentence :class:`envs.UserError` here, once; whether ε is a
     multiple of Δ = 360°/K is checked where K is known (:meth:`quanta`).
@@ -73,9 +90,40 @@ class TurnNoise:
 
     eps_deg: float = 0.0
     r: float = 1.0
+    sigma_deg: float = 0.0
+
+    @classmethod
+    def gauss(cls, sigma_deg: float) -> "TurnNoise":
+        """Gaussian turn noise: the turn is φ + N(0, σ²) [deg] (docs/model.md §18)."""
+        return cls(sigma_deg=sigma_deg)
+
+    @classmethod
+    def from_spec(cls, text: str) -> "TurnNoise":
+        """The noise of a CLI spec: ``none``, ``gauss:SIGMA`` (also ``gauss:sigma=SIGMA``) or
+        ``model:eps=E,r=R`` [deg], the forms of the twin's ``--noise``.
+
+        >>> TurnNoise.from_spec("gauss:3"), TurnNoise.from_spec("model:eps=5,r=0.8")
+        (TurnNoise(eps_deg=0.0, r=1.0, sigma_deg=3.0), TurnNoise(eps_deg=5.0, r=0.8, sigma_deg=0.0))
+        """
+        s = str(text).strip().lower().replace(" ", "")
+        kind, _, rest = s.partition(":")
+        try:
+            if s in {"", "none", "exact"}:
+                return cls()
+            if kind in {"gauss", "gaussian"}:
+                return cls.gauss(float(rest.removeprefix("sigma=")))
+            if kind in {"model", "stepped"}:
+                kv = dict(tok.split("=", 1) for tok in rest.split(","))
+                if set(kv) == {"eps", "r"}:
+                    return cls(float(kv["eps"]), float(kv["r"]))
+        except ValueError:
+            pass
+        raise UserError(f"noise {text!r} is not understood; use none, gauss:SIGMA or "
+                        f"model:eps=E,r=R (degrees).")
 
     def __post_init__(self) -> None:
-        for name, what in (("eps_deg", "error range eps"), ("r", "reliability r")):
+        for name, what in (("eps_deg", "error range eps"), ("r", "reliability r"),
+                           ("sigma_deg", "Gaussian noise sigma")):
             v = getattr(self, name)
             try:
                 v = float(v)
@@ -93,11 +141,27 @@ class TurnNoise:
             # by edges of no numerical weight: the chain's solves become singular
             raise UserError(f"reliability r must be 0, 1 or within [{R_RESOLUTION:g}, "
                             f"1 - {R_RESOLUTION:g}], got {_fmt(self.r)}.")
+        if self.sigma_deg < 0:
+            raise UserError(f"Gaussian noise sigma {_fmt(self.sigma_deg)}° must be "
+                            f"non-negative.")
+        if self.sigma_deg > 0 and (self.eps_deg != 0 or self.r != 1.0):
+            raise UserError("Gaussian noise (sigma) cannot be combined with eps and r; "
+                            "give one noise kind.")
 
     @property
     def exact(self) -> bool:
-        """True when no turn is ever perturbed (ε = 0 or r = 1)."""
-        return self.eps_deg == 0 or self.r == 1.0
+        """True when no turn is ever perturbed (σ = 0, and ε = 0 or r = 1)."""
+        return self.sigma_deg == 0 and (self.eps_deg == 0 or self.r == 1.0)
+
+    @property
+    def gaussian(self) -> bool:
+        """True for Gaussian noise (σ > 0): headings leave the Δ grid (docs/model.md §18)."""
+        return self.sigma_deg > 0
+
+    def __str__(self) -> str:
+        if self.gaussian:
+            return f"gauss:{_fmt(self.sigma_deg)}"
+        return "none" if self.exact else f"model:eps={_fmt(self.eps_deg)},r={_fmt(self.r)}"
 
     # ------------------------------------------------------------------ support over K
     def quanta(self, K: int | None = None, *, delta_deg: float | None = None) -> int:
@@ -115,8 +179,15 @@ class TurnNoise:
         """Offsets δ/Δ = −ε/Δ … ε/Δ [quanta] and their probabilities (sum 1), at K
         orientations or for the quantum ``delta_deg`` (see :meth:`quanta`).
 
-        Zero-probability offsets (r = 1 with ε > 0, or r = 0) are kept.
+        Zero-probability offsets (r = 1 with ε > 0, or r = 0) are kept. Gaussian noise: the
+        discretised Gaussian of docs/model.md §18 (offsets ±M, tails beyond ±(M + ½)Δ of at
+        most :data:`GAUSS_TAIL` dropped and the rest renormalised).
         """
+        if self.gaussian:
+            delta = 360.0 / K if K is not None else delta_deg
+            if delta is None:
+                raise TypeError("support() needs K or delta_deg.")
+            return _gauss_support(self.sigma_deg, float(delta))
         return _support(self.quanta(K, delta_deg=delta_deg), self.r)
 
     def turns(self, K: int, angle_deg: float, positive: bool = False
@@ -143,6 +214,8 @@ class TurnNoise:
         multiple of it.
         """
         c = as_commands(commanded_deg, n)
+        if self.gaussian:
+            return c + rng.normal(0.0, self.sigma_deg, size=c.shape)
         m = self.quanta(delta_deg=delta_deg)
         if m == 0 or self.r == 1.0:
             return c
@@ -158,6 +231,18 @@ def _support(m: int, r: float) -> tuple[np.ndarray, np.ndarray]:
         return np.array([0]), np.array([1.0])
     d = np.arange(-m, m + 1)
     return d, np.where(d == 0, r, (1.0 - r) / (2 * m))
+
+
+def _gauss_support(sigma: float, delta: float) -> tuple[np.ndarray, np.ndarray]:
+    """Offsets −M … M [quanta] and Φ((j + ½)Δ/σ) − Φ((j − ½)Δ/σ), renormalised (§18)."""
+    if not (math.isfinite(delta) and delta > 0):
+        raise UserError(f"the noise quantum delta must be positive, got {delta:g}°.")
+    z = -float(ndtri(GAUSS_TAIL / 2))                    # 2·(1 − Φ(z)) = GAUSS_TAIL
+    m = max(0, math.ceil(z * sigma / delta - 0.5))
+    m = min(m, 1_000_000)                                # wraps the circle many times
+    d = np.arange(-m, m + 1)
+    p = ndtr((d + 0.5) * delta / sigma) - ndtr((d - 0.5) * delta / sigma)
+    return d, p / p.sum()
 
 
 def _quanta_of(eps_deg: float, delta_deg: float) -> int:

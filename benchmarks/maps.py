@@ -1,0 +1,63 @@
+"""Benchmark maps that are not in the catalogue: the slowly mixing two-room office.
+
+:func:`office` is the map of the issue that found the event model's performance cliff: a
+4.08 m × 2.72 m office (12 × 8 cells of 0.34 m) split by a partition with one door, and a
+pillar in each room. With the default door width 2r = 0.34 m (exactly one robot wide) the
+door is a knife edge (docs/model.md §19): only a flight along the door's axis passes it.
+
+>>> env = office(orientations=8)
+>>> env.name, env.grid_shape, round(env.robot_radius, 2)
+('office', (12, 8), 0.17)
+"""
+
+from __future__ import annotations
+
+import envs
+from envs import Environment
+
+__all__ = ["MAPS", "load_map", "office"]
+
+H = 0.34                     # [m] cell size = robot diameter
+R = 0.17                     # [m] robot radius
+
+
+def office(door: float = 2 * R, orientations: int = 360) -> Environment:
+    """The two-room office: 4.08 m × 2.72 m, a partition one cell thick at x = 2.04–2.38 m
+    with a door of width ``door`` [m] centred at y = 1.19 m, and two 0.34 m square pillars
+    (x = 0.68–1.02 m, y = 1.70–2.04 m and x = 3.06–3.40 m, y = 0.68–1.02 m).
+
+    Parameters
+    ----------
+    door : float          door width [m] (default 2r = 0.34 m: one robot wide)
+    orientations : int    K (default 360)
+    """
+    W, Hh = 12 * H, 8 * H
+    y0, y1 = 3.5 * H - door / 2, 3.5 * H + door / 2
+    x0, x1 = 6 * H, 7 * H
+    obstacles = [
+        [[x0, 0.0], [x1, 0.0], [x1, y0], [x0, y0]],              # partition, south part
+        [[x0, y1], [x1, y1], [x1, Hh], [x0, Hh]],                # partition, north part
+        [[2 * H, 5 * H], [3 * H, 5 * H], [3 * H, 6 * H], [2 * H, 6 * H]],    # west pillar
+        [[9 * H, 2 * H], [10 * H, 2 * H], [10 * H, 3 * H], [9 * H, 3 * H]],  # east pillar
+    ]
+    return Environment.from_dict({
+        "name": "office",
+        "description": "two rooms joined by one door (benchmarks.maps.office)",
+        "boundary": [[0, 0], [W, 0], [W, Hh], [0, Hh]], "obstacles": obstacles,
+        "robot_radius": R,
+        "discretization": {"cell_size": H, "orientations": int(orientations)}})
+
+
+MAPS = {"office": lambda K: office(2 * R, K),
+        "office-pinhole": lambda K: office(2 * R + 1e-7, K),
+        "office-wide": lambda K: office(0.40, K)}
+"""The benchmark maps by name: the office with a door one robot wide (a knife edge, the
+rooms are separate), 0.1 µm wider (joined by the flights along the door's axis only: a
+slowly mixing chain) and 0.40 m wide."""
+
+
+def load_map(name: str, orientations: int) -> Environment:
+    """A benchmark map (:data:`MAPS`) or a catalogue map, at K = ``orientations``."""
+    if name in MAPS:
+        return MAPS[name](orientations)
+    return envs.load(name, orientations=orientations)
