@@ -12,6 +12,7 @@ import pytest
 import scipy.sparse as sp
 
 from benchmarks.maps import office
+import envs
 from envs import Environment, UserError
 from planners.cells import CellSpace
 from planners.coverage import TurnNoise, model_for
@@ -150,3 +151,20 @@ def test_cli_coverage_accepts_gauss_noise(capsys):
     assert abs(sum(out["alpha"]) - 1) < 1e-9
     assert main(["coverage", "lab", "--angles", "90", "--noise", "gauss:5", "--eps", "45",
                  "--r", "0.8"]) == 2
+
+
+def test_aggregation_survives_states_of_vanishing_mass():
+    # lab at K = 72, 315°, ε = 5°, r = 0.8: a 9008-state class where some contact bins carry
+    # a vanishing share of π. Their masses underflowed to 0 over the cycles, the coarse chain
+    # lost edges and its solve was singular ("the event model counts no step in a free cell").
+    # The aggregation solver must agree with the direct solve of the method before it.
+    from planners.coverage.event import analyse_contact_chain
+    cs = CellSpace(envs.load("lab", orientations=72))
+    model = model_for(cs, "event")
+    T, mu = model.chain(315, TurnNoise(5, 0.8))
+    bins = np.arange(model.n_states) // cs.K
+    agg = analyse_contact_chain(T, mu, bins, method="aggregation")
+    ref = analyse_contact_chain(T, mu, bins, method="power")   # classes <= 20000: direct LU
+    assert max(len(g) for g in agg.groups) > 2000              # the aggregated path ran
+    assert np.isfinite(agg.pi).all()
+    assert np.abs(agg.pi - ref.pi).sum() < 1e-5

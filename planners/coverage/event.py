@@ -80,6 +80,7 @@ _POWER_MAX = 200000      # iterations cap
 _LAZY = 0.05             # weight of the current iterate (damps periodic modes)
 _AGG_SWEEPS = 10         # damped power steps per aggregation-disaggregation cycle
 _AGG_MAX = 20000         # cycles cap
+_AGG_BLEND = 1e-9        # share of uniform weights inside an aggregate (keeps C irreducible)
 
 
 @dataclass(frozen=True)
@@ -532,15 +533,23 @@ def _aggregated_stationary(Tg: sp.csr_matrix, agg: np.ndarray) -> tuple[np.ndarr
     A = sp.csr_matrix((np.ones(n), (np.arange(n), agg)), shape=(n, m))
     TA = sp.csr_matrix(Tg @ A)                              # state -> aggregate
     TT = sp.csr_matrix(Tg.T)
+    size = np.bincount(agg, minlength=m)
     x = np.full(n, 1.0 / n)
     prev = None
     cycles = 0
     while cycles < _AGG_MAX:
         cycles += 1
         X = np.bincount(agg, weights=x, minlength=m)
-        C = sp.csr_matrix(A.T @ sp.diags(x / X[agg]) @ TA)
-        xi = stationary_distributions(C, [np.arange(m)])
-        y = x * (xi / X)[agg]
+        # weights inside each aggregate, blended with 1e-9 of the uniform weights: states the
+        # class visits with vanishing probability (masses that underflow to 0) would
+        # otherwise drop edges of the coarse chain and make it reducible (a singular solve)
+        empty = X <= 0.0
+        w = np.where(empty[agg], 0.0, x / np.where(empty, 1.0, X)[agg])
+        w = (1.0 - _AGG_BLEND) * w + _AGG_BLEND / size[agg]
+        w[empty[agg]] = 1.0 / size[agg][empty[agg]]
+        C = sp.csr_matrix(A.T @ sp.diags(w) @ TA)
+        xi = np.clip(stationary_distributions(C, [np.arange(m)]), 0.0, None)
+        y = w * xi[agg]
         for _ in range(_AGG_SWEEPS):
             y = (1.0 - _LAZY) * (TT @ y) + _LAZY * y
         y /= y.sum()
