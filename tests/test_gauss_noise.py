@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from benchmarks.maps import office
 import envs
+from benchmarks.maps import office
 from envs import Environment, UserError
 from planners.cells import CellSpace
 from planners.coverage import TurnNoise, model_for
