@@ -29,7 +29,7 @@ from envs import Environment
 from experiments.common import experiment_parser, output_dir, recorded, write_config
 from planners.cells import CellSpace
 from planners.coverage import Horizon, TurnNoise, model_for
-from planners.coverage.horizon import LIMIT_TV, grid, per_step_limit
+from planners.coverage.horizon import LIMIT_TV, grid
 from planners.metrics import tv_distance
 
 __all__ = ["Config", "draw_figure", "main", "run", "two_room", "left_cells"]
@@ -107,7 +107,7 @@ def run(config: Config) -> Path:
     hz = Horizon(model)
     rows, stl = [], []
     for a in ANGLES:
-        lim = per_step_limit(model, model.analyse(a, noise))
+        lim = model.analyse(a, noise).q
         rows.append({"angle": int(a), "T": np.nan, "left_share": float(lim[left].sum()),
                      "tv_to_limit": 0.0, "source": "limit", "seed": -1})
         first = None

@@ -34,7 +34,7 @@ from planners.coverage import (
     steps_to_limit,
     timeshared_coverage,
 )
-from planners.coverage.horizon import CAP, per_step_limit
+from planners.coverage.horizon import CAP
 from planners.metrics import tv_distance
 
 from .common import (
@@ -255,7 +255,7 @@ def horizon_report(model, result: MixDesign, args, start, timeshared_q) -> dict:
     T, noise = int(args.horizon), result.noise
     kw = {"noise": noise, "cap": args.limit_cap, "max_seconds": args.limit_seconds}
     per = []
-    limits = [per_step_limit(model, a) for a in result.per_angle]
+    limits = [a.q for a in result.per_angle]
     for a, col, lim in zip(result.per_angle, result.A.T, limits):
         stl = steps_to_limit(hz, [a.angle], lim, **kw)
         per.append({"angle": _num(a.angle), "tv_to_limit": tv_distance(col, lim), **stl})

@@ -9,15 +9,10 @@ kinematic twin: :mod:`envs.motion`). Only the contact *point* is binned (by arc 
 the C-space boundary); the heading stays exact on the Δ = 360°/K grid (starts are
 cell-centre headings θ_k and every turn φ + δ is a multiple of Δ).
 
-The definition and its approximations are docs/model.md §10; its measured accuracy is in
-``docs/model_continuous.md``.
-
-- :class:`EventSettings`: bin length and sample points per bin.
-- :class:`Boundary`: the rings of the C-space boundary cut into bins, with a vectorised
-  point → (ring, arc length) projection.
-- :class:`EventModel`: the angle-independent part (flights, step rewards, start
-  distribution) built once per environment; :meth:`EventModel.analyse` gives one angle's
-  chain, its limiting distribution and the coverage q.
+The definition is docs/model.md §10; its measured accuracy ``docs/model_continuous.md``.
+:class:`EventSettings` (bin length, samples per bin); :class:`Boundary` (the C-space rings
+cut into bins, point → (ring, arc length)); :class:`EventModel` (flights, step rewards and
+start built once; :meth:`EventModel.analyse`: one angle's chain, limit and coverage q).
 
 Examples
 --------
@@ -74,7 +69,6 @@ _NUDGE = CONTACT_GAP    # [m] flight starts sit this far off the ring, on the fr
 _INTO_TOL = 0.03         # u · inward normal below −this: a flight of length 0 (> sin 1.41°,
 #                          the angle between a rounded corner's chords and the true circle)
 _DIRECT_MAX = 20000      # closed classes up to this size are solved directly (power method)
-_AGG_MIN = 2000          # aggregation method: classes above this size are aggregated
 _POWER_TOL = 1e-6        # L1 error bound at which the power iteration stops
 _POWER_MAX = 200000      # iterations cap
 _LAZY = 0.05             # weight of the current iterate (damps periodic modes)
@@ -461,16 +455,20 @@ class EventModel:
     def analyse(self, angle_deg: float, noise: TurnNoise = _EXACT) -> AngleCoverage:
         """Limiting distribution over contact states and the coverage q of one angle.
 
-        The chain's closed classes are weighted by absorption from the cell-centre start
-        (first flight, then the first turn); q = πᵀ R normalised over the P cells, with R the
-        expected counted steps per flight in every cell (renewal–reward).
+        The chain's closed classes g are weighted by absorption a_g from the cell-centre
+        start (first flight, then the first turn); q = Σ_g a_g q_g with q_g = π_gᵀ R
+        normalised over the P cells, R the expected counted steps per flight in every cell
+        (renewal–reward): the share of a long run's steps, class by class (§10, §17).
         """
         t0 = time.process_time()
         T, mu = self.chain(angle_deg, noise)
         res = analyse_contact_chain(T, mu, np.arange(self.n_states) // self.cs.K,
                                     method=self.stationary_method)
         fs = self._flight_set(noise.gaussian)
-        q = np.asarray(fs.reward.T @ res.pi).ravel()
+        q = np.zeros(fs.reward.shape[1])
+        for idx, a in zip(res.groups, res.absorption):
+            qg = np.asarray(fs.reward[idx].T @ res.stationary[idx]).ravel()
+            q += a * qg / qg.sum() if qg.sum() > 0 else 0.0
         tot = q.sum()
         if not tot > 0:
             raise UserError("the event model counts no step in a free cell.")
@@ -570,29 +568,31 @@ def analyse_contact_chain(T, start, aggregates=None, method: str = "aggregation"
     """:func:`planners.markov.analyse_chain` for large contact chains.
 
     Closed classes and absorption (from ``start``, only needed with several classes) as in
-    :mod:`planners.markov`. The stationary distribution of a class of more than 2000 states,
-    where a sparse LU fills in and ILU-preconditioned GMRES is slow (42 s for 12 000 states
-    under Gaussian noise), comes from iterative aggregation–disaggregation over
-    ``aggregates`` (one label per state, e.g. the contact bin; error < 1e-6 in L1); smaller
-    ones are solved directly (:func:`planners.markov.stationary_distributions`). With
-    ``method="power"`` (or no aggregates), the method before: classes above 20000 states by
-    the damped power iteration, which stalls on slowly mixing classes (two rooms joined by
-    a door few flights pass: docs/model.md §10), smaller ones directly.
+    :mod:`planners.markov`. Classes of up to 20000 states are solved directly
+    (:func:`planners.markov.stationary_distributions`); larger ones by iterative
+    aggregation–disaggregation over ``aggregates`` (e.g. the contact bins), checked by its
+    residual ‖Tᵀx − x‖₁ ≤ 1e-6 and solved directly when it did not converge (it stalls on
+    some chains: 20000 cycles without converging on an empty room at K = 360, 75°). With
+    ``method="power"`` (or no aggregates) the large classes use the damped power iteration,
+    which stalls on slowly mixing ones (two rooms joined by a door: docs/model.md §10).
     """
     if method not in ("aggregation", "power"):
         raise ValueError(f"method must be 'aggregation' or 'power', got {method!r}.")
     T = check_stochastic(T)
     n = T.shape[0]
     _, groups = closed_classes(T)
-    direct = _DIRECT_MAX if aggregates is None or method == "power" else _AGG_MIN
-    small = [g for g in groups if len(g) <= direct]
+    small = [g for g in groups if len(g) <= _DIRECT_MAX]
     stat = stationary_distributions(T, small) if small else np.zeros(n)
     for g in groups:
-        if len(g) > direct:
+        if len(g) > _DIRECT_MAX:
+            Tg = T[g][:, g]
             if aggregates is None or method == "power":
-                stat[g], _ = _power_stationary(T[g][:, g])
-            else:
-                stat[g], _ = _aggregated_stationary(T[g][:, g], np.asarray(aggregates)[g])
+                stat[g], _ = _power_stationary(Tg)
+                continue
+            x, _ = _aggregated_stationary(Tg, np.asarray(aggregates)[g])
+            if np.abs(Tg.T @ x - x).sum() > _POWER_TOL:     # not converged: solve directly
+                x = stationary_distributions(Tg, [np.arange(len(g))])
+            stat[g] = x
     if len(groups) > 1:
         a = absorption_probabilities(T, groups, start)
     else:

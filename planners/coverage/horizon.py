@@ -49,7 +49,7 @@ from .mix import MixDesign, solve_mix
 from .noise import TurnNoise
 
 __all__ = ["Horizon", "HorizonCoverage", "horizon_coverage", "steps_to_limit",
-           "start_distribution", "fit_horizon_mix", "per_step_limit", "CAP", "LIMIT_TV", "grid"]
+           "start_distribution", "fit_horizon_mix", "CAP", "LIMIT_TV", "grid"]
 
 CAP = 10_000_000        # default cap [steps] of steps_to_limit
 LIMIT_TV = 0.05         # default TV at which q_T counts as at the limit
@@ -404,25 +404,3 @@ def fit_horizon_mix(hz: Horizon, angles, noise: TurnNoise, target, horizon: int,
                      tv=tv_distance(mixed, target, normalise=False), mixed=mixed,
                      method=method, horizon=int(horizon), epoch=None if epoch is None
                      else int(epoch), columns=cols, convergence=conv)
-
-
-def per_step_limit(model, coverage) -> np.ndarray:
-    """The limit of q_T as T → ∞: Σ_g a_g q_g, every closed class g's own coverage q_g
-    weighted by the probability a_g of ending in it (docs/model.md §17).
-
-    A run that ends in g spends all its late steps there, so g's share of the steps is a_g.
-    ``coverage.q`` of the event model normalises Rᵀ Σ_g a_g π_g instead, which weighs g by
-    a_g times its mean steps per flight; with one class (or the one-step models) the two
-    are the same.
-    """
-    an = coverage.analysis
-    if an.n_groups <= 1 or not hasattr(model, "reward") or not hasattr(model, "length"):
-        return coverage.q
-    out = np.zeros_like(coverage.q)
-    for g, a in zip(an.groups, an.absorption):
-        pig = np.zeros(model.n_states)
-        pig[g] = coverage.pi[g]
-        qg = np.asarray(model.reward.T @ pig).ravel()
-        if qg.sum() > 0:
-            out += a * qg / qg.sum()
-    return out / out.sum()
