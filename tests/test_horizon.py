@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import csv
 import json
+import os
 
 import numpy as np
 import pytest
@@ -141,6 +142,8 @@ def test_event_horizon_matches_the_twin_on_two_rooms_with_a_robot_wide_door():
 
 
 @pytest.mark.slow
+@pytest.mark.skipif(os.environ.get("BOUNCESIM_LONG_TESTS") != "1",
+                    reason="minutes of CPU (10 ms per step at K = 72); BOUNCESIM_LONG_TESTS=1")
 def test_event_horizon_matches_the_twin_at_20000_steps():
     _check_twin(two_room(0.34, 72), 75.0, TurnNoise(5, 0.8), [(20_000, 12)])
 
