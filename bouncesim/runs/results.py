@@ -143,6 +143,3 @@ class MixRun:
             return None
         s = self.counts.sum()
         return self.counts / s if s > 0 else self.counts.astype(float)
-
-
-# ============================================================================ helpers
