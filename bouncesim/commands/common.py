@@ -25,7 +25,8 @@ from envs.diagnostics import diagnose
 from planners.cells import CellSpace
 from planners.resources import check_memory, max_grid_cells, memory_warning, parse_memory
 
-__all__ = ["add_env_args", "add_output", "check_fits", "check_outputs", "load_env",
+__all__ = ["add_angle_noise_args", "add_env_args", "add_output", "check_fits", "check_outputs",
+           "load_env",
            "make_cells", "make_rng", "max_memory", "parse_angles", "print_json", "progress",
            "remove_created", "warn", "writable_path", "flush_warnings", "discard_warnings"]
 
@@ -43,6 +44,17 @@ def add_env_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--max-memory", default="4G", metavar="SIZE",
                    help="refuse, before allocating, a job whose estimated peak memory "
                    "exceeds SIZE (e.g. 500M, 2G; default 4G)")
+
+
+def add_angle_noise_args(p: argparse.ArgumentParser) -> None:
+    """--angles, and the rotation noise --eps / --r of docs/model.md §7 (coverage, validate)."""
+    p.add_argument("--angles", required=True, metavar="A1,A2,...",
+                   help="bouncing angles [deg], multiples of 360/K")
+    p.add_argument("--eps", type=float, default=0.0, metavar="DEG",
+                   help="rotation error range eps [deg], a multiple of 360/K (default 0)")
+    p.add_argument("--r", type=float, default=1.0, metavar="R",
+                   help="reliability: probability of turning by exactly the angle, in [0, 1] "
+                   "(default 1)")
 
 
 def max_memory(args: argparse.Namespace) -> int:

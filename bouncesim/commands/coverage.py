@@ -38,6 +38,7 @@ from planners.coverage.horizon import CAP
 from planners.metrics import tv_distance
 
 from .common import (
+    add_angle_noise_args,
     add_env_args,
     add_output,
     check_fits,
@@ -105,13 +106,7 @@ def register(sub) -> None:
                        description=DESCRIPTION, epilog=EXAMPLES,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     add_env_args(p)
-    p.add_argument("--angles", required=True, metavar="A1,A2,...",
-                   help="bouncing angles [deg], multiples of 360/K")
-    p.add_argument("--eps", type=float, default=0.0, metavar="DEG",
-                   help="rotation error range eps [deg], a multiple of 360/K (default 0)")
-    p.add_argument("--r", type=float, default=1.0, metavar="R",
-                   help="reliability: probability of turning by exactly the angle, in [0, 1] "
-                   "(default 1)")
+    add_angle_noise_args(p)
     p.add_argument("--noise", default=None, metavar="SPEC",
                    help="rotation noise instead of --eps/--r: gauss:SIGMA, a Gaussian turn "
                    "error of SIGMA deg (docs/model.md section 18), or model:eps=E,r=R")

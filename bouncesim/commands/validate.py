@@ -37,7 +37,15 @@ from planners.plan import PolicyMix
 
 from ..runs.executors import add_executor_args, make_executor
 from ..runs.sweep import run_sweep
-from .common import add_env_args, load_env, make_cells, parse_angles, print_json, writable_path
+from .common import (
+    add_angle_noise_args,
+    add_env_args,
+    load_env,
+    make_cells,
+    parse_angles,
+    print_json,
+    writable_path,
+)
 
 __all__ = ["register", "run", "simulate_trial", "model_bump_rate", "BACKENDS"]
 
@@ -76,12 +84,7 @@ def register(sub) -> None:
                        description=DESCRIPTION, epilog=EXAMPLES,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     add_env_args(p)
-    p.add_argument("--angles", required=True, metavar="A1,A2,...",
-                   help="bouncing angles [deg], multiples of 360/K")
-    p.add_argument("--eps", type=float, default=0.0, metavar="DEG",
-                   help="rotation error range eps [deg], a multiple of 360/K (default 0)")
-    p.add_argument("--r", type=float, default=1.0, metavar="R",
-                   help="reliability, in [0, 1] (default 1)")
+    add_angle_noise_args(p)
     p.add_argument("--model", choices=list(MODELS), default="event",
                    help="coverage model (default event)")
     p.add_argument("--backend", choices=BACKENDS, default="kinematic",
