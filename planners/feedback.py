@@ -27,17 +27,17 @@ the loop that drives a robot is :func:`bouncesim.navigate.navigate_feedback`.
 
 Examples
 --------
-A 2 m × 1 m room; the robot at (0.5, 0.5) facing east bumps the east wall after
+A 2 m × 2 m room; the robot at (0.5, 1) facing east bumps the east wall after
 2 − 0.17 − 0.5 = 1.33 m, on both switches. A belief split between heading 0° and heading 30°
 learns which it was (at 30° the flight is 1.33 / cos 30° = 1.536 m, and the wall is met 30°
 to the right of the heading: the right switch only):
 
 >>> import numpy as np
 >>> from envs import Environment
->>> env = Environment.from_dict({"boundary": [[0, 0], [2, 0], [2, 1], [0, 1]],
+>>> env = Environment.from_dict({"boundary": [[0, 0], [2, 0], [2, 2], [0, 2]],
 ...     "robot_radius": 0.17, "discretization": {"cell_size": 0.25, "orientations": 8}})
 >>> pf = ParticleFilter(env, FeedbackConfig(particles=4), np.random.default_rng(0),
-...                     poses=[[0.5, 0.5, 0.0]] * 2 + [[0.5, 0.5, 30.0]] * 2)
+...                     poses=[[0.5, 1.0, 0.0]] * 2 + [[0.5, 1.0, 30.0]] * 2)
 >>> up = pf.flight(1.33, left=True, right=True)
 >>> pf.weights.round(3).tolist(), up.reinit
 ([0.5, 0.5, 0.0, 0.0], 0)
