@@ -52,6 +52,8 @@ class FeedbackRun(PlanRun):
     ----------------
     decision_ms : tuple of float   wall time of each decision [ms] (filter update after the
                                    bump, planning, scoring, and the final drive's choice)
+    decision_cpu_ms : tuple of float   the same in CPU time of this process [ms] (what a
+                                   decision costs on a machine not shared with others)
     updates : tuple of FlightUpdate   the filter's record of every bump
     p_success : tuple of float     the chosen plan's estimated success at each decision
     no_plan : int                  decisions where no particle's pose had a plan (a random
@@ -59,6 +61,7 @@ class FeedbackRun(PlanRun):
     """
 
     decision_ms: tuple = ()
+    decision_cpu_ms: tuple = ()
     updates: tuple = ()
     p_success: tuple = ()
     no_plan: int = 0
@@ -76,6 +79,7 @@ class FeedbackRun(PlanRun):
         out.update({"planner": "feedback",
                     "decision_ms": [round(float(v), 3) for v in self.decision_ms],
                     "max_decision_ms": round(max(self.decision_ms, default=0.0), 3),
+                    "decision_cpu_ms": [round(float(v), 3) for v in self.decision_cpu_ms],
                     "reinits": self.reinits, "no_plan": self.no_plan,
                     "p_success": [round(float(v), 4) for v in self.p_success]})
         return out
@@ -160,16 +164,22 @@ def navigate_feedback(robot: Robot, env: Environment | None, start, goal: int, n
     cap = math.hypot(x1 - x0, y1 - y0) + cells.h
     trace, t0 = Trace(), robot.clock()
     trace.add(0.0, robot.true_pose(), "start", f"feedback to {fnav.goal}")
-    turns, flights, decision_ms, updates, p_succ = [], [], [], [], []
+    turns, flights, decision_ms, decision_cpu, updates, p_succ = [], [], [], [], [], []
     final, no_plan, completed, reason, rest = 0.0, 0, False, "", ()
+
+    def note_decision() -> None:
+        decision_ms.append(1e3 * (time.perf_counter() - tick))
+        decision_cpu.append(1e3 * (time.process_time() - cpu))
 
     def log(event: str, detail: str = "") -> None:
         trace.add(robot.clock() - t0, robot.true_pose(), event, detail)
 
     try:
-        tick, at_start = time.perf_counter(), True
+        tick, cpu, at_start = time.perf_counter(), time.process_time(), True
         while True:
-            cands = fnav.choose(belief, rng, keep=rest)
+            shift = (fnav.heading_offset(belief) if cfg.correct_heading and not at_start
+                     else 0.0)
+            cands = fnav.choose(belief, rng, keep=rest, bumped=not at_start, shift=shift)
             if cands:
                 best = cands[0]
                 p_succ.append(best.p_success)
@@ -179,7 +189,7 @@ def navigate_feedback(robot: Robot, env: Environment | None, start, goal: int, n
             todo = list(best.angles) if best is not None else [float(rng.choice(fnav.nav.angles))]
             if not todo:                       # already on the final flight (or in the cell)
                 final, _ = fnav.final(belief.pos, belief.heading, belief.weights)
-                decision_ms.append(1e3 * (time.perf_counter() - tick))
+                note_decision()
                 if flights and len(flights) > len(turns):
                     final += flights.pop()     # the flight into the cell ends the plan
                 if final > 0:
@@ -187,7 +197,7 @@ def navigate_feedback(robot: Robot, env: Environment | None, start, goal: int, n
                 completed = True
                 break
             if not at_start:
-                angle = float(todo.pop(0))
+                angle = float(todo.pop(0)) - shift
                 robot.turn(angle)
                 belief.turn(angle)
                 turns.append(angle)
@@ -198,14 +208,14 @@ def navigate_feedback(robot: Robot, env: Environment | None, start, goal: int, n
             if not todo and best is not None:  # the last turn: the final drive
                 final, mass = fnav.final(belief.pos, belief.heading, belief.weights)
                 if mass > 0:                   # else no particle can stop in the cell: fly on
-                    decision_ms.append(1e3 * (time.perf_counter() - tick))
+                    note_decision()
                     ev = robot.drive_for(speed, final / speed) if final > 0 else None
                     if ev is not None and ev.bumped and speed * ev.elapsed < final - STEP_TOL:
                         log("bump", _side(ev))
                     completed = True
                     break
             if not at_start:
-                decision_ms.append(1e3 * (time.perf_counter() - tick))
+                note_decision()
             if max_time is not None and robot.clock() - t0 > max_time:
                 reason = f"time limit of {max_time:g} s exceeded"
                 break
@@ -219,7 +229,7 @@ def navigate_feedback(robot: Robot, env: Environment | None, start, goal: int, n
                 reason = f"no bump within {cap:.2f} m"
                 break
             log("bump", _side(ev))
-            tick = time.perf_counter()
+            tick, cpu = time.perf_counter(), time.process_time()
             flights.append(d)
             updates.append(belief.flight(d, ev.left, ev.right))
             if on_belief is not None:
@@ -258,7 +268,8 @@ def navigate_feedback(robot: Robot, env: Environment | None, start, goal: int, n
                        final_pose=final_pose, position_error=pos_err, heading_error=head_err,
                        deviations=(), bumps=len(updates), elapsed=elapsed,
                        start_pose=start_pose, goal_pose=goal_pose, trace=trace,
-                       decision_ms=tuple(decision_ms), updates=tuple(updates),
+                       decision_ms=tuple(decision_ms), decision_cpu_ms=tuple(decision_cpu),
+                       updates=tuple(updates),
                        p_success=tuple(p_succ), no_plan=no_plan)
 
 

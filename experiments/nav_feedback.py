@@ -3,8 +3,9 @@
 For each map, (start, goal) pairs are drawn uniformly from the ordered pairs (start ≠ goal)
 the exact planner reaches (Φ = {45°, 90°, 135°}, K = 8, w1 = 1, w2 = 100). Every pair is run
 once per σ in the kinematic twin (front-half bumper, 0.2 m/s) with Gaussian turn noise σ:
-by feedback (:func:`bouncesim.navigate.navigate_feedback`, the filter told σ) and, with the
-same robot noise seed, by the open-loop exact plan (:func:`bouncesim.runs.execute.execute`).
+by feedback (:func:`bouncesim.navigate.navigate_feedback`, the filter told σ), by feedback
+with heading correction (§20's extension, off by default elsewhere) and, with the same robot
+noise seed, by the open-loop exact plan (:func:`bouncesim.runs.execute.execute`).
 Maps: ``lab`` and one random polygon room with a hole (``experiments.nav_exact``).
 
     python -m experiments.nav_feedback [--quick] [--seed S] [--pairs N] [--out DIR]
@@ -18,7 +19,7 @@ from __future__ import annotations
 
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -54,6 +55,7 @@ class Config:
     sigmas : tuple         Gaussian turn noise σ [deg]
     maps : tuple of str    catalogue names or 'randomN' (random polygon room N)
     particles : int        particles of the filter
+    corrected : bool       also run feedback with heading correction (§20's extension)
     quick : bool           recorded; ``main`` turns it into a small budget
     seed : int             root seed (rooms, pairs, noise, filter)
     out : Path             output folder
@@ -63,6 +65,7 @@ class Config:
     sigmas: tuple = (0.0, 2.0, 5.0)
     maps: tuple = ("lab", "random1")
     particles: int = FeedbackConfig.particles
+    corrected: bool = True
     quick: bool = False
     seed: int = 0
     out: Path = Path("results") / "nav_feedback"
@@ -94,22 +97,26 @@ def run_map(name: str, config: Config) -> tuple[pd.DataFrame, pd.DataFrame]:
     rng = np.random.default_rng(np.random.SeedSequence([config.seed, 3, len(name)]))
     pairs = _pairs(exact, config.pairs, rng)
     fcfg = FeedbackConfig(particles=config.particles)
+    planners = ("feedback", "feedback_corrected", "exact") if config.corrected else \
+        ("feedback", "exact")
     rows, decisions = [], []
     for i, (s, g, route) in enumerate(pairs):
         for sigma in config.sigmas:
             noise = GaussianNoise(sigma)
             key = [config.seed, 4, len(name), i, int(round(sigma * 1000))]
-            for planner in ("feedback", "exact"):
+            for planner in planners:
                 bot_rng = np.random.default_rng(np.random.SeedSequence(key + [0]))
                 bot = make_robot("kinematic", env, noise=noise, rng=bot_rng)
                 t0 = time.perf_counter()
-                if planner == "feedback":
+                if planner.startswith("feedback"):
                     frng = np.random.default_rng(np.random.SeedSequence(key + [1]))
+                    cfg = replace(fcfg, correct_heading=planner == "feedback_corrected")
                     run = navigate_feedback(bot, env, s, g, noise, frng, angles=ANGLES,
-                                            cells=cells, config=fcfg, w1=W1, w2=W2)
+                                            cells=cells, config=cfg, w1=W1, w2=W2)
                     ms = np.asarray(run.decision_ms)
-                    decisions += [{"map": name, "sigma": sigma, "pair": i, "ms": v}
-                                  for v in ms]
+                    decisions += [{"map": name, "sigma": sigma, "pair": i,
+                                   "planner": planner, "ms": v,
+                                   "cpu_ms": c} for v, c in zip(ms, run.decision_cpu_ms)]
                     extra = {"reinits": run.reinits, "no_plan": run.no_plan,
                              "decisions": len(ms),
                              "decision_ms_max": float(ms.max()) if len(ms) else np.nan}
@@ -127,17 +134,19 @@ def run_map(name: str, config: Config) -> tuple[pd.DataFrame, pd.DataFrame]:
 
 def summarise(runs: pd.DataFrame, decisions: pd.DataFrame) -> pd.DataFrame:
     """Per map × σ × planner: runs, successes, rate with its 95 % Wilson interval; for
-    feedback the median, 95th percentile and maximum decision time [ms].
+    feedback the median, 95th percentile and maximum decision time [ms] (wall), and the
+    median and 95th percentile in CPU time.
     """
     g = runs.groupby(["map", "sigma", "planner"], sort=False)
     s = g.success.agg(["size", "sum"]).reset_index().rename(
         columns={"size": "runs", "sum": "successes"})
     s["success"] = s.successes / s.runs
     s["wilson_low"], s["wilson_high"] = wilson(s.successes.to_numpy(), s.runs.to_numpy())
-    d = decisions.groupby(["map", "sigma"]).ms.agg(
-        decision_ms_median="median", decision_ms_p95=lambda v: np.percentile(v, 95),
-        decision_ms_max="max").reset_index()
-    d["planner"] = "feedback"
+    g = decisions.groupby(["map", "sigma", "planner"])
+    d = g.ms.agg(decision_ms_median="median", decision_ms_p95=lambda v: np.percentile(v, 95),
+                 decision_ms_max="max").join(
+        g.cpu_ms.agg(decision_cpu_ms_median="median",
+                     decision_cpu_ms_p95=lambda v: np.percentile(v, 95))).reset_index()
     return s.merge(d, on=["map", "sigma", "planner"], how="left")
 
 
@@ -148,10 +157,13 @@ def draw(summary_csv: Path, path: Path) -> None:
     maps = list(dict.fromkeys(d["map"]))
     fig, axes = plt.subplots(1, len(maps), figsize=(3.6 * len(maps), 3.4), squeeze=False)
     style = {"feedback": ("#3b75af", "o", "feedback (particle filter)"),
+             "feedback_corrected": ("#e07b39", "^", "feedback + heading correction"),
              "exact": ("#999999", "s", "open-loop exact plan")}
     for ax, m in zip(axes[0], maps):
         for planner, (color, marker, label) in style.items():
             e = d[(d["map"] == m) & (d.planner == planner)].sort_values("sigma")
+            if e.empty:
+                continue
             ax.errorbar(e.sigma, e.success, yerr=[e.success - e.wilson_low,
                                                    e.wilson_high - e.success],
                         color=color, marker=marker, capsize=3, label=label)

@@ -88,8 +88,12 @@ class FeedbackConfig:
     resample_ess : float       resample when ESS < this · n
     reinit_sigma_deg : float   [deg] heading spread of the local re-initialisation
     votes : int                poses planned from after every bump
+    slack : float              plans within this of the cheapest (§15's cost) are candidates
+    per_pose : int             at most this many candidates (cheapest first) per pose
     eval_particles : int       particles pushed through each candidate plan
     margin_m : float           [m] the final stop prefers points this deep in the goal cell
+    correct_heading : bool     extension, off by default: command each turn as its angle
+                               less the belief's mean heading offset from the Δ grid
     """
 
     particles: int = 300
@@ -104,15 +108,18 @@ class FeedbackConfig:
     resample_ess: float = 0.5
     reinit_sigma_deg: float = 10.0
     votes: int = 2
+    slack: float = 0.0
+    per_pose: int = 1
     eval_particles: int = 64
     margin_m: float = 0.02
+    correct_heading: bool = False
 
     def __post_init__(self) -> None:
-        for name in ("particles", "votes", "eval_particles"):
+        for name in ("particles", "votes", "per_pose", "eval_particles"):
             v = getattr(self, name)
             if int(v) != v or v < 1:
                 raise UserError(f"feedback {name} must be a positive whole number, got {v}.")
-        for name in ("turn_sigma_deg", "sigma_floor_deg", "dist_sigma_m", "dist_sigma_rel",
+        for name in ("turn_sigma_deg", "sigma_floor_deg", "dist_sigma_m", "dist_sigma_rel", "slack",
                      "centre_zone_deg", "side_blur_deg", "side_floor", "reinit_sigma_deg",
                      "margin_m"):
             v = float(getattr(self, name))
@@ -478,6 +485,15 @@ class FeedbackNavigator:
         flights are cast at kΔ + ε. The first flight is the current one (0 right after a
         bump). None when the goal is not reached.
         """
+        plans = self.plans_from(x, y, heading_deg, 0.0)
+        return plans[0] if plans else None
+
+    def plans_from(self, x: float, y: float, heading_deg: float, slack: float,
+                   bumped: bool = False) -> list[Candidate]:
+        """Like :meth:`plan_from`, every goal arrival within ``slack`` of the cheapest
+        (one per settled state whose flight reaches the goal, distinct angle sequences
+        only), cheapest first. ``bumped``: the robot is at a contact, the first flight is 0.
+        """
         cs, nav = self.cells, self.nav
         K, m, h, dlt = cs.K, nav.m, cs.h, cs.delta_deg
         k0 = int(round(heading_deg / dlt))
@@ -497,25 +513,26 @@ class FeedbackNavigator:
         # heap: (key, order, state, cost, x, y, k, angle index, node),
         # node = (parent node, angle, flight)
         heap = [(0.0, 0, None, 0.0, float(x), float(y), k0, -1, None)]
-        settled, order, best, arrival = set(), 1, math.inf, None
+        settled, order, best, arrivals = set(), 1, math.inf, []
         while heap and len(settled) < _MAX_SETTLED:
             key, _, st, c, px, py, k, a, node = heapq.heappop(heap)
             if st in settled:
                 continue
-            if key > best:
+            if key > best + slack:
                 break
             settled.add(st)
             ux, uy = units[k]
-            t = cast(px, py, ux, uy)
+            t = 0.0 if (bumped and st is None) else cast(px, py, ux, uy)
             if math.isinf(t):
-                return None
+                return []
             D = 0.0 if t <= BUMP_RANGE else drive_distance(t)
             if k == gk and min(px, px + D * ux) <= gx1 and max(px, px + D * ux) >= gx0 and \
                     min(py, py + D * uy) <= gy1 and max(py, py + D * uy) >= gy0:
                 _, p, tt, depth = chords(cs, [[px, py]], [[ux, uy]], [D])
                 for pi, ti, di in zip(p.tolist(), tt.tolist(), depth.tolist()):
-                    if pi == gp and di >= nav.min_depth and c + w1 * ti / h < best:
-                        best, arrival = c + w1 * ti / h, (node, D, ti)
+                    if pi == gp and di >= nav.min_depth:
+                        arrivals.append((c + w1 * ti / h, len(arrivals), node, ti))
+                        best = min(best, c + w1 * ti / h)
             lx, ly = px + D * ux, py + D * uy
             lb = bin_of(lx, ly)
             hb = bound(lx, ly)
@@ -528,28 +545,34 @@ class FeedbackNavigator:
                 heapq.heappush(heap, (c2 + hb, order, tgt, c2, lx, ly, k2, b,
                                       (node, nav.angles[b], D)))
                 order += 1
-        if arrival is None:
-            return None
-        node, D, final = arrival
-        angles, flights = [], []
-        while node is not None:
-            node, ang, fl = node
-            angles.append(ang)
-            flights.append(fl)
-        return Candidate(tuple(reversed(angles)), tuple(reversed(flights)), float(final), best)
+        out: dict = {}
+        for cost, _, node, final in sorted(arrivals):
+            if cost > best + slack:
+                break
+            angles, flights = [], []
+            while node is not None:
+                node, ang, fl = node
+                angles.append(ang)
+                flights.append(fl)
+            key = tuple(reversed(angles))
+            if key not in out:
+                out[key] = Candidate(key, tuple(reversed(flights)), float(final), cost)
+        return list(out.values())
 
     # ------------------------------------------------------------------ scoring
-    def score(self, pos, heading, angles, rng: np.random.Generator) -> float:
-        """Estimated success of flying, then turning by each angle and flying, then the best
-        final drive, for equally weighted particles (pos (n, 2), heading (n,) [deg]) under
-        the declared noise.
+    def score(self, pos, heading, angles, rng: np.random.Generator,
+              bumped: bool = False) -> float:
+        """Estimated success of flying (not when ``bumped``: at a contact), then turning by
+        each angle and flying, then the best final drive, for equally weighted particles
+        (pos (n, 2), heading (n,) [deg]) under the declared noise.
         """
         caster = self.nav.caster
         pos, head = np.array(pos, dtype=float), np.array(heading, dtype=float)
         s = self.cfg.turn_spread_deg
-        for a in angles:
-            D, u, _ = _flights(caster, pos, head, bearings=False)
-            pos = pos + D[:, None] * u
+        for j, a in enumerate(angles):
+            if not (bumped and j == 0):
+                D, u, _ = _flights(caster, pos, head, bearings=False)
+                pos = pos + D[:, None] * u
             head = head + a + (rng.normal(0.0, s, len(head)) if s > 0 else 0.0)
         return self.final(pos, head, np.full(len(head), 1.0 / len(head)))[1]
 
@@ -562,13 +585,25 @@ class FeedbackNavigator:
         return final_drive(pos, heading, D, w, self.box, self.goal_heading,
                            self.cells.delta_deg, self.cfg.margin_m)
 
+    def heading_offset(self, belief: ParticleFilter) -> float:
+        """[deg] the belief's mean heading offset ε̄ from the Δ grid (the weighted circular
+        mean of θ − kΔ on the circle of period Δ), in [−Δ/2, Δ/2].
+        """
+        d = self.cells.delta_deg
+        a = np.radians(belief.heading * (360.0 / d))
+        m = math.atan2(float(belief.weights @ np.sin(a)), float(belief.weights @ np.cos(a)))
+        return math.degrees(m) * d / 360.0
+
     def choose(self, belief: ParticleFilter, rng: np.random.Generator,
-               keep: tuple = ()) -> list[Candidate]:
+               keep: tuple = (), bumped: bool = False, shift: float = 0.0) -> list[Candidate]:
         """Scored candidate plans from the belief, best first (empty: no particle planned
         from reaches the goal). Planned from the heaviest particle and ``votes`` − 1 drawn by
         weight (distinct poses only); ``keep``, the rest of the previous choice's angles, is
         a candidate too (cost +inf: it loses ties). Each distinct angle sequence is scored by
         :meth:`score` on ``eval_particles`` drawn from the belief. Ties keep the cheaper plan.
+        ``bumped``: the robot is at a contact (plans start with a turn); ``shift`` [deg]: the
+        next turn is commanded ``shift`` short of its angle (heading correction, §20), so
+        plans and scores see every heading less ``shift``.
         """
         cfg = self.cfg
         top = int(np.argmax(belief.weights))
@@ -581,16 +616,16 @@ class FeedbackNavigator:
             if key in seen_pose:
                 continue
             seen_pose.add(key)
-            cand = self.plan_from(x, y, th)
-            if cand is not None and (cand.angles not in plans or
-                                     cand.cost < plans[cand.angles].cost):
-                plans[cand.angles] = cand
+            for cand in self.plans_from(x, y, th - shift, cfg.slack, bumped)[:cfg.per_pose]:
+                if cand.angles not in plans or cand.cost < plans[cand.angles].cost:
+                    plans[cand.angles] = cand
         if keep and tuple(keep) not in plans:
             plans[tuple(keep)] = Candidate(tuple(keep), (), float("nan"), math.inf)
         if not plans:
             return []
         epos, ehead = belief.sample(cfg.eval_particles)
         scored = [Candidate(c.angles, c.flights, c.final_m, c.cost,
-                            self.score(epos, ehead, c.angles, rng)) for c in plans.values()]
+                            self.score(epos, ehead - shift, c.angles, rng, bumped))
+                  for c in plans.values()]
         scored.sort(key=lambda c: (-round(c.p_success, 9), c.cost))
         return scored
