@@ -214,3 +214,19 @@ def test_run_plan_feedback_cli_json(tmp_path, capsys):
     assert len(out["decision_ms"]) >= 1 and out["bumps"] >= 1
     no_feedback = args[:8] + ["--turn-sigma", "2"]
     assert main(no_feedback) == 2                     # --turn-sigma needs --planner feedback
+
+
+def test_nav_feedback_experiment_writes_its_tables(tmp_path):
+    import pandas as pd
+
+    from experiments import nav_feedback
+    cfg = nav_feedback.Config(pairs=1, sigmas=(2.0,), maps=("lab",), corrected=False,
+                              quick=True, out=tmp_path)
+    nav_feedback.run(cfg)
+    runs = pd.read_csv(tmp_path / "runs.csv")
+    assert sorted(runs.planner) == ["exact", "feedback"] and runs.success.dtype == bool
+    summary = pd.read_csv(tmp_path / "summary.csv")
+    assert ((summary.wilson_low <= summary.success) & (summary.success <= summary.wilson_high)
+            ).all()
+    assert (tmp_path / "success.png").stat().st_size > 0
+    assert json.loads((tmp_path / "config.json").read_text())["quick"] is True
