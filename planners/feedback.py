@@ -208,6 +208,10 @@ class FeedbackNavigator:
         ε = heading − kΔ is kept on every later heading (turns are multiples of Δ), so the
         flights are cast at kΔ + ε. The first flight is the current one (0 right after a
         bump). None when the goal is not reached.
+
+        With turn noise (``edge_guard`` · turn spread = g > 0), a flight after a turn is not
+        taken when the same flight at heading ± g bumps at once: it runs along a wall the
+        robot touches, a knife edge (§19) that a few degrees of turn error close.
         """
         plans = self.plans_from(x, y, heading_deg, 0.0)
         return plans[0] if plans else None
@@ -224,6 +228,9 @@ class FeedbackNavigator:
         eps = float(heading_deg) - k0 * dlt
         k0 %= K
         units = [tuple(float(v) for v in u) for u in unit(np.arange(K) * dlt + eps)]
+        guard = self.cfg.edge_guard * self.cfg.turn_spread_deg
+        plus = [tuple(float(v) for v in u) for u in unit(np.arange(K) * dlt + eps + guard)]
+        minus = [tuple(float(v) for v in u) for u in unit(np.arange(K) * dlt + eps - guard)]
         w1, w2 = nav.w1, nav.w2
         first_bump = w1 if m == 1 else min(w1, w2)
         steps = nav._steps.tolist()
@@ -250,6 +257,10 @@ class FeedbackNavigator:
             if math.isinf(t):
                 return []
             D = 0.0 if t <= BUMP_RANGE else drive_distance(t)
+            if guard and st is not None and D > 1e-3 and (
+                    cast(px, py, *plus[k]) <= BUMP_RANGE or
+                    cast(px, py, *minus[k]) <= BUMP_RANGE):
+                continue                       # along a wall it touches: a knife edge
             if k == gk and min(px, px + D * ux) <= gx1 and max(px, px + D * ux) >= gx0 and \
                     min(py, py + D * uy) <= gy1 and max(py, py + D * uy) >= gy0:
                 _, p, tt, depth = chords(cs, [[px, py]], [[ux, uy]], [D])

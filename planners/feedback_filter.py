@@ -48,6 +48,8 @@ class FeedbackConfig:
     per_pose : int             at most this many candidates (cheapest first) per pose
     eval_particles : int       particles pushed through each candidate plan
     margin_m : float           [m] the final stop prefers points this deep in the goal cell
+    edge_guard : float         plans avoid flights that bump at once when turned by ± this
+                               many turn spreads (knife edges along a touched wall; 0: off)
     correct_heading : bool     extension, off by default: command each turn as its angle
                                less the belief's mean heading offset from the Δ grid
     """
@@ -68,6 +70,7 @@ class FeedbackConfig:
     per_pose: int = 1
     eval_particles: int = 64
     margin_m: float = 0.02
+    edge_guard: float = 2.0
     correct_heading: bool = False
 
     def __post_init__(self) -> None:
@@ -77,7 +80,7 @@ class FeedbackConfig:
                 raise UserError(f"feedback {name} must be a positive whole number, got {v}.")
         for name in ("turn_sigma_deg", "sigma_floor_deg", "dist_sigma_m", "dist_sigma_rel", "slack",
                      "centre_zone_deg", "side_blur_deg", "side_floor", "reinit_sigma_deg",
-                     "margin_m"):
+                     "margin_m", "edge_guard"):
             v = float(getattr(self, name))
             if not (math.isfinite(v) and v >= 0):
                 raise UserError(f"feedback {name} must be a non-negative number, got {v}.")
