@@ -155,7 +155,7 @@ def draw(summary_csv: Path, path: Path) -> None:
     import matplotlib.pyplot as plt
     d = pd.read_csv(summary_csv)
     maps = list(dict.fromkeys(d["map"]))
-    fig, axes = plt.subplots(1, len(maps), figsize=(3.6 * len(maps), 3.4), squeeze=False)
+    fig, axes = plt.subplots(1, len(maps), figsize=(3.6 * len(maps), 3.7), squeeze=False)
     style = {"feedback": ("#3b75af", "o", "feedback (particle filter)"),
              "feedback_corrected": ("#e07b39", "^", "feedback + heading correction"),
              "exact": ("#999999", "s", "open-loop exact plan")}
@@ -173,8 +173,9 @@ def draw(summary_csv: Path, path: Path) -> None:
         ax.set_ylim(0, 1.05)
         ax.grid(alpha=0.3)
     axes[0][0].set_ylabel("success in the twin (95 % Wilson)")
-    axes[0][0].legend(fontsize=7, loc="lower left")
-    fig.tight_layout()
+    handles, labels = axes[0][0].get_legend_handles_labels()
+    fig.legend(handles, labels, fontsize=7, loc="lower center", ncol=3)
+    fig.tight_layout(rect=(0, 0.08, 1, 1))
     save_figure(fig, path, dpi=130)
 
 
