@@ -8,7 +8,7 @@ door is a knife edge (docs/model.md §19): only a flight along the door's axis p
 
 >>> env = office(orientations=8)
 >>> env.name, env.grid_shape, round(env.robot_radius, 2)
-('office', (12, 8), 0.17)
+('office', (8, 12), 0.17)
 """
 
 from __future__ import annotations
@@ -64,8 +64,9 @@ def random_rectilinear_room(rng: np.random.Generator, orientations: int = 360,
     name : str
 
     >>> env = random_rectilinear_room(np.random.default_rng(0), orientations=8)
-    >>> env.grid_shape[0] in range(6, 10), len(env.obstacles) in (1, 2)
-    (True, True)
+    >>> rows, cols = env.grid_shape
+    >>> cols in range(6, 10), rows in range(5, 8), len(env.obstacles) in (1, 2)
+    (True, True, True)
     """
     W = H * int(rng.integers(6, 10))
     Hh = H * int(rng.integers(5, 8))

@@ -133,8 +133,8 @@ def draw(env, cells, routes, table, path, executed=None) -> None:
 CONTRAST = ("studio", 670, 603)
 """A query on the non-rectilinear ``studio`` map (configurations z) where the two planners
 differ: the first short one (2-3 bumps) of a seeded random search whose step plan misses
-its goal in the noise-free twin (0.24 m outside the goal cell) and whose exact plan
-reaches it."""
+its goal in the noise-free twin (it ends outside the goal cell, 0.24 m from its centre)
+and whose exact plan reaches it."""
 
 
 def _replay(env, cells, route):

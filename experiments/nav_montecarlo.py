@@ -286,8 +286,11 @@ def draw(runs_csv: Path, path: Path) -> None:
     ax.set_xticks(sorted(s["noise_level"].unique()))
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7.5, loc="upper right")
+    glance = float(runs["glance"].iloc[0]) if "glance" in runs else 0.0
+    arc = f"±{glance:g}°" if glance > 0 else "front half"
     ax.set_title(f"Navigation success under turn noise: {n_maps} maps pooled\n"
-                 "(Φ = {45°, 90°, 135°}, K = 8, pairs the step model reaches)", fontsize=9)
+                 f"(Φ = {{45°, 90°, 135°}}, K = 8, pairs the step model reaches; twin bumper "
+                 f"{arc})", fontsize=9)
     save_figure(fig, path, dpi=130)
 
 
