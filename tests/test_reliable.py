@@ -210,3 +210,6 @@ def test_cli_plan_reliable_json(capsys):
     assert 0 <= lo <= out["p_success"] <= hi <= 1 and out["candidates"] >= 1
     assert main(["plan", "lab", "--angles", "45,90", "--start", "1", "--goal", "2",
                  "--planner", "reliable", "--particles", "0"]) == 2
+    # run-plan plans with the noise it runs under (its --noise and --seed)
+    assert main(["run-plan", "lab", "--angles", "45,90,135", "--start", "289", "--goal",
+                 "364", "--planner", "reliable", "--noise", "gauss:2", "--quiet"]) in (0, 4)
