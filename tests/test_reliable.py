@@ -213,3 +213,17 @@ def test_cli_plan_reliable_json(capsys):
     # run-plan plans with the noise it runs under (its --noise and --seed)
     assert main(["run-plan", "lab", "--angles", "45,90,135", "--start", "289", "--goal",
                  "364", "--planner", "reliable", "--noise", "gauss:2", "--quiet"]) in (0, 4)
+
+
+def test_experiment_quick(tmp_path):
+    import pandas as pd
+
+    from experiments import nav_reliable
+    assert nav_reliable.main(["--quick", "--pairs", "2", "--runs", "5", "--maps", "random1",
+                              "--out", str(tmp_path)]) == 0
+    pairs = pd.read_csv(tmp_path / "pairs.csv")
+    assert len(pairs) == 4 and set(pairs.planner) == {"exact", "reliable"}
+    summary = pd.read_csv(tmp_path / "summary.csv")
+    assert (summary.ci_low <= summary.twin_success).all()
+    assert (tmp_path / "success.png").stat().st_size > 0
+    assert json.loads((tmp_path / "config.json").read_text())["quick"] is True
