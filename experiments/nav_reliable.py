@@ -1,7 +1,8 @@
 """Reliable vs exact plans under Gaussian turn noise, in the kinematic twin (docs/model.md §20).
 
     python -m experiments.nav_reliable [--quick] [--seed S] [--pairs N] [--runs R]
-                                       [--sigma DEG] [--maps lab,random1] [--out DIR]
+                                       [--sigma DEG] [--w2-factors 1,0.1,0.01]
+                                       [--maps lab,random1] [--out DIR]
 
 For each map, pairs (start ≠ goal) are drawn uniformly without replacement from the ordered
 pairs the exact planner reaches (Φ = {45°, 90°, 135°}, K = 8, w1 = 1, w2 = 100). Each pair is
@@ -35,7 +36,7 @@ from bouncesim.robots.kinematic import KinematicRobot
 from bouncesim.robots.noise import GaussianNoise
 from bouncesim.runs.execute import execute
 from planners.cells import CellSpace
-from planners.reliable import ReliableNavigator, draw_turns, rollout, wilson
+from planners.reliable import W2_FACTORS, ReliableNavigator, draw_turns, rollout, wilson
 
 from .common import experiment_parser, output_dir, write_config
 from .nav_exact import PENTAGON, random_polygon_room
@@ -56,6 +57,7 @@ class Config:
     runs : int             twin executions per plan
     sigma : float          Gaussian turn noise σ [deg]
     particles : int        the reliable planner's particles per estimate
+    w2_factors : tuple     its angle-change weight factors (docs/model.md §20)
     maps : tuple of str    catalogue names, 'pentagon' or 'randomN' (nav_exact's rooms)
     quick : bool           recorded; ``main`` turns it into a small budget
     seed : int             root seed
@@ -66,6 +68,7 @@ class Config:
     runs: int = 100
     sigma: float = 2.0
     particles: int = 1000
+    w2_factors: tuple = W2_FACTORS
     maps: tuple = ("lab", "random1")
     quick: bool = False
     seed: int = 0
@@ -117,7 +120,8 @@ def run_map(name: str, config: Config) -> pd.DataFrame:
     ss = np.random.SeedSequence([config.seed, 13, len(name), sum(map(ord, name))])
     pick_rng, plan_rng, twin_rng, fun_rng = (np.random.default_rng(s) for s in ss.spawn(4))
     rel = ReliableNavigator(cells, ANGLES, f"gauss:{config.sigma:g}", W1, W2,
-                            particles=config.particles, rng=plan_rng)
+                            w2_factors=config.w2_factors, particles=config.particles,
+                            rng=plan_rng)
     rows = []
     tried = 0
     while len(rows) < 2 * config.pairs and tried < 50 * config.pairs:
@@ -215,6 +219,7 @@ def run(config: Config) -> Path:
                        "quick": config.quick, "pairs_per_map": config.pairs,
                        "runs_per_plan": config.runs, "sigma_deg": config.sigma,
                        "particles": config.particles, "maps": list(config.maps),
+                       "w2_factors": list(config.w2_factors),
                        "angles": list(ANGLES), "w1": W1, "w2": W2,
                        "robot": "kinematic twin, front-half bumper, gauss noise, 0.2 m/s",
                        "pair_sampling": "uniform, with replacement, over the ordered pairs "
@@ -236,11 +241,15 @@ def main(argv=None) -> int:
     p.add_argument("--runs", type=int, default=None,
                    help="twin runs per plan (default 100; 20 with --quick)")
     p.add_argument("--sigma", type=float, default=2.0, help="turn noise σ [deg] (default 2)")
+    p.add_argument("--w2-factors", default=",".join(f"{f:g}" for f in W2_FACTORS),
+                   help="the reliable planner's angle-change weight factors (default "
+                   "1,0.1,0.01; 1 alone: candidates within the slack at the user's weights)")
     p.add_argument("--maps", default=",".join(Config.maps),
                    help="maps: catalogue names, pentagon, randomN")
     args = p.parse_args(argv)
     config = Config(pairs=args.pairs or (4 if args.quick else 60),
                     runs=args.runs or (20 if args.quick else 100), sigma=args.sigma,
+                    w2_factors=tuple(float(f) for f in args.w2_factors.split(",") if f),
                     maps=tuple(m.strip() for m in args.maps.split(",") if m.strip()),
                     quick=args.quick, seed=args.seed, out=args.out)
     try:
