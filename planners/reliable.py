@@ -1,4 +1,4 @@
-"""Plans chosen for reliability under turn noise (docs/model.md §20).
+"""Plans chosen for reliability under turn noise (docs/model.md §21).
 
 The exact planner (:mod:`planners.exact`, docs/model.md §15) returns the cheapest plan; with
 rotation noise an open-loop plan misses its goal when the heading errors of its turns carry
@@ -66,7 +66,7 @@ __all__ = ["DEFAULT_SLACK", "DEFAULT_PARTICLES", "MAX_CANDIDATES", "W2_FACTORS",
 
 DEFAULT_SLACK = 150.0
 """Cost slack of the candidates (w1 units): at w2 = 100 one more change of angle and up to
-50 step-equivalents of extra travel or same-angle bumps (docs/model.md §20)."""
+50 step-equivalents of extra travel or same-angle bumps (docs/model.md §21)."""
 W2_FACTORS = (1.0, 0.1, 0.01)
 """The candidates' searches weigh a change of angle by w2 times each factor (not below w1):
 plans near-optimal at the user's weights and at tenfold and hundredfold cheaper changes."""
@@ -266,7 +266,7 @@ def plan_cost(plan: Plan, h: float, w1: float, w2: float) -> float:
 
 @dataclass(frozen=True)
 class ReliableRoute(ExactRoute):
-    """An exact route chosen for reliability (docs/model.md §20).
+    """An exact route chosen for reliability (docs/model.md §21).
 
     Attributes (besides :class:`~planners.exact.ExactRoute`'s; ``cost`` is at the user's
     weights)
@@ -305,7 +305,7 @@ class ReliableRoute(ExactRoute):
 
 
 class ReliableNavigator:
-    """The most reliable of the near-optimal exact plans (docs/model.md §20), with the shape
+    """The most reliable of the near-optimal exact plans (docs/model.md §21), with the shape
     of :class:`~planners.exact.ExactNavigator` (``plan(start, goal)``).
 
     Parameters

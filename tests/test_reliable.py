@@ -1,4 +1,4 @@
-"""Plans chosen for reliability (planners/reliable.py, docs/model.md §20).
+"""Plans chosen for reliability (planners/reliable.py, docs/model.md §21).
 
 Independent evidence: a success probability computed by hand in a 4 × 3 room, the kinematic
 twin driven through the executor (scalar casts, its own turn handling) with the particles'

@@ -81,7 +81,7 @@ def add_planner_args(p) -> None:
                    help="step: the paper's step model (docs/model.md §6, default); exact: "
                    "plans over exact bump poses that a continuous robot follows (§15); "
                    "reliable: the near-optimal exact plan most likely to succeed under "
-                   "--noise (§20)")
+                   "--noise (§21)")
 
 
 def make_navigator(args, cells: CellSpace | None = None) -> Navigator | ExactNavigator:
