@@ -48,11 +48,13 @@ from planners.cells import CellSpace
 from planners.exact import ExactNavigator
 from planners.navigation import Navigator
 from planners.plan import Plan
+from planners.reliable import ReliableNavigator
 
 from .nav_exact import PENTAGON, random_polygon_room
 
 __all__ = ["PLANNERS", "NavConfig", "NoPlan", "OpenLoopDriver", "cells_of", "exact_driver",
-           "heading_class", "plan_headings", "register", "step_driver", "world"]
+           "heading_class", "plan_headings", "register", "reliable_driver", "step_driver",
+           "world"]
 
 
 class NoPlan(RuntimeError):
@@ -149,9 +151,30 @@ def exact_driver(env, start, goal, config: NavConfig, rng: np.random.Generator):
     return _open_loop("exact", env, start, goal, config)
 
 
+@lru_cache(maxsize=4096)
+def _reliable_plan(env: Environment, start: int, goal: int, angles: tuple, w1: float,
+                   w2: float, noise: str):
+    # particles seeded by the pair: one plan per (map, pair, config), as open-loop plans are
+    nav = ReliableNavigator(cells_of(env), angles, noise, w1, w2,
+                            rng=np.random.default_rng([start, goal]))
+    t0 = time.perf_counter()
+    route = nav.plan(start, goal)
+    return (None if route is None else route.plan), time.perf_counter() - t0
+
+
+def reliable_driver(env, start, goal, config: NavConfig, rng: np.random.Generator):
+    """The most reliable near-optimal exact plan for ``config.noise`` (docs/model.md §21),
+    executed open loop by its angles.
+    """
+    plan, seconds = _reliable_plan(env, int(start), int(goal), tuple(config.angles),
+                                   float(config.w1), float(config.w2), str(config.noise))
+    return OpenLoopDriver(plan, int(start), int(goal), cells_of(env), config.speed, 1, seconds)
+
+
 PLANNERS: dict[str, Callable] = {
     "step": step_driver,
     "exact": exact_driver,
+    "reliable": reliable_driver,
 }
 """Planner name → factory ``(env, start, goal, config, rng) -> driver``."""
 

@@ -227,3 +227,12 @@ def test_experiment_quick(tmp_path):
     assert (summary.ci_low <= summary.twin_success).all()
     assert (tmp_path / "success.png").stat().st_size > 0
     assert json.loads((tmp_path / "config.json").read_text())["quick"] is True
+
+
+def test_registered_for_the_planner_comparison():
+    # experiments.nav_montecarlo drives it like the other planners: one decision, a PlanRun
+    from experiments.nav_planners import PLANNERS, NavConfig
+    env = envs.load("lab")
+    d = PLANNERS["reliable"](env, 68, 98, NavConfig(noise="gauss:2"), np.random.default_rng(0))
+    run = d(KinematicRobot(env))
+    assert d.decisions == 1 and d.plan.is_exact and run.success   # noise-free twin: replays
