@@ -1,4 +1,4 @@
-"""Feedback navigation's decision time per bump (docs/model.md §20), beside one cold exact
+"""Feedback navigation's decision time per bump (docs/model.md §22), beside one cold exact
 query (the open-loop planner, §15) measured in the same run.
 
     python -m benchmarks.bench_feedback [--env lab] [--sigma 2] [--pairs 10] [--seed 0]

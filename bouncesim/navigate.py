@@ -1,4 +1,4 @@
-"""Feedback navigation on any body: :func:`navigate_feedback` (docs/model.md §20).
+"""Feedback navigation on any body: :func:`navigate_feedback` (docs/model.md §22).
 
 The loop uses only the bump-and-clock interface of :class:`bouncesim.robots.base.Robot`
 (drive until bump, turn, drive for a time, bumper sides, the clock), so it runs unchanged on
@@ -113,7 +113,7 @@ def navigate_feedback(robot: Robot, env: Environment | None, start, goal: int, n
                       speed: float = 0.2, back_off: float = 0.0, w1: float = 1.0,
                       w2: float = 100.0, max_bumps: int = 40, max_time: float | None = None,
                       on_belief=None) -> FeedbackRun:
-    """Drive ``robot`` from ``start`` to the goal configuration by feedback (§20).
+    """Drive ``robot`` from ``start`` to the goal configuration by feedback (§22).
 
     Parameters
     ----------

@@ -1,10 +1,10 @@
-"""Feedback navigation against open-loop exact plans under Gaussian turn noise (§20).
+"""Feedback navigation against open-loop exact plans under Gaussian turn noise (§22).
 
 For each map, (start, goal) pairs are drawn uniformly from the ordered pairs (start ≠ goal)
 the exact planner reaches (Φ = {45°, 90°, 135°}, K = 8, w1 = 1, w2 = 100). Every pair is run
 once per σ in the kinematic twin (front-half bumper, 0.2 m/s) with Gaussian turn noise σ:
 by feedback (:func:`bouncesim.navigate.navigate_feedback`, the filter told σ), by feedback
-with heading correction (§20's extension, off by default elsewhere) and, with the same robot
+with heading correction (§22's extension, off by default elsewhere) and, with the same robot
 noise seed, by the open-loop exact plan (:func:`bouncesim.runs.execute.execute`).
 Maps: ``lab`` and one random polygon room with a hole (``experiments.nav_exact``).
 
@@ -55,7 +55,7 @@ class Config:
     sigmas : tuple         Gaussian turn noise σ [deg]
     maps : tuple of str    catalogue names or 'randomN' (random polygon room N)
     particles : int        particles of the filter
-    corrected : bool       also run feedback with heading correction (§20's extension)
+    corrected : bool       also run feedback with heading correction (§22's extension)
     quick : bool           recorded; ``main`` turns it into a small budget
     seed : int             root seed (rooms, pairs, noise, filter)
     out : Path             output folder

@@ -1,5 +1,5 @@
 """Feedback navigation: a particle Bayes filter over bump poses, and a decision rule that
-re-plans from the belief after every bump (docs/model.md §20).
+re-plans from the belief after every bump (docs/model.md §22).
 
 The robot senses only what a bump-and-clock robot has: the duration of every flight
 (distance = commanded speed × time) and which side of the bumper closed. This module turns
@@ -159,7 +159,7 @@ def final_drive(pos, heading_deg, D, w, cell_box, goal_heading_deg: float, delta
 @dataclass(frozen=True)
 class Candidate:
     """A plan from one particle's pose: fly, then turn by each angle and fly, then the
-    final drive on the last flight (docs/model.md §20).
+    final drive on the last flight (docs/model.md §22).
 
     Attributes
     ----------
@@ -180,7 +180,7 @@ class Candidate:
 
 class FeedbackNavigator:
     """Chooses bouncing angles and the final drive from a :class:`ParticleFilter`'s belief
-    (docs/model.md §20).
+    (docs/model.md §22).
 
     Parameters
     ----------
@@ -337,7 +337,7 @@ class FeedbackNavigator:
         a candidate too (cost +inf: it loses ties). Each distinct angle sequence is scored by
         :meth:`score` on ``eval_particles`` drawn from the belief. Ties keep the cheaper plan.
         ``bumped``: the robot is at a contact (plans start with a turn); ``shift`` [deg]: the
-        next turn is commanded ``shift`` short of its angle (heading correction, §20), so
+        next turn is commanded ``shift`` short of its angle (heading correction, §22), so
         plans and scores see every heading less ``shift``.
         """
         cfg = self.cfg

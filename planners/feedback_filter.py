@@ -1,4 +1,4 @@
-"""The particle filter of feedback navigation (docs/model.md §20): a belief over the robot's
+"""The particle filter of feedback navigation (docs/model.md §22): a belief over the robot's
 pose as weighted particles, updated by the readings a bump-and-clock robot has (the flight's
 distance by the clock, the bumper side) under the exact flights of the motion layer.
 
@@ -26,7 +26,7 @@ SIDES = ("both", "left", "right")
 # ============================================================================ configuration
 @dataclass(frozen=True)
 class FeedbackConfig:
-    """Parameters of the filter and the decision rule (docs/model.md §20).
+    """Parameters of the filter and the decision rule (docs/model.md §22).
 
     Attributes
     ----------
@@ -177,7 +177,7 @@ class FlightUpdate:
 
 
 class ParticleFilter:
-    """A belief over the robot's pose as weighted particles (docs/model.md §20).
+    """A belief over the robot's pose as weighted particles (docs/model.md §22).
 
     Parameters
     ----------

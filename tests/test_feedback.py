@@ -1,4 +1,4 @@
-"""Feedback navigation (planners/feedback.py, bouncesim/navigate.py; docs/model.md §20).
+"""Feedback navigation (planners/feedback.py, bouncesim/navigate.py; docs/model.md §22).
 
 Evidence: hand-computed filter updates and final drives in a rectangle; the pose planner
 against the exact planner (§15, an independent search over the same states); the filter's
@@ -14,6 +14,7 @@ import math
 import numpy as np
 import pytest
 
+import envs
 from bouncesim.navigate import declared_sigma, navigate_feedback
 from bouncesim.robots.kinematic import KinematicRobot
 from bouncesim.robots.noise import GaussianNoise, SteppedNoise
@@ -230,3 +231,13 @@ def test_nav_feedback_experiment_writes_its_tables(tmp_path):
             ).all()
     assert (tmp_path / "success.png").stat().st_size > 0
     assert json.loads((tmp_path / "config.json").read_text())["quick"] is True
+
+
+def test_feedback_is_a_planner_of_the_navigation_experiments():
+    from bouncesim.robots import make_robot
+    from experiments.nav_planners import PLANNERS, NavConfig
+    env = envs.load("lab")
+    driver = PLANNERS["feedback"](env, 8, 0, NavConfig(), np.random.default_rng(0))
+    run = driver(make_robot("kinematic", env))
+    assert run.success and driver.plan is None
+    assert driver.decisions == run.bumps == 4 and driver.decision_s > 0   # one per bump

@@ -238,14 +238,14 @@ def _plot(path, env, cells, route, result) -> None:
                                  title=title), path, dpi=150)
 
 
-# ---------------------------------------------------------------- feedback (docs/model.md §20)
+# ---------------------------------------------------------------- feedback (docs/model.md §22)
 def _add_feedback_args(p) -> None:
     """``--planner feedback`` (run-plan only) and the turn noise its filter assumes."""
     for action in p._actions:
         if action.dest == "planner":
             action.choices = (*action.choices, "feedback")
             action.help += ("; feedback (run-plan only): a particle filter re-plans after "
-                            "every bump (§20)")
+                            "every bump (§22)")
     p.add_argument("--turn-sigma", type=float, default=None, metavar="DEG",
                    help="feedback only: the turn noise σ [deg] the filter assumes (default: "
                    "the σ of --noise; set it on a real robot)")
