@@ -9,7 +9,8 @@ Layout (imports flow down this list; nothing imports upwards):
 - :mod:`.base`: the :class:`CoverageModel` protocol and its one per-angle record,
   :class:`AngleCoverage`.
 - :mod:`.step`, :mod:`.sampled`, :mod:`.event`: the three models (:class:`StepModel`,
-  :class:`SampledModel`, :class:`EventModel`).
+  :class:`SampledModel`, :class:`EventModel`); :mod:`.event_flights`: the event model's
+  flights step by step (its rewards and the horizon's counts).
 - :mod:`.mix`: :func:`solve_mix` (α over the simplex) and :class:`MixDesign`.
 - :mod:`.horizon`: coverage over the first T steps and the time to the limit (§17).
 - :mod:`.api`: the registry :data:`MODELS`, :func:`model_for`, :func:`design_mix` and

@@ -40,11 +40,10 @@ import scipy.sparse as sp
 from scipy.optimize import minimize
 
 from envs import UserError
-from envs.motion import casters, flight_steps, unit
 
 from ..metrics import tv_distance
 from ..timeshare import DelayChain, TimeShared
-from .event import _INTO_TOL, _cast  # the event model's own caster and test
+from .event_flights import StepTable
 from .mix import MixDesign, solve_mix
 from .noise import TurnNoise
 
@@ -117,53 +116,56 @@ def start_distribution(cs, start=None) -> np.ndarray:
     return w / w.sum()
 
 
-def _event_steps(model):
-    """Per-step cells of the event model's flights and of its first flights from the cell
-    centres: (flight, offset m, cell, weight) of every counted step, delays of the first
-    flights and their landing (pre-turn) states.
+@dataclass(frozen=True, eq=False)
+class _Recursion:
+    """A model's delay chain extended for horizons (see :class:`Horizon`'s notes).
 
-    The flight geometry is recomputed exactly as :class:`~planners.coverage.event.EventModel`
-    builds it (same start points, casts and step rule) and checked against its flights.
+    Attributes
+    ----------
+    chain : DelayChain         with the event model's first flights on N extra states
+    ts : TimeShared            its recursion
+    offset : int               index of configuration 0's start state
+    tailsT : csr (P, D·n)      Q_jᵀ stacked: steps a flight makes at offsets m ≥ j
     """
-    cs, st, bd = model.cs, model.settings, model.boundary
-    K, n, h = cs.K, model.n_states, cs.h
-    S = int(st.samples)
-    state = np.repeat(np.arange(n), S)
-    b, k = state // K, state % K
-    frac = np.tile((np.arange(S) + 0.5) / S, n)
-    pts, seg = bd.points(b, frac, return_segment=True)
-    uk = unit(np.arange(K) * cs.delta_deg)
-    u = uk[k]
-    into = (u * bd.seg_inward[seg]).sum(axis=1) < -_INTO_TOL
-    caster = casters(cs.env)[0]
-    dist = np.zeros(len(pts))
-    dist[~into] = _cast(caster, pts[~into], u[~into])
-    n_fwd = flight_steps(dist, h)
-    if not np.array_equal(n_fwd + 1, np.asarray(model.flights[2])):
-        raise RuntimeError("the event model's flights differ from their recomputation.")
-    # first flights from the cell centres, configuration z = k·P + p
-    p0 = np.tile(np.arange(cs.P), K)
-    k0 = np.repeat(np.arange(K), cs.P)
-    c0 = cs.centres[p0]
-    d0 = _cast(caster, c0, uk[k0])
-    n0 = flight_steps(d0, h)
-    land0 = bd.bin_of(c0 + d0[:, None] * uk[k0]) * K + k0
-    # every counted step: flights f < F, then first flights F + z
-    F = state.size
-    pos = np.concatenate([pts, c0])
-    uu = np.concatenate([u, uk[k0]])
-    nf = np.concatenate([n_fwd, n0])
-    dd = np.concatenate([dist, d0])
-    w = np.concatenate([np.full(F, 1.0 / S), np.ones(cs.N)])
-    idx = np.repeat(np.arange(nf.size), nf)
-    m = np.arange(idx.size) - np.repeat(np.cumsum(nf) - nf, nf)
-    fcell = cs.cell_of_point(pos[idx] + (m * h)[:, None] * uu[idx])
-    bcell = cs.cell_of_point(pos + dd[:, None] * uu)
-    fl = np.concatenate([idx, np.arange(nf.size)])
-    off = np.concatenate([m, nf])
-    cell = np.concatenate([fcell, bcell])
-    ok = cell >= 0
-    return (fl[ok], off[ok], cell[ok], w[fl[ok]]), n0 + 1, land0
+
+    chain: DelayChain
+    ts: TimeShared
+    offset: int
+    tailsT: sp.csr_matrix
+
+    @property
+    def n(self) -> int:
+        """States of the extended chain."""
+        return self.chain.n
+
+    @classmethod
+    def build(cls, model, noise: TurnNoise) -> "_Recursion":
+        """The recursion of ``model`` with the flights of ``noise`` (event model: §18)."""
+        cs = model.cs
+        if model.name != "event":                                 # step, sampled: D = 1
+            base = model.delay_chain()
+            ts = TimeShared(base)
+            return cls(chain=base, ts=ts, offset=0, tailsT=sp.csr_matrix(ts.RT))
+        base, fc = model.delay_chain(noise), model.flight_cells(noise)
+        n, F = base.n, base.src.size
+        nt = n + cs.N
+        src = np.concatenate([base.src, n + np.arange(cs.N)])
+        weight = np.concatenate([base.weight, np.ones(cs.N)])
+        steps = StepTable(flight=np.concatenate([fc.steps.flight, F + fc.start_steps.flight]),
+                          offset=np.concatenate([fc.steps.offset, fc.start_steps.offset]),
+                          cell=np.concatenate([fc.steps.cell, fc.start_steps.cell]))
+        chain = DelayChain(src=src, dst=np.concatenate([base.dst, fc.start_land]),
+                           delay=np.concatenate([base.delay, fc.start_delay]), weight=weight,
+                           reward=steps.reward(src, weight, nt, cs.P), start=np.zeros(nt))
+        ts = TimeShared(chain)
+        # Q_j: rows j·nt + src of every step at offset m ≥ j (j < D)
+        rep = steps.offset + 1
+        j = np.arange(rep.sum()) - np.repeat(np.cumsum(rep) - rep, rep)
+        rows = j * nt + np.repeat(src[steps.flight], rep)
+        tails = sp.csr_matrix((np.repeat(weight[steps.flight], rep),
+                               (rows, np.repeat(steps.cell, rep))), shape=(ts.D * nt, cs.P))
+        tails.sum_duplicates()
+        return cls(chain=chain, ts=ts, offset=n, tailsT=sp.csr_matrix(tails.T))
 
 
 class Horizon:
@@ -185,49 +187,26 @@ class Horizon:
     """
 
     def __init__(self, model) -> None:
-        t0 = time.perf_counter()
         self.model = model
-        cs = model.cs
-        base = model.delay_chain()
-        n = base.n
-        if n == cs.N and int(np.max(base.delay)) == 1:          # step, sampled
-            self.chain = base
-            self.offset = 0
-            self.n = n
-            tails = sp.csr_matrix(base.reward)
-        else:                                                     # event
-            (fl, off, cell, w), d0, land0 = _event_steps(model)
-            src = np.concatenate([base.src, n + np.arange(cs.N)])
-            self.n = nt = n + cs.N
-            self.offset = n
-            srcf = src[fl]
-            reward = sp.csr_matrix((w, (srcf, cell)), shape=(nt, cs.P))
-            reward.sum_duplicates()
-            if abs(reward[:n] - base.reward).max() > 1e-9:
-                raise RuntimeError("the event model's rewards differ from their recomputation.")
-            self.chain = DelayChain(src=src, dst=np.concatenate([base.dst, land0]),
-                                    delay=np.concatenate([base.delay, d0]),
-                                    weight=np.concatenate([base.weight, np.ones(cs.N)]),
-                                    reward=sp.csr_matrix(reward), start=np.zeros(nt))
-            # Q_j: rows j·nt + src of every step at offset m ≥ j
-            rep = off + 1
-            j = np.arange(rep.sum()) - np.repeat(np.cumsum(rep) - rep, rep)
-            rows = j * nt + np.repeat(srcf, rep)
-            tails = sp.csr_matrix((np.repeat(w, rep), (rows, np.repeat(cell, rep))),
-                                  shape=(int(self.chain.delay.max()) * nt, cs.P))
-            tails.sum_duplicates()
-        self.ts = TimeShared(self.chain)
-        D = self.ts.D
-        if tails.shape[0] < D * self.n:
-            tails = sp.vstack([tails, sp.csr_matrix((D * self.n - tails.shape[0], cs.P))])
-        self.tailsT = sp.csr_matrix(tails.T)
-        self.seconds = time.perf_counter() - t0
+        self.seconds = 0.0                   # time spent preparing the recursions [s]
+        self._prepared: dict = {}
 
-    def _turns(self, angles, noise: TurnNoise) -> list:
+    def _prepare(self, noise: TurnNoise) -> "_Recursion":
+        """The recursion of ``noise``'s flights (the event model casts Gaussian noise's
+        flights at sub-bin headings, docs/model.md §18), built once per kind of flights.
+        """
+        kind = bool(noise.gaussian) and self.model.name == "event"
+        if kind not in self._prepared:
+            t0 = time.perf_counter()
+            self._prepared[kind] = _Recursion.build(self.model, noise)
+            self.seconds += time.perf_counter() - t0
+        return self._prepared[kind]
+
+    def _turns(self, angles, noise: TurnNoise, offset: int) -> list:
         out = []
         for a in angles:
             W = self.model.turn_matrix(a, noise)
-            if self.offset:
+            if offset:
                 W = sp.block_diag((W, sp.csr_matrix((self.model.cs.N,) * 2)), format="csr")
             out.append(sp.csr_matrix(W.T).astype(np.float32))
         return out
@@ -264,13 +243,14 @@ class Horizon:
         if epoch is not None and int(epoch) < 1:
             raise UserError(f"an epoch must be at least one step, got {epoch}.")
         E = int(epoch) if len(use) > 1 and epoch is not None else horizons[-1]
-        WT = dict(zip(use, self._turns([angles[i] for i in use], noise)))
-        D, n = self.ts.D, self.n
+        rec = self._prepare(noise)
+        WT = dict(zip(use, self._turns([angles[i] for i in use], noise, rec.offset)))
+        D, n = rec.ts.D, rec.n
         p0 = start_distribution(cs, start)
         hist = np.zeros((D, n), dtype=np.float32)
-        hist[0, self.offset:self.offset + cs.N] = p0
+        hist[0, rec.offset:rec.offset + cs.N] = p0
         dep = hist[0].astype(float)
-        RT = self.ts.RT
+        RT = rec.ts.RT
         t, todo = 0, list(horizons)
         while todo:
             end = todo[0] if len(use) == 1 else t + min(E - t % E, todo[-1] - t)
@@ -282,11 +262,11 @@ class Horizon:
             s = t
             for T in stops:                  # angles in lockstep: stop() can end the pass
                 for i in use:
-                    hs[i], dd = self.ts.advance(WT[i], hs[i], T - s)
+                    hs[i], dd = rec.ts.advance(WT[i], hs[i], T - s)
                     ds[i] += dd
                 s = T
                 if T in todo:
-                    counts = sum(alpha[i] * (RT @ ds[i] - self.tailsT
+                    counts = sum(alpha[i] * (RT @ ds[i] - rec.tailsT
                                              @ hs[i].reshape(-1).astype(float)) for i in use)
                     todo.remove(T)
                     yield T, counts, float(T)
