@@ -19,7 +19,14 @@ from bouncesim.robots.kinematic import KinematicBatch
 from bouncesim.robots.noise import GaussianNoise, SteppedNoise
 from experiments.coverage_horizon import two_room
 from planners.cells import CellSpace
-from planners.coverage import Horizon, TurnNoise, design_mix, model_for, steps_to_limit
+from planners.coverage import (
+    Horizon,
+    TurnNoise,
+    design_mix,
+    model_for,
+    steps_to_limit,
+    steps_to_limit_each,
+)
 from planners.coverage.step import transition_matrix
 from planners.metrics import tv_distance
 
@@ -168,6 +175,25 @@ def test_steps_to_limit_shrinks_as_the_door_widens():
         assert res["steps"] is not None and res["tv"] <= 0.05
         got.append(res["steps"])
     assert got[0] > got[1] > got[2]
+
+
+def test_one_pass_for_the_angles_and_their_mix_gives_each_policy_its_own_answer():
+    # steps_to_limit_each reads the mix (each run keeps one angle) off the angles' runs and
+    # drops runs once they are done: every policy gets what its own pass gives, to the bit
+    # (here two angles reach their limits at different T, one and the mix reach the cap)
+    noise = TurnNoise(22.5, 0.8)
+    model = model_for(CellSpace(two_room(0.34, 16)), "step")
+    angles, alpha = (157.5, 112.5, 67.5), np.array([0.2, 0.3, 0.5])
+    lims = [model.analyse(a, noise).q for a in angles]
+    mix_lim = np.column_stack(lims) @ alpha
+    hz = Horizon(model)
+    each, mix = steps_to_limit_each(hz, angles, lims, noise=noise, alpha=alpha,
+                                    mix_limit=mix_lim, cap=5000)
+    refs = [steps_to_limit(hz, [a], lim, noise=noise, cap=5000) for a, lim in zip(angles, lims)]
+    refs.append(steps_to_limit(hz, angles, mix_lim, noise=noise, alpha=alpha, cap=5000))
+    key = ("steps", "tv", "last")
+    assert [[r[k] for k in key] for r in [*each, mix]] == [[r[k] for k in key] for r in refs]
+    assert len({r["steps"] for r in refs}) == 3 and refs[-1]["steps"] is None
 
 
 def test_steps_to_limit_reports_the_cap_honestly():

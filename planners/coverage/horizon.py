@@ -48,6 +48,7 @@ from .mix import MixDesign, solve_mix
 from .noise import TurnNoise
 
 __all__ = ["Horizon", "HorizonCoverage", "horizon_coverage", "steps_to_limit",
+           "steps_to_limit_each",
            "start_distribution", "fit_horizon_mix", "CAP", "LIMIT_TV", "grid"]
 
 CAP = 10_000_000        # default cap [steps] of steps_to_limit
@@ -211,6 +212,68 @@ class Horizon:
             out.append(sp.csr_matrix(W.T).astype(np.float32))
         return out
 
+    @staticmethod
+    def _advance(rec: "_Recursion", WT, hist: np.ndarray, steps: int):
+        """``steps`` steps of m runs in lockstep: ``hist`` (D, n, m) their last D departures,
+        ``WT`` their m turn matrices (transposed, float32). Returns (end state (D, n, m),
+        Σ v_t (n, m) float64). Each run is one vector through
+        :meth:`planners.timeshare.TimeShared.advance`: a sparse product with a block of m
+        vectors costs as much as m products here (``benchmarks/bench_horizon.py``).
+        """
+        ends, deps = zip(*(rec.ts.advance(W, hist[:, :, j], steps) for j, W in enumerate(WT)))
+        return np.stack(ends, axis=2), np.column_stack(deps)
+
+    def _columns(self, angles, horizons, noise: TurnNoise, alpha, epoch, start):
+        """Counted steps per cell (P, m) of the first T steps of each of m runs, for every T
+        in ``horizons``: the angles with α_i > 0 (all angles when ``alpha`` is None), each
+        run keeping its angle, or with ``epoch`` a mix whose runs restart every epoch from
+        the α-mixture of their end states (docs/model.md §17). Yields (T, counts, α of the
+        runs).
+        """
+        cs = self.model.cs
+        if alpha is None:
+            alpha = np.ones(len(angles))
+        alpha = np.asarray(alpha, dtype=float).ravel()
+        if alpha.size != len(angles) or (alpha < 0).any() or not alpha.sum() > 0:
+            raise UserError("a mix needs one non-negative α per angle, with a positive sum.")
+        alpha = alpha / alpha.sum()
+        use = [i for i in range(alpha.size) if alpha[i] > 0]
+        a = alpha[use]
+        horizons = sorted({int(t) for t in horizons})
+        if not horizons or horizons[0] < 1:
+            raise UserError("a horizon must be at least one step.")
+        if epoch is not None and int(epoch) < 1:
+            raise UserError(f"an epoch must be at least one step, got {epoch}.")
+        E = int(epoch) if len(use) > 1 and epoch is not None else horizons[-1]
+        rec = self._prepare(noise)
+        WT = self._turns([angles[i] for i in use], noise, rec.offset)
+        D, n, m = rec.ts.D, rec.n, len(use)
+        p0 = start_distribution(cs, start)
+        hist = np.zeros((D, n, m), dtype=np.float32)
+        hist[0, rec.offset:rec.offset + cs.N] = p0[:, None]
+        dep = hist[0].astype(float)
+        RT = rec.ts.RT
+        t, todo = 0, list(horizons)
+        while todo:
+            end = todo[0] if m == 1 else t + min(E - t % E, todo[-1] - t)
+            hs, ds = hist, dep.copy()
+            stops = [T for T in todo if t < T <= end]
+            if not stops or stops[-1] != end:
+                stops.append(end)
+            s = t
+            for T in stops:
+                hs, dd = self._advance(rec, WT, hs, T - s)
+                ds += dd
+                s = T
+                if T in todo:
+                    todo.remove(T)
+                    yield T, RT @ ds - rec.tailsT @ hs.reshape(D * n, m).astype(float), a
+            # the next epoch's runs all start from the α-mixture of the end states
+            mixed = sum(np.float32(a[j]) * hs[:, :, j] for j in range(m)).astype(np.float32)
+            hist = np.repeat(mixed[:, :, None], m, axis=2)
+            dep = np.repeat(sum(a[j] * ds[:, j] for j in range(m))[:, None], m, axis=1)
+            t = end
+
     def run(self, angles, horizons, *, noise: TurnNoise = _EXACT, alpha=None,
             epoch: int | None = None, start=None, stop=None):
         """Counted steps per cell of the first T steps for every T in ``horizons``, in one pass.
@@ -230,51 +293,14 @@ class Horizon:
         ------
         (T, counts (P,), total steps)
         """
-        cs = self.model.cs
-        angles = tuple(float(a) for a in angles)
-        alpha = np.ones(1) if alpha is None else np.asarray(alpha, dtype=float).ravel()
-        if alpha.size != len(angles) or (alpha < 0).any() or not alpha.sum() > 0:
+        if alpha is None and len(angles) != 1:
             raise UserError("a mix needs one non-negative α per angle, with a positive sum.")
-        alpha = alpha / alpha.sum()
-        use = [i for i in range(alpha.size) if alpha[i] > 0]
-        horizons = sorted({int(t) for t in horizons})
-        if not horizons or horizons[0] < 1:
-            raise UserError("a horizon must be at least one step.")
-        if epoch is not None and int(epoch) < 1:
-            raise UserError(f"an epoch must be at least one step, got {epoch}.")
-        E = int(epoch) if len(use) > 1 and epoch is not None else horizons[-1]
-        rec = self._prepare(noise)
-        WT = dict(zip(use, self._turns([angles[i] for i in use], noise, rec.offset)))
-        D, n = rec.ts.D, rec.n
-        p0 = start_distribution(cs, start)
-        hist = np.zeros((D, n), dtype=np.float32)
-        hist[0, rec.offset:rec.offset + cs.N] = p0
-        dep = hist[0].astype(float)
-        RT = rec.ts.RT
-        t, todo = 0, list(horizons)
-        while todo:
-            end = todo[0] if len(use) == 1 else t + min(E - t % E, todo[-1] - t)
-            hs = dict.fromkeys(use, hist)
-            ds = {i: dep.copy() for i in use}
-            stops = [T for T in todo if t < T <= end]
-            if not stops or stops[-1] != end:
-                stops.append(end)
-            s = t
-            for T in stops:                  # angles in lockstep: stop() can end the pass
-                for i in use:
-                    hs[i], dd = rec.ts.advance(WT[i], hs[i], T - s)
-                    ds[i] += dd
-                s = T
-                if T in todo:
-                    counts = sum(alpha[i] * (RT @ ds[i] - rec.tailsT
-                                             @ hs[i].reshape(-1).astype(float)) for i in use)
-                    todo.remove(T)
-                    yield T, counts, float(T)
-                    if stop is not None and stop(T, counts):
-                        return
-            hist = sum(np.float32(alpha[i]) * hs[i] for i in use).astype(np.float32)
-            dep = sum(alpha[i] * ds[i] for i in use)
-            t = end
+        for T, cols, a in self._columns(tuple(float(x) for x in angles), horizons, noise,
+                                        alpha, epoch, start):
+            counts = sum(a[j] * cols[:, j] for j in range(a.size))
+            yield T, counts, float(T)
+            if stop is not None and stop(T, counts):
+                return
 
     def coverage(self, angles, horizon: int, *, noise: TurnNoise = _EXACT, alpha=None,
                  epoch: int | None = None, start=None) -> HorizonCoverage:
@@ -322,6 +348,65 @@ def steps_to_limit(hz: Horizon, angles, limit_q, *, noise: TurnNoise = _EXACT, a
     for _ in hz.run(angles, grid(cap), noise=noise, alpha=alpha, epoch=epoch, stop=stop):
         pass
     return {**state, "cap": int(cap), "tol": tol, "seconds": time.perf_counter() - t0}
+
+
+def steps_to_limit_each(hz: Horizon, angles, limits, *, noise: TurnNoise = _EXACT,
+                        alpha=None, mix_limit=None, tol: float = LIMIT_TV, cap: int = CAP,
+                        max_seconds: float | None = None) -> tuple[list[dict], dict | None]:
+    """:func:`steps_to_limit` of every angle alone (against ``limits[i]``) and, with ``alpha``
+    and ``mix_limit``, of the mix whose runs each keep one angle drawn with probabilities α
+    (no epochs), in one pass (docs/model.md §17).
+
+    The mix's counts are Σ α_i of the angles' counts at every T, so it costs no run of its
+    own (:func:`steps_to_limit` on the mix runs every angle again); the angles' runs go in
+    lockstep and each leaves the pass once it and the mix are within ``tol`` of their
+    limits. The pass ends there, at the cap, or after ``max_seconds`` per policy. Each
+    policy's result is the one :func:`steps_to_limit` gives it alone (same arithmetic).
+
+    Returns
+    -------
+    (list of the angles' dicts, the mix's dict or None), each as :func:`steps_to_limit`'s
+    """
+    t0 = time.perf_counter()
+    angles = tuple(float(a) for a in angles)
+    lims = [np.asarray(q, dtype=float) for q in limits]
+    if len(lims) != len(angles):
+        raise UserError("steps_to_limit needs one limit per angle.")
+    w = None
+    if alpha is not None and mix_limit is not None:
+        w = np.asarray(alpha, dtype=float).ravel()
+        if w.size != len(angles) or (w < 0).any() or not w.sum() > 0:
+            raise UserError("a mix needs one non-negative α per angle, with a positive sum.")
+        w = w / w.sum()
+        mix_limit = np.asarray(mix_limit, dtype=float)
+    states = [{"steps": None, "tv": math.nan, "last": 0} for _ in range(len(angles) + 1)]
+    horizons = grid(cap)
+    runs = {i: hz.run([a], horizons, noise=noise) for i, a in enumerate(angles)}
+    budget = None if max_seconds is None else max_seconds * (len(angles) + (w is not None))
+
+    def update(st, T, counts, lim):
+        st.update(last=T, tv=tv_distance(counts, lim))
+        if st["tv"] <= tol:
+            st["steps"] = T
+
+    while runs:
+        counts = {i: next(r) for i, r in runs.items()}           # (T, counts, total)
+        T = next(iter(counts.values()))[0]
+        for i, (_, c, _) in counts.items():
+            if states[i]["steps"] is None:
+                update(states[i], T, c, lims[i])
+        mix = states[-1]
+        if w is not None and mix["steps"] is None:
+            update(mix, T, sum(w[i] * counts[i][1] for i in counts), mix_limit)
+        mix_done = w is None or mix["steps"] is not None
+        for i in list(runs):
+            if states[i]["steps"] is not None and (mix_done or w[i] == 0):
+                del runs[i]
+        if T >= horizons[-1] or (budget is not None and time.perf_counter() - t0 > budget):
+            break
+    sec = time.perf_counter() - t0
+    out = [{**st, "cap": int(cap), "tol": tol, "seconds": sec} for st in states]
+    return out[:-1], (out[-1] if w is not None else None)
 
 
 def fit_horizon_mix(hz: Horizon, angles, noise: TurnNoise, target, horizon: int,
