@@ -57,7 +57,7 @@ from ..markov import (
 )
 from ..timeshare import DelayChain
 from .base import AngleCoverage, cached_build
-from .event_flights import FlightCells, StepTable, step_table
+from .event_flights import FlightCells, StepTable, StraightFlights, step_table
 from .noise import TurnNoise
 
 __all__ = ["EventSettings", "Boundary", "EventModel", "flight_steps", "analyse_contact_chain"]
@@ -350,7 +350,7 @@ class EventModel:
         d0 = _cast(caster, c0, uk[k0])
         lb0 = bd.bin_of(c0 + d0[:, None] * uk[k0])
         self.start_pre = np.bincount(lb0 * K + k0, minlength=n) / float(p0.size)
-        self._start = (c0, uk[k0], d0, lb0 * K + k0)       # for flight_cells
+        self._start = (StraightFlights(c0, uk[k0], d0), lb0 * K + k0)   # for flight_cells
         self.build_seconds = time.perf_counter() - t0
 
     def _use(self, fs: "_Flights") -> None:
@@ -392,7 +392,7 @@ class EventModel:
         flight = sp.csr_matrix((w, (state, lb * K + k)), shape=(n, n))
         flight.sum_duplicates()
         n_fwd = flight_steps(dist, cs.h)
-        steps = step_table(cs, pts, u, n_fwd, dist)
+        steps = step_table(cs, n_fwd, StraightFlights(pts, u, dist))
         fs = _Flights(flight=flight, flights=(state, lb * K + k, n_fwd + 1, w),
                       reward=steps.reward(state, w, n, cs.P),
                       length=np.bincount(state, weights=w * (n_fwd + 1), minlength=n),
@@ -431,10 +431,10 @@ class EventModel:
         """The flights of :meth:`delay_chain` (same ``noise``) and the first flights from the
         cell centres, step by step: what the horizon coverage counts (docs/model.md §17).
         """
-        c0, u0, d0, land0 = self._start
-        n0 = flight_steps(d0, self.cs.h)
+        paths, land0 = self._start
+        n0 = flight_steps(paths.clock, self.cs.h)
         return FlightCells(steps=self._flight_set(noise.gaussian).steps, start_delay=n0 + 1,
-                           start_land=land0, start_steps=step_table(self.cs, c0, u0, n0, d0))
+                           start_land=land0, start_steps=step_table(self.cs, n0, paths))
 
     def chain(self, angle_deg: float, noise: TurnNoise = _EXACT
               ) -> tuple[sp.csr_matrix, np.ndarray]:

@@ -17,8 +17,8 @@ forward steps in cells 0 and 1, the bump step at x = 0.93 m in cell 2:
 >>> from planners.cells import CellSpace
 >>> cs = CellSpace(envs.Environment.from_dict({"boundary": [[0, 0], [1.1, 0], [1.1, 0.4],
 ...     [0, 0.4]], "robot_radius": 0.17, "discretization": {"cell_size": 0.34}}))
->>> t = step_table(cs, np.array([[0.17, 0.2]]), np.array([[1.0, 0.0]]), np.array([2]),
-...                np.array([0.76]))
+>>> t = step_table(cs, [2], StraightFlights(np.array([[0.17, 0.2]]), np.array([[1.0, 0.0]]),
+...                                        np.array([0.76])))
 >>> t.flight.tolist(), t.offset.tolist(), t.cell.tolist()
 ([0, 0, 0], [0, 1, 2], [0, 1, 2])
 """
@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["StepTable", "FlightCells", "step_table"]
+__all__ = ["StepTable", "FlightCells", "StraightFlights", "step_table"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -79,19 +79,39 @@ class FlightCells:
     start_steps: StepTable
 
 
-def step_table(cs, start, u, n_fwd, dist) -> StepTable:
-    """The counted steps of flights from ``start`` (F, 2) [m] along unit headings ``u``
-    (F, 2) with ``n_fwd`` (F,) forward steps and free length ``dist`` (F,) [m] (see the
-    module docstring), on the cell space ``cs``.
+@dataclass(frozen=True, eq=False)
+class StraightFlights:
+    """Flights along straight lines: from ``start`` (F, 2) [m] along unit headings ``u``
+    (F, 2) for ``clock`` (F,) [m] (the free length: the drive to the bump).
+
+    :func:`step_table` reads a flight's path through :meth:`points` and :attr:`end` only, so
+    any path with the same three members (a flight that slides along a wall) counts alike.
     """
-    start, u = np.asarray(start, dtype=float), np.asarray(u, dtype=float)
-    n_fwd, dist = np.asarray(n_fwd, dtype=np.int64), np.asarray(dist, dtype=float)
-    idx = np.repeat(np.arange(len(start)), n_fwd)
+
+    start: np.ndarray
+    u: np.ndarray
+    clock: np.ndarray
+
+    @property
+    def end(self) -> np.ndarray:
+        """(F, 2) the bump positions [m]."""
+        return self.start + self.clock[:, None] * self.u
+
+    def points(self, idx, s) -> np.ndarray:
+        """(k, 2) the points [m] at distance ``s`` [m] along flights ``idx``."""
+        return self.start[idx] + np.asarray(s, dtype=float)[:, None] * self.u[idx]
+
+
+def step_table(cs, n_fwd, paths) -> StepTable:
+    """The counted steps of flights with ``n_fwd`` (F,) forward steps along ``paths`` (e.g.
+    :class:`StraightFlights`; see the module docstring), on the cell space ``cs``.
+    """
+    n_fwd = np.asarray(n_fwd, dtype=np.int64)
+    idx = np.repeat(np.arange(n_fwd.size), n_fwd)
     m = np.arange(idx.size) - np.repeat(np.cumsum(n_fwd) - n_fwd, n_fwd)
-    fpts = start[idx] + (m * cs.h)[:, None] * u[idx]
-    land = start + dist[:, None] * u
-    cells = np.concatenate([cs.cell_of_point(fpts), cs.cell_of_point(land)])
-    flight = np.concatenate([idx, np.arange(len(start))])
+    cells = np.concatenate([cs.cell_of_point(paths.points(idx, m * cs.h)),
+                            cs.cell_of_point(paths.end)])
+    flight = np.concatenate([idx, np.arange(n_fwd.size)])
     offset = np.concatenate([m, n_fwd])
     ok = cells >= 0                          # int32: the model keeps its tables (~10⁷ steps)
     return StepTable(flight=flight[ok].astype(np.int32), offset=offset[ok].astype(np.int32),
