@@ -259,3 +259,19 @@ def test_cli_horizon_writes_q_T_and_steps_to_limit(tmp_path, capsys):
     np.testing.assert_allclose([float(r["q"]) for r in rows], want, atol=1e-12)
     for r in hz["per_angle"]:
         assert r["steps"] is None or r["tv"] <= 0.05
+
+
+def test_cli_horizon_with_epochs_reports_each_angle_as_its_own_pass(capsys):
+    # with --epoch the mix gets its own pass; the angles still share one, and each angle's
+    # steps_to_limit is what steps_to_limit gives it alone
+    from bouncesim.cli import main
+    rc = main(["coverage", "lab", "--angles", "90,135", "--eps", "45", "--r", "0.8",
+               "--horizon", "50", "--epoch", "10", "--limit-cap", "2000", "--json"])
+    assert rc == 0
+    hz = json.loads(capsys.readouterr().out)["horizon"]
+    model = model_for(CellSpace(envs.load("lab")), "step")
+    for r in hz["per_angle"]:
+        lim = model.analyse(r["angle"], NOISE8).q
+        ref = steps_to_limit(Horizon(model), [r["angle"]], lim, noise=NOISE8, cap=2000)
+        assert (r["steps"], r["tv"], r["last"]) == (ref["steps"], ref["tv"], ref["last"])
+    assert hz["epoch"] == 10 and (hz["mix"]["steps"] is None or hz["mix"]["tv"] <= 0.05)
