@@ -16,10 +16,17 @@ import pytest
 
 import envs
 from bouncesim.robots.kinematic import KinematicBatch
-from bouncesim.robots.noise import SteppedNoise
+from bouncesim.robots.noise import GaussianNoise, SteppedNoise
 from experiments.coverage_horizon import two_room
 from planners.cells import CellSpace
-from planners.coverage import Horizon, TurnNoise, design_mix, model_for, steps_to_limit
+from planners.coverage import (
+    Horizon,
+    TurnNoise,
+    design_mix,
+    model_for,
+    steps_to_limit,
+    steps_to_limit_each,
+)
 from planners.coverage.step import transition_matrix
 from planners.metrics import tv_distance
 
@@ -114,7 +121,9 @@ def test_long_horizon_reproduces_the_limit():
 
 def _twin(env, cs, angle, T, robots, noise, seed):
     batch = KinematicBatch(env, robots, np.random.default_rng(seed), cells=cs)
-    return batch.run(angle, T, noise=SteppedNoise(noise.eps_deg, noise.r, cs.delta_deg)).counts
+    twin_noise = GaussianNoise(noise.sigma_deg) if noise.gaussian else SteppedNoise(
+        noise.eps_deg, noise.r, cs.delta_deg)
+    return batch.run(angle, T, noise=twin_noise).counts
 
 
 def _check_twin(env, angle, noise, horizons):
@@ -134,6 +143,14 @@ def test_event_horizon_matches_the_twin_on_random_rooms(seed):
     rng = np.random.default_rng(seed)
     env = random_room(rng, K=36)
     _check_twin(env, 130.0, TurnNoise(10, 0.8), [(100, 600), (2000, 60)])
+
+
+def test_event_horizon_with_gaussian_noise_matches_the_twin():
+    # docs/model.md §18: with gauss:σ the event model's flights leave at sub-bin headings and
+    # the horizon must count those flights, not the grid headings' (on this room the grid
+    # flights under Gaussian turns are off by TV 0.15 at T = 1000, the twin's floor 0.04)
+    env = random_room(np.random.default_rng(4), K=72)
+    _check_twin(env, 130.0, TurnNoise.gauss(5), [(100, 1000), (1000, 200)])
 
 
 @pytest.mark.slow
@@ -158,6 +175,25 @@ def test_steps_to_limit_shrinks_as_the_door_widens():
         assert res["steps"] is not None and res["tv"] <= 0.05
         got.append(res["steps"])
     assert got[0] > got[1] > got[2]
+
+
+def test_one_pass_for_the_angles_and_their_mix_gives_each_policy_its_own_answer():
+    # steps_to_limit_each reads the mix (each run keeps one angle) off the angles' runs and
+    # drops runs once they are done: every policy gets what its own pass gives, to the bit
+    # (here two angles reach their limits at different T, one and the mix reach the cap)
+    noise = TurnNoise(22.5, 0.8)
+    model = model_for(CellSpace(two_room(0.34, 16)), "step")
+    angles, alpha = (157.5, 112.5, 67.5), np.array([0.2, 0.3, 0.5])
+    lims = [model.analyse(a, noise).q for a in angles]
+    mix_lim = np.column_stack(lims) @ alpha
+    hz = Horizon(model)
+    each, mix = steps_to_limit_each(hz, angles, lims, noise=noise, alpha=alpha,
+                                    mix_limit=mix_lim, cap=5000)
+    refs = [steps_to_limit(hz, [a], lim, noise=noise, cap=5000) for a, lim in zip(angles, lims)]
+    refs.append(steps_to_limit(hz, angles, mix_lim, noise=noise, alpha=alpha, cap=5000))
+    key = ("steps", "tv", "last")
+    assert [[r[k] for k in key] for r in [*each, mix]] == [[r[k] for k in key] for r in refs]
+    assert len({r["steps"] for r in refs}) == 3 and refs[-1]["steps"] is None
 
 
 def test_steps_to_limit_reports_the_cap_honestly():
@@ -223,3 +259,19 @@ def test_cli_horizon_writes_q_T_and_steps_to_limit(tmp_path, capsys):
     np.testing.assert_allclose([float(r["q"]) for r in rows], want, atol=1e-12)
     for r in hz["per_angle"]:
         assert r["steps"] is None or r["tv"] <= 0.05
+
+
+def test_cli_horizon_with_epochs_reports_each_angle_as_its_own_pass(capsys):
+    # with --epoch the mix gets its own pass; the angles still share one, and each angle's
+    # steps_to_limit is what steps_to_limit gives it alone
+    from bouncesim.cli import main
+    rc = main(["coverage", "lab", "--angles", "90,135", "--eps", "45", "--r", "0.8",
+               "--horizon", "50", "--epoch", "10", "--limit-cap", "2000", "--json"])
+    assert rc == 0
+    hz = json.loads(capsys.readouterr().out)["horizon"]
+    model = model_for(CellSpace(envs.load("lab")), "step")
+    for r in hz["per_angle"]:
+        lim = model.analyse(r["angle"], NOISE8).q
+        ref = steps_to_limit(Horizon(model), [r["angle"]], lim, noise=NOISE8, cap=2000)
+        assert (r["steps"], r["tv"], r["last"]) == (ref["steps"], ref["tv"], ref["last"])
+    assert hz["epoch"] == 10 and (hz["mix"]["steps"] is None or hz["mix"]["tv"] <= 0.05)

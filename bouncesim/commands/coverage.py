@@ -32,6 +32,7 @@ from planners.coverage import (
     load_target,
     model_for,
     steps_to_limit,
+    steps_to_limit_each,
     timeshared_coverage,
 )
 from planners.coverage.horizon import CAP
@@ -249,15 +250,18 @@ def horizon_report(model, result: MixDesign, args, start, timeshared_q) -> dict:
     hz = Horizon(model)
     T, noise = int(args.horizon), result.noise
     kw = {"noise": noise, "cap": args.limit_cap, "max_seconds": args.limit_seconds}
-    per = []
     limits = [a.q for a in result.per_angle]
-    for a, col, lim in zip(result.per_angle, result.A.T, limits):
-        stl = steps_to_limit(hz, [a.angle], lim, **kw)
-        per.append({"angle": _num(a.angle), "tv_to_limit": tv_distance(col, lim), **stl})
     mix_limit = limits[0] if len(result.angles) == 1 else (
         timeshared_q if timeshared_q is not None else np.column_stack(limits) @ result.alpha)
-    stl = steps_to_limit(hz, result.angles, mix_limit, alpha=result.alpha,
-                         epoch=args.epoch, **kw)
+    # one pass for the angles, and for the mix too when each of its runs keeps one angle
+    epochs = args.epoch is not None and len(result.angles) > 1
+    each, stl = steps_to_limit_each(hz, result.angles, limits, alpha=result.alpha,
+                                    mix_limit=None if epochs else mix_limit, **kw)
+    per = [{"angle": _num(a.angle), "tv_to_limit": tv_distance(col, lim), **r}
+           for a, col, lim, r in zip(result.per_angle, result.A.T, limits, each)]
+    if epochs:
+        stl = steps_to_limit(hz, result.angles, mix_limit, alpha=result.alpha,
+                             epoch=args.epoch, **kw)
     mix = {"tv_to_limit": tv_distance(result.mixed, mix_limit), **stl}
     for name, r in [*((f"{p['angle']}°", p) for p in per), ("the mix", mix)]:
         if r["steps"] is None or T < r["steps"] / 4:

@@ -9,7 +9,8 @@ Layout (imports flow down this list; nothing imports upwards):
 - :mod:`.base`: the :class:`CoverageModel` protocol and its one per-angle record,
   :class:`AngleCoverage`.
 - :mod:`.step`, :mod:`.sampled`, :mod:`.event`: the three models (:class:`StepModel`,
-  :class:`SampledModel`, :class:`EventModel`).
+  :class:`SampledModel`, :class:`EventModel`); :mod:`.event_flights`: the event model's
+  flights step by step (its rewards and the horizon's counts).
 - :mod:`.mix`: :func:`solve_mix` (α over the simplex) and :class:`MixDesign`.
 - :mod:`.horizon`: coverage over the first T steps and the time to the limit (§17).
 - :mod:`.api`: the registry :data:`MODELS`, :func:`model_for`, :func:`design_mix` and
@@ -39,7 +40,13 @@ from .api import (
 )
 from .base import STATE_KINDS, AngleCoverage, CoverageModel, clear_cache, group_cells
 from .event import EventModel, EventSettings, flight_steps
-from .horizon import Horizon, HorizonCoverage, horizon_coverage, steps_to_limit
+from .horizon import (
+    Horizon,
+    HorizonCoverage,
+    horizon_coverage,
+    steps_to_limit,
+    steps_to_limit_each,
+)
 from .mix import MixDesign, MixFit, solve_mix
 from .noise import TurnNoise
 from .sampled import SampledModel, SampledSettings
@@ -51,5 +58,5 @@ __all__ = ["MODELS", "AngleCoverage", "CoverageModel", "EventModel", "EventSetti
            "StepSettings", "TARGET_FORMATS", "TargetError", "TurnNoise", "check_angles",
            "check_model", "clear_cache", "default_settings", "design_mix", "flight_steps",
            "group_cells", "Horizon", "HorizonCoverage", "horizon_coverage", "load_target",
-           "STATE_KINDS", "model_for", "solve_mix", "steps_to_limit", "timeshared_coverage",
-           "transition_matrix", "uniform_target"]
+           "STATE_KINDS", "model_for", "solve_mix", "steps_to_limit", "steps_to_limit_each",
+           "timeshared_coverage", "transition_matrix", "uniform_target"]

@@ -57,6 +57,7 @@ from ..markov import (
 )
 from ..timeshare import DelayChain
 from .base import AngleCoverage, cached_build
+from .event_flights import FlightCells, StepTable, StraightFlights, step_table
 from .noise import TurnNoise
 
 __all__ = ["EventSettings", "Boundary", "EventModel", "flight_steps", "analyse_contact_chain"]
@@ -277,25 +278,6 @@ def _cast(caster, pos, u) -> np.ndarray:
     return drive_distance(out)
 
 
-def _step_cells(cs: CellSpace, start, u, n_fwd, dist, owner, weight):
-    """Rewards of flights: (owner, cell, weight) triplets of every counted step.
-
-    Forward step m = 0 … n_fwd−1 is counted in the cell of start + m h u, the bump step in
-    the cell of start + dist u; steps in no free cell are dropped.
-    """
-    h = cs.h
-    reps = n_fwd
-    idx = np.repeat(np.arange(len(start)), reps)
-    m = np.arange(idx.size) - np.repeat(np.cumsum(reps) - reps, reps)
-    fpts = start[idx] + (m * h)[:, None] * u[idx]
-    land = start + dist[:, None] * u
-    cells = np.concatenate([cs.cell_of_point(fpts), cs.cell_of_point(land)])
-    own = np.concatenate([owner[idx], owner])
-    w = np.concatenate([weight[idx], weight])
-    ok = cells >= 0
-    return own[ok], cells[ok], w[ok]
-
-
 @dataclass(frozen=True, eq=False)
 class _Flights:
     """One set of sampled flights of an :class:`EventModel` (see its attributes)."""
@@ -305,6 +287,7 @@ class _Flights:
     reward: sp.csr_matrix
     length: np.ndarray
     mean_flight: float
+    steps: StepTable        # the flights' counted steps, one by one
 
 
 @dataclass(eq=False)
@@ -367,6 +350,7 @@ class EventModel:
         d0 = _cast(caster, c0, uk[k0])
         lb0 = bd.bin_of(c0 + d0[:, None] * uk[k0])
         self.start_pre = np.bincount(lb0 * K + k0, minlength=n) / float(p0.size)
+        self._start = (StraightFlights(c0, uk[k0], d0), lb0 * K + k0)   # for flight_cells
         self.build_seconds = time.perf_counter() - t0
 
     def _use(self, fs: "_Flights") -> None:
@@ -408,12 +392,11 @@ class EventModel:
         flight = sp.csr_matrix((w, (state, lb * K + k)), shape=(n, n))
         flight.sum_duplicates()
         n_fwd = flight_steps(dist, cs.h)
-        own, cells, ww = _step_cells(cs, pts, u, n_fwd, dist, state, w)
-        reward = sp.csr_matrix((ww, (own, cells)), shape=(n, cs.P))
-        reward.sum_duplicates()
-        fs = _Flights(flight=flight, flights=(state, lb * K + k, n_fwd + 1, w), reward=reward,
+        steps = step_table(cs, n_fwd, StraightFlights(pts, u, dist))
+        fs = _Flights(flight=flight, flights=(state, lb * K + k, n_fwd + 1, w),
+                      reward=steps.reward(state, w, n, cs.P),
                       length=np.bincount(state, weights=w * (n_fwd + 1), minlength=n),
-                      mean_flight=float(np.mean(dist)))
+                      mean_flight=float(np.mean(dist)), steps=steps)
         self._flight_sets[continuous] = fs
         return fs
 
@@ -443,6 +426,15 @@ class EventModel:
         src, dst, delay, w = fs.flights
         return DelayChain(src=src, dst=dst, delay=delay, weight=w, reward=fs.reward,
                           start=self.start_pre)
+
+    def flight_cells(self, noise: TurnNoise = _EXACT) -> FlightCells:
+        """The flights of :meth:`delay_chain` (same ``noise``) and the first flights from the
+        cell centres, step by step: what the horizon coverage counts (docs/model.md §17).
+        """
+        paths, land0 = self._start
+        n0 = flight_steps(paths.clock, self.cs.h)
+        return FlightCells(steps=self._flight_set(noise.gaussian).steps, start_delay=n0 + 1,
+                           start_land=land0, start_steps=step_table(self.cs, n0, paths))
 
     def chain(self, angle_deg: float, noise: TurnNoise = _EXACT
               ) -> tuple[sp.csr_matrix, np.ndarray]:

@@ -40,15 +40,15 @@ import scipy.sparse as sp
 from scipy.optimize import minimize
 
 from envs import UserError
-from envs.motion import casters, flight_steps, unit
 
 from ..metrics import tv_distance
 from ..timeshare import DelayChain, TimeShared
-from .event import _INTO_TOL, _cast  # the event model's own caster and test
+from .event_flights import StepTable
 from .mix import MixDesign, solve_mix
 from .noise import TurnNoise
 
 __all__ = ["Horizon", "HorizonCoverage", "horizon_coverage", "steps_to_limit",
+           "steps_to_limit_each",
            "start_distribution", "fit_horizon_mix", "CAP", "LIMIT_TV", "grid"]
 
 CAP = 10_000_000        # default cap [steps] of steps_to_limit
@@ -117,53 +117,56 @@ def start_distribution(cs, start=None) -> np.ndarray:
     return w / w.sum()
 
 
-def _event_steps(model):
-    """Per-step cells of the event model's flights and of its first flights from the cell
-    centres: (flight, offset m, cell, weight) of every counted step, delays of the first
-    flights and their landing (pre-turn) states.
+@dataclass(frozen=True, eq=False)
+class _Recursion:
+    """A model's delay chain extended for horizons (see :class:`Horizon`'s notes).
 
-    The flight geometry is recomputed exactly as :class:`~planners.coverage.event.EventModel`
-    builds it (same start points, casts and step rule) and checked against its flights.
+    Attributes
+    ----------
+    chain : DelayChain         with the event model's first flights on N extra states
+    ts : TimeShared            its recursion
+    offset : int               index of configuration 0's start state
+    tailsT : csr (P, D·n)      Q_jᵀ stacked: steps a flight makes at offsets m ≥ j
     """
-    cs, st, bd = model.cs, model.settings, model.boundary
-    K, n, h = cs.K, model.n_states, cs.h
-    S = int(st.samples)
-    state = np.repeat(np.arange(n), S)
-    b, k = state // K, state % K
-    frac = np.tile((np.arange(S) + 0.5) / S, n)
-    pts, seg = bd.points(b, frac, return_segment=True)
-    uk = unit(np.arange(K) * cs.delta_deg)
-    u = uk[k]
-    into = (u * bd.seg_inward[seg]).sum(axis=1) < -_INTO_TOL
-    caster = casters(cs.env)[0]
-    dist = np.zeros(len(pts))
-    dist[~into] = _cast(caster, pts[~into], u[~into])
-    n_fwd = flight_steps(dist, h)
-    if not np.array_equal(n_fwd + 1, np.asarray(model.flights[2])):
-        raise RuntimeError("the event model's flights differ from their recomputation.")
-    # first flights from the cell centres, configuration z = k·P + p
-    p0 = np.tile(np.arange(cs.P), K)
-    k0 = np.repeat(np.arange(K), cs.P)
-    c0 = cs.centres[p0]
-    d0 = _cast(caster, c0, uk[k0])
-    n0 = flight_steps(d0, h)
-    land0 = bd.bin_of(c0 + d0[:, None] * uk[k0]) * K + k0
-    # every counted step: flights f < F, then first flights F + z
-    F = state.size
-    pos = np.concatenate([pts, c0])
-    uu = np.concatenate([u, uk[k0]])
-    nf = np.concatenate([n_fwd, n0])
-    dd = np.concatenate([dist, d0])
-    w = np.concatenate([np.full(F, 1.0 / S), np.ones(cs.N)])
-    idx = np.repeat(np.arange(nf.size), nf)
-    m = np.arange(idx.size) - np.repeat(np.cumsum(nf) - nf, nf)
-    fcell = cs.cell_of_point(pos[idx] + (m * h)[:, None] * uu[idx])
-    bcell = cs.cell_of_point(pos + dd[:, None] * uu)
-    fl = np.concatenate([idx, np.arange(nf.size)])
-    off = np.concatenate([m, nf])
-    cell = np.concatenate([fcell, bcell])
-    ok = cell >= 0
-    return (fl[ok], off[ok], cell[ok], w[fl[ok]]), n0 + 1, land0
+
+    chain: DelayChain
+    ts: TimeShared
+    offset: int
+    tailsT: sp.csr_matrix
+
+    @property
+    def n(self) -> int:
+        """States of the extended chain."""
+        return self.chain.n
+
+    @classmethod
+    def build(cls, model, noise: TurnNoise) -> "_Recursion":
+        """The recursion of ``model`` with the flights of ``noise`` (event model: §18)."""
+        cs = model.cs
+        if model.name != "event":                                 # step, sampled: D = 1
+            base = model.delay_chain()
+            ts = TimeShared(base)
+            return cls(chain=base, ts=ts, offset=0, tailsT=sp.csr_matrix(ts.RT))
+        base, fc = model.delay_chain(noise), model.flight_cells(noise)
+        n, F = base.n, base.src.size
+        nt = n + cs.N
+        src = np.concatenate([base.src, n + np.arange(cs.N)])
+        weight = np.concatenate([base.weight, np.ones(cs.N)])
+        steps = StepTable(flight=np.concatenate([fc.steps.flight, F + fc.start_steps.flight]),
+                          offset=np.concatenate([fc.steps.offset, fc.start_steps.offset]),
+                          cell=np.concatenate([fc.steps.cell, fc.start_steps.cell]))
+        chain = DelayChain(src=src, dst=np.concatenate([base.dst, fc.start_land]),
+                           delay=np.concatenate([base.delay, fc.start_delay]), weight=weight,
+                           reward=steps.reward(src, weight, nt, cs.P), start=np.zeros(nt))
+        ts = TimeShared(chain)
+        # Q_j: rows j·nt + src of every step at offset m ≥ j (j < D)
+        rep = steps.offset + 1
+        j = np.arange(rep.sum()) - np.repeat(np.cumsum(rep) - rep, rep)
+        rows = j * nt + np.repeat(src[steps.flight], rep)
+        tails = sp.csr_matrix((np.repeat(weight[steps.flight], rep),
+                               (rows, np.repeat(steps.cell, rep))), shape=(ts.D * nt, cs.P))
+        tails.sum_duplicates()
+        return cls(chain=chain, ts=ts, offset=n, tailsT=sp.csr_matrix(tails.T))
 
 
 class Horizon:
@@ -185,52 +188,91 @@ class Horizon:
     """
 
     def __init__(self, model) -> None:
-        t0 = time.perf_counter()
         self.model = model
-        cs = model.cs
-        base = model.delay_chain()
-        n = base.n
-        if n == cs.N and int(np.max(base.delay)) == 1:          # step, sampled
-            self.chain = base
-            self.offset = 0
-            self.n = n
-            tails = sp.csr_matrix(base.reward)
-        else:                                                     # event
-            (fl, off, cell, w), d0, land0 = _event_steps(model)
-            src = np.concatenate([base.src, n + np.arange(cs.N)])
-            self.n = nt = n + cs.N
-            self.offset = n
-            srcf = src[fl]
-            reward = sp.csr_matrix((w, (srcf, cell)), shape=(nt, cs.P))
-            reward.sum_duplicates()
-            if abs(reward[:n] - base.reward).max() > 1e-9:
-                raise RuntimeError("the event model's rewards differ from their recomputation.")
-            self.chain = DelayChain(src=src, dst=np.concatenate([base.dst, land0]),
-                                    delay=np.concatenate([base.delay, d0]),
-                                    weight=np.concatenate([base.weight, np.ones(cs.N)]),
-                                    reward=sp.csr_matrix(reward), start=np.zeros(nt))
-            # Q_j: rows j·nt + src of every step at offset m ≥ j
-            rep = off + 1
-            j = np.arange(rep.sum()) - np.repeat(np.cumsum(rep) - rep, rep)
-            rows = j * nt + np.repeat(srcf, rep)
-            tails = sp.csr_matrix((np.repeat(w, rep), (rows, np.repeat(cell, rep))),
-                                  shape=(int(self.chain.delay.max()) * nt, cs.P))
-            tails.sum_duplicates()
-        self.ts = TimeShared(self.chain)
-        D = self.ts.D
-        if tails.shape[0] < D * self.n:
-            tails = sp.vstack([tails, sp.csr_matrix((D * self.n - tails.shape[0], cs.P))])
-        self.tailsT = sp.csr_matrix(tails.T)
-        self.seconds = time.perf_counter() - t0
+        self.seconds = 0.0                   # time spent preparing the recursions [s]
+        self._prepared: dict = {}
 
-    def _turns(self, angles, noise: TurnNoise) -> list:
+    def _prepare(self, noise: TurnNoise) -> "_Recursion":
+        """The recursion of ``noise``'s flights (the event model casts Gaussian noise's
+        flights at sub-bin headings, docs/model.md §18), built once per kind of flights.
+        """
+        kind = bool(noise.gaussian) and self.model.name == "event"
+        if kind not in self._prepared:
+            t0 = time.perf_counter()
+            self._prepared[kind] = _Recursion.build(self.model, noise)
+            self.seconds += time.perf_counter() - t0
+        return self._prepared[kind]
+
+    def _turns(self, angles, noise: TurnNoise, offset: int) -> list:
         out = []
         for a in angles:
             W = self.model.turn_matrix(a, noise)
-            if self.offset:
+            if offset:
                 W = sp.block_diag((W, sp.csr_matrix((self.model.cs.N,) * 2)), format="csr")
             out.append(sp.csr_matrix(W.T).astype(np.float32))
         return out
+
+    @staticmethod
+    def _advance(rec: "_Recursion", WT, hist: np.ndarray, steps: int):
+        """``steps`` steps of m runs in lockstep: ``hist`` (D, n, m) their last D departures,
+        ``WT`` their m turn matrices (transposed, float32). Returns (end state (D, n, m),
+        Σ v_t (n, m) float64). Each run is one vector through
+        :meth:`planners.timeshare.TimeShared.advance`: a sparse product with a block of m
+        vectors costs as much as m products here (``benchmarks/bench_horizon.py``).
+        """
+        ends, deps = zip(*(rec.ts.advance(W, hist[:, :, j], steps) for j, W in enumerate(WT)))
+        return np.stack(ends, axis=2), np.column_stack(deps)
+
+    def _columns(self, angles, horizons, noise: TurnNoise, alpha, epoch, start):
+        """Counted steps per cell (P, m) of the first T steps of each of m runs, for every T
+        in ``horizons``: the angles with α_i > 0 (all angles when ``alpha`` is None), each
+        run keeping its angle, or with ``epoch`` a mix whose runs restart every epoch from
+        the α-mixture of their end states (docs/model.md §17). Yields (T, counts, α of the
+        runs).
+        """
+        cs = self.model.cs
+        if alpha is None:
+            alpha = np.ones(len(angles))
+        alpha = np.asarray(alpha, dtype=float).ravel()
+        if alpha.size != len(angles) or (alpha < 0).any() or not alpha.sum() > 0:
+            raise UserError("a mix needs one non-negative α per angle, with a positive sum.")
+        alpha = alpha / alpha.sum()
+        use = [i for i in range(alpha.size) if alpha[i] > 0]
+        a = alpha[use]
+        horizons = sorted({int(t) for t in horizons})
+        if not horizons or horizons[0] < 1:
+            raise UserError("a horizon must be at least one step.")
+        if epoch is not None and int(epoch) < 1:
+            raise UserError(f"an epoch must be at least one step, got {epoch}.")
+        E = int(epoch) if len(use) > 1 and epoch is not None else horizons[-1]
+        rec = self._prepare(noise)
+        WT = self._turns([angles[i] for i in use], noise, rec.offset)
+        D, n, m = rec.ts.D, rec.n, len(use)
+        p0 = start_distribution(cs, start)
+        hist = np.zeros((D, n, m), dtype=np.float32)
+        hist[0, rec.offset:rec.offset + cs.N] = p0[:, None]
+        dep = hist[0].astype(float)
+        RT = rec.ts.RT
+        t, todo = 0, list(horizons)
+        while todo:
+            end = todo[0] if m == 1 else t + min(E - t % E, todo[-1] - t)
+            hs, ds = hist, dep.copy()
+            stops = [T for T in todo if t < T <= end]
+            if not stops or stops[-1] != end:
+                stops.append(end)
+            s = t
+            for T in stops:
+                hs, dd = self._advance(rec, WT, hs, T - s)
+                ds += dd
+                s = T
+                if T in todo:
+                    todo.remove(T)
+                    yield T, RT @ ds - rec.tailsT @ hs.reshape(D * n, m).astype(float), a
+            # the next epoch's runs all start from the α-mixture of the end states
+            mixed = sum(np.float32(a[j]) * hs[:, :, j] for j in range(m)).astype(np.float32)
+            hist = np.repeat(mixed[:, :, None], m, axis=2)
+            dep = np.repeat(sum(a[j] * ds[:, j] for j in range(m))[:, None], m, axis=1)
+            t = end
 
     def run(self, angles, horizons, *, noise: TurnNoise = _EXACT, alpha=None,
             epoch: int | None = None, start=None, stop=None):
@@ -251,50 +293,14 @@ class Horizon:
         ------
         (T, counts (P,), total steps)
         """
-        cs = self.model.cs
-        angles = tuple(float(a) for a in angles)
-        alpha = np.ones(1) if alpha is None else np.asarray(alpha, dtype=float).ravel()
-        if alpha.size != len(angles) or (alpha < 0).any() or not alpha.sum() > 0:
+        if alpha is None and len(angles) != 1:
             raise UserError("a mix needs one non-negative α per angle, with a positive sum.")
-        alpha = alpha / alpha.sum()
-        use = [i for i in range(alpha.size) if alpha[i] > 0]
-        horizons = sorted({int(t) for t in horizons})
-        if not horizons or horizons[0] < 1:
-            raise UserError("a horizon must be at least one step.")
-        if epoch is not None and int(epoch) < 1:
-            raise UserError(f"an epoch must be at least one step, got {epoch}.")
-        E = int(epoch) if len(use) > 1 and epoch is not None else horizons[-1]
-        WT = dict(zip(use, self._turns([angles[i] for i in use], noise)))
-        D, n = self.ts.D, self.n
-        p0 = start_distribution(cs, start)
-        hist = np.zeros((D, n), dtype=np.float32)
-        hist[0, self.offset:self.offset + cs.N] = p0
-        dep = hist[0].astype(float)
-        RT = self.ts.RT
-        t, todo = 0, list(horizons)
-        while todo:
-            end = todo[0] if len(use) == 1 else t + min(E - t % E, todo[-1] - t)
-            hs = dict.fromkeys(use, hist)
-            ds = {i: dep.copy() for i in use}
-            stops = [T for T in todo if t < T <= end]
-            if not stops or stops[-1] != end:
-                stops.append(end)
-            s = t
-            for T in stops:                  # angles in lockstep: stop() can end the pass
-                for i in use:
-                    hs[i], dd = self.ts.advance(WT[i], hs[i], T - s)
-                    ds[i] += dd
-                s = T
-                if T in todo:
-                    counts = sum(alpha[i] * (RT @ ds[i] - self.tailsT
-                                             @ hs[i].reshape(-1).astype(float)) for i in use)
-                    todo.remove(T)
-                    yield T, counts, float(T)
-                    if stop is not None and stop(T, counts):
-                        return
-            hist = sum(np.float32(alpha[i]) * hs[i] for i in use).astype(np.float32)
-            dep = sum(alpha[i] * ds[i] for i in use)
-            t = end
+        for T, cols, a in self._columns(tuple(float(x) for x in angles), horizons, noise,
+                                        alpha, epoch, start):
+            counts = sum(a[j] * cols[:, j] for j in range(a.size))
+            yield T, counts, float(T)
+            if stop is not None and stop(T, counts):
+                return
 
     def coverage(self, angles, horizon: int, *, noise: TurnNoise = _EXACT, alpha=None,
                  epoch: int | None = None, start=None) -> HorizonCoverage:
@@ -342,6 +348,65 @@ def steps_to_limit(hz: Horizon, angles, limit_q, *, noise: TurnNoise = _EXACT, a
     for _ in hz.run(angles, grid(cap), noise=noise, alpha=alpha, epoch=epoch, stop=stop):
         pass
     return {**state, "cap": int(cap), "tol": tol, "seconds": time.perf_counter() - t0}
+
+
+def steps_to_limit_each(hz: Horizon, angles, limits, *, noise: TurnNoise = _EXACT,
+                        alpha=None, mix_limit=None, tol: float = LIMIT_TV, cap: int = CAP,
+                        max_seconds: float | None = None) -> tuple[list[dict], dict | None]:
+    """:func:`steps_to_limit` of every angle alone (against ``limits[i]``) and, with ``alpha``
+    and ``mix_limit``, of the mix whose runs each keep one angle drawn with probabilities α
+    (no epochs), in one pass (docs/model.md §17).
+
+    The mix's counts are Σ α_i of the angles' counts at every T, so it costs no run of its
+    own (:func:`steps_to_limit` on the mix runs every angle again); the angles' runs go in
+    lockstep and each leaves the pass once it and the mix are within ``tol`` of their
+    limits. The pass ends there, at the cap, or after ``max_seconds`` per policy. Each
+    policy's result is the one :func:`steps_to_limit` gives it alone (same arithmetic).
+
+    Returns
+    -------
+    (list of the angles' dicts, the mix's dict or None), each as :func:`steps_to_limit`'s
+    """
+    t0 = time.perf_counter()
+    angles = tuple(float(a) for a in angles)
+    lims = [np.asarray(q, dtype=float) for q in limits]
+    if len(lims) != len(angles):
+        raise UserError("steps_to_limit needs one limit per angle.")
+    w = None
+    if alpha is not None and mix_limit is not None:
+        w = np.asarray(alpha, dtype=float).ravel()
+        if w.size != len(angles) or (w < 0).any() or not w.sum() > 0:
+            raise UserError("a mix needs one non-negative α per angle, with a positive sum.")
+        w = w / w.sum()
+        mix_limit = np.asarray(mix_limit, dtype=float)
+    states = [{"steps": None, "tv": math.nan, "last": 0} for _ in range(len(angles) + 1)]
+    horizons = grid(cap)
+    runs = {i: hz.run([a], horizons, noise=noise) for i, a in enumerate(angles)}
+    budget = None if max_seconds is None else max_seconds * (len(angles) + (w is not None))
+
+    def update(st, T, counts, lim):
+        st.update(last=T, tv=tv_distance(counts, lim))
+        if st["tv"] <= tol:
+            st["steps"] = T
+
+    while runs:
+        counts = {i: next(r) for i, r in runs.items()}           # (T, counts, total)
+        T = next(iter(counts.values()))[0]
+        for i, (_, c, _) in counts.items():
+            if states[i]["steps"] is None:
+                update(states[i], T, c, lims[i])
+        mix = states[-1]
+        if w is not None and mix["steps"] is None:
+            update(mix, T, sum(w[i] * counts[i][1] for i in counts), mix_limit)
+        mix_done = w is None or mix["steps"] is not None
+        for i in list(runs):
+            if states[i]["steps"] is not None and (mix_done or w[i] == 0):
+                del runs[i]
+        if T >= horizons[-1] or (budget is not None and time.perf_counter() - t0 > budget):
+            break
+    sec = time.perf_counter() - t0
+    out = [{**st, "cap": int(cap), "tol": tol, "seconds": sec} for st in states]
+    return out[:-1], (out[-1] if w is not None else None)
 
 
 def fit_horizon_mix(hz: Horizon, angles, noise: TurnNoise, target, horizon: int,
