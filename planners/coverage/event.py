@@ -44,7 +44,8 @@ import shapely
 from shapely.geometry.polygon import orient
 
 from envs import UserError
-from envs.motion import CONTACT_GAP, casters, drive_distance, flight_steps, unit
+from envs.contact import contact_flights
+from envs.motion import CONTACT_GAP, ContactParams, casters, drive_distance, flight_steps, unit
 
 from ..cells import CellSpace
 from ..markov import (
@@ -93,11 +94,14 @@ class EventSettings:
         Gaussian noise only (docs/model.md §18): flight headings per heading bin, spread
         evenly inside it at θ_k + ((l + ½)/n_θ − ½)Δ, each crossed with the ``samples``
         start points. Grid noise keeps the exact heading θ_k.
+    contact : envs.motion.ContactParams, optional
+        The contact rule of docs/model.md §20 (default None: every contact bumps, §10).
     """
 
     bin_length: float = 0.03
     samples: int = 2
     heading_samples: int = 2
+    contact: ContactParams | None = None
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.bin_length) and self.bin_length > 0):
@@ -277,7 +281,7 @@ def _cast(caster, pos, u) -> np.ndarray:
     return drive_distance(out)
 
 
-def _step_cells(cs: CellSpace, start, u, n_fwd, dist, owner, weight):
+def _step_cells(cs: CellSpace, start, u, n_fwd, dist, owner, weight, paths):
     """Rewards of flights: (owner, cell, weight) triplets of every counted step.
 
     Forward step m = 0 … n_fwd−1 is counted in the cell of start + m h u, the bump step in
@@ -287,8 +291,7 @@ def _step_cells(cs: CellSpace, start, u, n_fwd, dist, owner, weight):
     reps = n_fwd
     idx = np.repeat(np.arange(len(start)), reps)
     m = np.arange(idx.size) - np.repeat(np.cumsum(reps) - reps, reps)
-    fpts = start[idx] + (m * h)[:, None] * u[idx]
-    land = start + dist[:, None] * u
+    fpts, land = paths.points(idx, m * h), paths.end   # start + s·u unless it slid (§20)
     cells = np.concatenate([cs.cell_of_point(fpts), cs.cell_of_point(land)])
     own = np.concatenate([owner[idx], owner])
     w = np.concatenate([weight[idx], weight])
@@ -365,7 +368,7 @@ class EventModel:
         k0 = np.repeat(np.arange(K), cs.P)
         c0 = cs.centres[p0]
         d0 = _cast(caster, c0, uk[k0])
-        lb0 = bd.bin_of(c0 + d0[:, None] * uk[k0])
+        lb0 = bd.bin_of(contact_flights(caster, c0, uk[k0], d0, st.contact).end)
         self.start_pre = np.bincount(lb0 * K + k0, minlength=n) / float(p0.size)
         self.build_seconds = time.perf_counter() - t0
 
@@ -399,7 +402,8 @@ class EventModel:
         into = (u * bd.seg_inward[seg]).sum(axis=1) < -_INTO_TOL
         dist = np.zeros(len(pts))
         dist[~into] = _cast(caster, pts[~into], u[~into])
-        land = pts + dist[:, None] * u
+        paths = contact_flights(caster, pts, u, dist, st.contact)   # slides below β (§20)
+        land, dist, into = paths.end, paths.clock, into & (paths.clock == 0)
         lb = b.copy()                        # an immediate bump lands in its own bin
         lb[~into] = bd.bin_of(land[~into])
         # flights into another part of C-space thread a knife edge exactly on its axis (§19)
@@ -408,7 +412,7 @@ class EventModel:
         flight = sp.csr_matrix((w, (state, lb * K + k)), shape=(n, n))
         flight.sum_duplicates()
         n_fwd = flight_steps(dist, cs.h)
-        own, cells, ww = _step_cells(cs, pts, u, n_fwd, dist, state, w)
+        own, cells, ww = _step_cells(cs, pts, u, n_fwd, dist, state, w, paths)
         reward = sp.csr_matrix((ww, (own, cells)), shape=(n, cs.P))
         reward.sum_duplicates()
         fs = _Flights(flight=flight, flights=(state, lb * K + k, n_fwd + 1, w), reward=reward,
@@ -480,14 +484,11 @@ class EventModel:
 
 def _power_stationary(Tg: sp.csr_matrix) -> tuple[np.ndarray, int]:
     """Stationary distribution of one irreducible class by damped power iteration (the
-    method before the aggregation solver; kept as the benchmark's reference).
-
-    x ← (1 − β) Tᵀx + βx with β = 0.05 (same fixed point; eigenvalues on the unit circle
-    other than 1 move inside it, so periodic classes converge). Stops when the geometric
-    error bound d·ρ/(1 − ρ) < 1e-6 in L1, with d the last change and ρ the observed
-    contraction of the change over 20 iterations. The matrix-vector products run in float32
-    (memory bound: 1.5 times faster; the result differs from float64 by ~2e-6 in L1 on
-    ``complex``), sums and the stopping test in float64. Returns (π, iterations).
+    benchmark's reference): x ← (1 − β) Tᵀx + βx with β = 0.05 (same fixed point; eigenvalues
+    on the unit circle other than 1 move inside it, so periodic classes converge). Stops when
+    d·ρ/(1 − ρ) < 1e-6 in L1 (d the last change, ρ the observed contraction over 20
+    iterations). Products in float32 (memory bound: 1.5 times faster; ~2e-6 from float64 in
+    L1 on ``complex``), sums and the stopping test in float64. Returns (π, iterations).
     """
     TT = sp.csr_matrix(Tg.T).astype(np.float32)
     n = TT.shape[0]
@@ -522,8 +523,7 @@ def _aggregated_stationary(Tg: sp.csr_matrix, agg: np.ndarray) -> tuple[np.ndarr
     steps x ← 0.95·Tᵀx + 0.05·x. π is a fixed point of the cycle. The coarse solve carries
     mass between weakly coupled regions (two rooms joined by a door few flights pass), the
     slow modes that stall the plain power iteration; the smoothing removes the fast ones.
-    Stops when d·ρ/(1 − ρ) < 1e-6 in L1 (d: the change over a cycle, ρ: its observed
-    contraction), as the power iteration did. Returns (π, cycles).
+    Stops when d·ρ/(1 − ρ) < 1e-6 in L1 (d: the change over a cycle, ρ: its contraction).
     """
     n = Tg.shape[0]
     _, agg = np.unique(np.asarray(agg), return_inverse=True)
