@@ -553,7 +553,7 @@ def _aggregated_stationary(Tg: sp.csr_matrix, agg: np.ndarray) -> tuple[np.ndarr
         y /= y.sum()
         d = float(np.abs(y - x).sum())
         x = y
-        if d == 0.0:
+        if d == 0.0 or (cycles >= 500 and d > 1e-3):   # or stalled: the caller solves directly
             break
         if prev is not None and d < prev:
             rho = d / prev
