@@ -1,4 +1,5 @@
-"""Benchmark maps that are not in the catalogue: the slowly mixing two-room office.
+"""Benchmark maps that are not in the catalogue: the slowly mixing two-room office, and random
+rectilinear rooms with blocks (:func:`random_rectilinear_room`).
 
 :func:`office` is the map of the issue that found the event model's performance cliff: a
 4.08 m × 2.72 m office (12 × 8 cells of 0.34 m) split by a partition with one door, and a
@@ -7,15 +8,18 @@ door is a knife edge (docs/model.md §19): only a flight along the door's axis p
 
 >>> env = office(orientations=8)
 >>> env.name, env.grid_shape, round(env.robot_radius, 2)
-('office', (12, 8), 0.17)
+('office', (8, 12), 0.17)
 """
 
 from __future__ import annotations
 
+import numpy as np
+import shapely
+
 import envs
 from envs import Environment
 
-__all__ = ["MAPS", "load_map", "office"]
+__all__ = ["MAPS", "load_map", "office", "random_rectilinear_room"]
 
 H = 0.34                     # [m] cell size = robot diameter
 R = 0.17                     # [m] robot radius
@@ -45,6 +49,38 @@ def office(door: float = 2 * R, orientations: int = 360) -> Environment:
         "description": "two rooms joined by one door (benchmarks.maps.office)",
         "boundary": [[0, 0], [W, 0], [W, Hh], [0, Hh]], "obstacles": obstacles,
         "robot_radius": R,
+        "discretization": {"cell_size": H, "orientations": int(orientations)}})
+
+
+def random_rectilinear_room(rng: np.random.Generator, orientations: int = 360,
+                            name: str = "rect") -> Environment:
+    """A random rectilinear room: 6-9 × 5-7 cells of h = 0.34 m (r = 0.17 m) with one or two
+    blocks of 1-2 × 1-2 cells on the grid, clear of the walls (overlapping blocks merged).
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+    orientations : int    K (default 360)
+    name : str
+
+    >>> env = random_rectilinear_room(np.random.default_rng(0), orientations=8)
+    >>> rows, cols = env.grid_shape
+    >>> cols in range(6, 10), rows in range(5, 8), len(env.obstacles) in (1, 2)
+    (True, True, True)
+    """
+    W = H * int(rng.integers(6, 10))
+    Hh = H * int(rng.integers(5, 8))
+    obs = []
+    for _ in range(int(rng.integers(1, 3))):
+        w, h = H * int(rng.integers(1, 3)), H * int(rng.integers(1, 3))
+        x = H * int(rng.integers(1, round(W / H) - 2))
+        y = H * int(rng.integers(1, round(Hh / H) - 2))
+        obs.append([[x, y], [x + w, y], [x + w, y + h], [x, y + h]])
+    u = shapely.union_all([shapely.Polygon(o) for o in obs])
+    obs = [list(p.exterior.coords)[:-1] for p in shapely.get_parts(u)]
+    return Environment.from_dict({
+        "name": name, "boundary": [[0, 0], [W, 0], [W, Hh], [0, Hh]],
+        "obstacles": [list(o) for o in obs], "robot_radius": R,
         "discretization": {"cell_size": H, "orientations": int(orientations)}})
 
 

@@ -1,4 +1,4 @@
-"""The contact rule: which contacts close the bumper, and how the body slides (docs/model.md §20).
+"""The contact rule: which contacts close the bumper, and how the body slides (docs/model.md §23).
 
 Part of the motion layer (:mod:`envs.motion` holds the casts, constants and the calibrated
 :class:`~envs.motion.ContactParams`); written once and used by the kinematic twin (one robot

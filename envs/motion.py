@@ -463,7 +463,7 @@ def casters(env: Environment, step: float | None = None) -> tuple[WallCaster, Lo
 class ContactParams:
     """How a disk robot meets a straight wall (data only; docs/model.md §16, "Contact calibration
     (PyBullet)"). Fitted to the PyBullet Create 2 by ``experiments/contact_calibration.py``;
-    the rule that uses it is :mod:`envs.contact` (§20).
+    the rule that uses it is :mod:`envs.contact` (§23).
 
     Attributes
     ----------

@@ -45,11 +45,13 @@ PENTAGON = {
     "robot_radius": 0.17, "discretization": {"cell_size": 0.34, "orientations": 8}}
 
 
-def random_polygon_room(rng: np.random.Generator, name: str = "random") -> Environment:
-    """A regular n-gon room (n = 5..8, radius 1.3-1.8 m, random rotation) with a regular
-    m-gon hole (m = 3..6, radius 0.25-0.4 m) near its centre; r = 0.17 m, h = 0.34 m, K = 8.
+def random_polygon_room(rng: np.random.Generator, name: str = "random",
+                        sides: tuple = (5, 9)) -> Environment:
+    """A regular n-gon room (n in range(*sides), default 5..8, radius 1.3-1.8 m, random
+    rotation) with a regular m-gon hole (m = 3..6, radius 0.25-0.4 m) near its centre;
+    r = 0.17 m, h = 0.34 m, K = 8.
     """
-    n, R = int(rng.integers(5, 9)), float(rng.uniform(1.3, 1.8))
+    n, R = int(rng.integers(*sides)), float(rng.uniform(1.3, 1.8))
     t = rng.uniform(0, 2 * np.pi) + 2 * np.pi * np.arange(n) / n
     outer = (R + R * np.column_stack([np.cos(t), np.sin(t)])).round(6)
     m = int(rng.integers(3, 7))

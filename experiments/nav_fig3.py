@@ -4,6 +4,10 @@ then (when the physics backends are installed) executed in PyBullet and in the k
     python -m experiments.nav_fig3 [--quick] [--seed 0] [--out results/nav_fig3]
 
 Paper ids are 1-based (id = z + 1): plan 1 goes from id 9 to id 1, plan 2 from id 104 to id 9.
+Writes ``plans.csv`` (the step plans, the paper's, and the exact planner's for the same
+queries, docs/model.md §15), ``fig3_paths.png`` (the step plans and their noise-free
+executions) and ``fig3_step_vs_exact.png`` (the paper's step plans beside the exact ones,
+each replayed noise-free in the twin, plus one contrasting query on ``studio``).
 """
 
 from __future__ import annotations
@@ -17,12 +21,14 @@ import pandas as pd
 import envs
 from bouncesim.runs.options import parse_angles
 from planners.cells import CellSpace
+from planners.exact import ExactNavigator
 from planners.navigation import Navigator
 from planners.plan import Plan
 
 from .common import experiment_parser, output_dir, write_config
 
-__all__ = ["PAPER_PLANS", "QUERIES", "Config", "main", "plan_routes", "run"]
+__all__ = ["CONTRAST", "PAPER_PLANS", "QUERIES", "Config", "draw_step_vs_exact",
+           "exact_routes", "main", "plan_routes", "run", "step_vs_exact_rows"]
 
 QUERIES = [("plan 1", 9, 1), ("plan 2", 104, 9)]     # (label, paper start id, paper goal id)
 PAPER_PLANS = {"plan 1": None,   # the paper prints no string for plan 1: it "uses only 90°"
@@ -81,6 +87,19 @@ def plan_routes(angles, w1=1.0, w2=100.0):
     return env, cells, nav, routes, pd.DataFrame(rows)
 
 
+def exact_routes(cells, table, angles, w1=1.0, w2=100.0) -> list:
+    """The exact planner's routes (docs/model.md §15) for the queries of ``table`` (None where
+    it finds none); adds the columns ``exact`` (the plan with its flights), ``exact_cost``
+    and ``exact_bumps`` to ``table``.
+    """
+    nav = ExactNavigator(cells, angles, w1, w2)
+    routes = [nav.plan(int(r["start_z"]), int(r["goal_z"])) for _, r in table.iterrows()]
+    table["exact"] = [r.plan.exact_text() if r else None for r in routes]
+    table["exact_cost"] = [r.cost if r else None for r in routes]
+    table["exact_bumps"] = [r.plan.bumps if r else None for r in routes]
+    return routes
+
+
 def _cost(plan: Plan, w1: float, w2: float) -> float:
     cost, cur = 0.0, None
     for v in plan.labels:
@@ -111,12 +130,72 @@ def draw(env, cells, routes, table, path, executed=None) -> None:
     save_figure(fig, path, dpi=130)
 
 
+CONTRAST = ("studio", 670, 603)
+"""A query on the non-rectilinear ``studio`` map (configurations z) where the two planners
+differ: the first short one (2-3 bumps) of a seeded random search whose step plan misses
+its goal in the noise-free twin (it ends outside the goal cell, 0.24 m from its centre)
+and whose exact plan reaches it."""
+
+
+def _replay(env, cells, route):
+    """The noise-free twin's (success, trace frame) for a route (front-half bumper, §8)."""
+    from bouncesim.robots import make_robot
+    from bouncesim.runs.execute import execute
+    run = execute(route.plan, make_robot("kinematic", env), start=route.start,
+                  goal=route.goal, cells=cells)
+    return bool(run.success), run.trace.to_frame()
+
+
+def step_vs_exact_rows(env, cells, routes, exact, table, angles, w1=1.0, w2=100.0) -> list:
+    """The rows of :func:`draw_step_vs_exact`: the Fig. 3 queries, then :data:`CONTRAST`."""
+    rows = [(env, cells, f"{r['plan']} (id {r['start_id']} → id {r['goal_id']})", st, ex)
+            for (_, r), st, ex in zip(table.iterrows(), routes, exact)]
+    name, s, g = CONTRAST
+    env2 = envs.load(name)
+    cells2 = CellSpace(env2)
+    rows.append((env2, cells2, f"{name}: {s} → {g}",
+                 Navigator(cells2, angles, w1, w2).plan(s, g),
+                 ExactNavigator(cells2, angles, w1, w2).plan(s, g)))
+    return rows
+
+
+def draw_step_vs_exact(rows, path) -> None:
+    """Step plans (left: bumps at cell centres, the paper's model) beside exact plans (right:
+    the exact bump poses), each with its noise-free twin run dashed; one row per
+    (env, cells, title, step route, exact route) of ``rows``, to ``path``.
+    """
+    import textwrap
+
+    from bouncesim.plots import draw_env, draw_route, plt, save_figure
+    fig, axes = plt.subplots(len(rows), 2, figsize=(10.4, 3.9 * len(rows)), squeeze=False)
+    for row_axes, (env, cells, title, step, exact) in zip(axes, rows):
+        for ax, r, what, colour in ((row_axes[0], step, "step model (paper)", "#777777"),
+                                    (row_axes[1], exact, "exact planner", "#3b75af")):
+            draw_env(ax, env, cells)
+            if r is None:
+                ax.set_title(f"{title}, {what}: no plan", fontsize=8)
+                continue
+            is_step = what.startswith("step")
+            draw_route(ax, cells, r.path if is_step else r.poses, color=colour,
+                       label="planned")
+            ok, tr = _replay(env, cells, r)
+            ax.plot(tr["x"], tr["y"], "--", color="#d62728", lw=1.1,
+                    label=f"twin, noise-free: {'reached' if ok else 'missed'}")
+            text = str(r.plan) if is_step else r.plan.exact_text()
+            lines = [f"{title}, {what}, cost {r.cost:.4g}", *textwrap.wrap(text, 72)]
+            ax.set_title("\n".join(lines), fontsize=8)
+            ax.legend(fontsize=6.5, loc="best", framealpha=0.7)
+    fig.tight_layout()
+    save_figure(fig, path, dpi=130)
+
+
 def run(config: Config) -> Path:
     """Plan (and execute) Fig. 3 and write plans.csv, runs, fig3_paths.png and config.json.
 
     Raises :class:`envs.UserError` for bad angles; returns the output folder.
     """
     env, cells, nav, routes, table = plan_routes(config.angles, config.w1, config.w2)
+    exact = exact_routes(cells, table, config.angles, config.w1, config.w2)
     out = output_dir(config.out)
     table.to_csv(out / "plans.csv", index=False)
     print(f"lab: P = {cells.P}, N = {cells.N}, "
@@ -127,6 +206,7 @@ def run(config: Config) -> Path:
         paper = r["paper"] if isinstance(r["paper"], str) else "(not printed)"
         print(f"   paper: {paper}   (angles {r['paper_angles']})"
               f"  -> same angle set: {'yes' if r['same_angles_as_paper'] else 'no'}")
+        print(f"   exact: {r['exact'] or '(none)'}   (cost {r['exact_cost']:.4g})")
     record = {"experiment": "nav_fig3", "env": "lab", **asdict(config)}
     executed = None
     if config.physics:
@@ -138,8 +218,11 @@ def run(config: Config) -> Path:
             executed, runs_config = execute_fig3(env, cells, routes, table, config, out)
             record.update(runs_config)
     draw(env, cells, routes, table, out / "fig3_paths.png", executed)
+    draw_step_vs_exact(step_vs_exact_rows(env, cells, routes, exact, table, config.angles,
+                                          config.w1, config.w2),
+                       out / "fig3_step_vs_exact.png")
     write_config(out, record)
-    print(f"wrote {out}/plans.csv, fig3_paths.png, config.json")
+    print(f"wrote {out}/plans.csv, fig3_paths.png, fig3_step_vs_exact.png, config.json")
     return out
 
 

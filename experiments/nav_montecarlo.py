@@ -1,21 +1,30 @@
-"""Navigation Monte-Carlo: success of shortest bouncing plans under rotation noise.
+"""Navigation Monte-Carlo: the planners compared under turn noise, in the twin and PyBullet.
 
     python -m experiments.nav_montecarlo [--quick] [--seed 0] [--out results/nav_montecarlo]
-                                         [--workers N | --dask-local N | --dask ADDRESS]
+        [--planners step,exact] [--maps lab,fig1,...] [--pairs N] [--reps N]
+        [--pybullet-pairs N] [--workers N | --dask-local N | --dask ADDRESS]
+        [--restart] [--plot-only]
 
-For a seeded sample of reachable (start, goal) pairs of `lab` and `complex` (shortest plans
-from the all-pairs table at the catalogue discretisation, Φ = {45°, 90°, 135°}, w1 = 1,
-w2 = 100, as in ``experiments.allpairs_fig7``), the planned observation strings are executed
-by :func:`bouncesim.runs.execute.execute` in the kinematic twin (every pair) and in PyBullet (a
-subset of the pairs), under Gaussian rotation noise σ and the docs/model.md §7 model (ε = Δ, several
-r). Every execution is one trial of :mod:`bouncesim.runs.sweep` (seeded, resumable, any executor).
+Maps (:func:`world`): the catalogue (``lab``, ``fig1``, ``complex``, ``studio``), random
+rectilinear rooms with blocks (``rectN``: :func:`benchmarks.maps.random_rectilinear_room`),
+the pentagon room with a hexagonal pillar (``pentagon``) and random pentagon or hexagon rooms
+with a polygonal hole (``polyN``: :func:`experiments.nav_exact.random_polygon_room`), all at
+h = 0.34 m, K = 8. Per map, ``pairs`` ordered (start, goal) pairs (start ≠ goal) are drawn
+uniformly without replacement from the pairs the step model reaches (Φ = {45°, 90°, 135°},
+w1 = 1, w2 = 100, docs/model.md §6). Every planner of
+:data:`experiments.nav_planners.PLANNERS` drives every pair in the kinematic twin (all pairs)
+and in PyBullet (the first ``pybullet_pairs`` of each map) under Gaussian turn noise σ
+(docs/model.md §18); success is the goal cell with the heading within ±Δ/2 (§8). A pair the
+planner finds no plan for counts as a failure. Every drive is one trial of
+:mod:`bouncesim.runs.sweep` (seeded, resumable, any executor).
 
 Outputs in ``--out``: ``runs.csv`` (one row per trial), ``runs.jsonl`` (the resume journal),
-``summary_noise.csv``, ``summary_length.csv``, ``summary_angles.csv``,
-``summary_headings.csv``, ``summary_paired.csv`` (both backends on the PyBullet pairs only;
-all with success rates and 95 % Wilson intervals), ``config.json`` and
-``success.png`` and ``success_by_length.png`` (drawn from runs.csv alone: ``--plot-only``
-redraws them).
+``summary_noise.csv`` (per planner, backend and noise level, pooled over the maps as
+env = 'all' and per map), ``summary_length.csv``, ``summary_headings.csv``,
+``summary_decisions.csv`` (time per decision), ``summary_paired.csv`` (both backends on the
+PyBullet pairs), all with 95 % Wilson intervals; ``config.json``; ``success.png`` (success
+against noise, one curve per planner), ``success_by_map.png`` and ``success_by_length.png``,
+drawn from runs.csv alone (``--plot-only`` redraws them).
 """
 
 from __future__ import annotations
@@ -23,63 +32,90 @@ from __future__ import annotations
 import sys
 import time
 from dataclasses import dataclass, replace
-from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 import envs
+from bouncesim import robots
 from bouncesim.robots.noise import parse_noise
-from bouncesim.runs.execute import execute
 from bouncesim.runs.executors import add_executor_args, make_executor
 from bouncesim.runs.sweep import Sweep
-from planners.cells import CellSpace
 from planners.navigation import Navigator
-from planners.plan import Plan
 
 from .common import experiment_parser, output_dir
-from .nav_fig3_physics import TWIN_GLANCE_DEG, make_robot
+from .nav_fig3_physics import TWIN_GLANCE_DEG
+from .nav_planners import PLANNERS, NavConfig, NoPlan, cells_of, heading_class, plan_headings, world
 
-__all__ = ["LENGTH_BINS", "Config", "build_trials", "draw", "draw_by_length", "heading_class",
-           "main", "nav_trial", "run", "sample_pairs", "summarise", "wilson"]
+__all__ = ["LENGTH_BINS", "MAPS", "Config", "build_trials", "draw", "draw_by_length",
+           "draw_by_map", "heading_class", "main", "nav_trial", "plan_headings", "run",
+           "sample_pairs", "summarise", "summarise_decisions", "wilson", "world"]
 
-ENVS = ("lab", "complex")
+MAPS = ("lab", "fig1", "complex", "studio", "rect1", "rect2", "pentagon", "poly1", "poly2")
 ANGLES = (45.0, 90.0, 135.0)
 W1, W2 = 1.0, 100.0
-LENGTH_BINS = (0, 5, 10, 20, 40, np.inf)
-"""Plan length bins (number of symbols: zeros plus angles): (0, 5], (5, 10], ..."""
+LENGTH_BINS = (-np.inf, 5, 10, 20, 40, np.inf)
+"""Plan length bins (symbols: zeros plus angles): up to 5, (5, 10], (10, 20], ..."""
 CONFIDENCE = 0.95
 
-FULL = {"pairs": 300, "physics_pairs": 40, "sigmas": (0.0, 1.0, 2.0, 5.0, 10.0),
-        "model_r": (0.99, 0.95, 0.9), "reps": 10, "physics_reps": 2}
-QUICK = {"pairs": 12, "physics_pairs": 2, "sigmas": (0.0, 2.0, 10.0), "model_r": (0.9,),
-         "reps": 3, "physics_reps": 1}
+FULL = {"pairs": 200, "pybullet_pairs": 4, "sigmas": (0.0, 1.0, 2.0, 5.0, 10.0),
+        "reps": 10, "pybullet_reps": 1}
+QUICK = {"pairs": 4, "pybullet_pairs": 0, "sigmas": (0.0, 2.0, 10.0), "reps": 2,
+         "pybullet_reps": 1}
+QUICK_MAPS = ("lab", "rect1", "poly1")
+MAPS_HELP = ("the catalogue (lab, fig1, complex, studio), rectN (random rectilinear rooms), "
+             "pentagon (a pentagon room with a hexagonal pillar), polyN (random pentagon or "
+             "hexagon rooms with a hole)")
 
 
 # ============================================================================ the trial
-@lru_cache(maxsize=4)
-def _world(name: str):
-    env = envs.load(name)
-    return env, CellSpace(env)
-
-
 def nav_trial(params: dict, rng: np.random.Generator) -> dict:
-    """Execute one plan once: the sweep's trial function (pure in ``params`` and ``rng``).
+    """Drive one pair once with one planner: the sweep's trial function (pure in ``params``
+    and ``rng``; an open-loop plan is computed once per process and pair, and cached).
 
-    ``params``: env, start, goal (configuration indices), plan (observation string), backend
-    ('kinematic' or 'pybullet'), noise (``parse_noise`` spec). The rng drives the noise.
+    ``params``: env, map_seed, start, goal (configuration indices), planner (a
+    :data:`PLANNERS` name), backend ('kinematic' or 'pybullet'), noise (``parse_noise`` spec),
+    glance (the twin's bumper arc [deg]; 0 for the front-half bumper of docs/model.md §8).
+    The rng drives the noise (and any randomness of the planner).
     """
-    env, cells = _world(params["env"])
-    noise = parse_noise(params["noise"], cells.delta_deg)
+    env = world(params["env"], int(params["map_seed"]))
+    cells = cells_of(env)
+    spec = params["noise"]
     t0 = time.perf_counter()
-    robot = make_robot(params["backend"], env, noise, rng)
+    config = NavConfig(angles=ANGLES, w1=W1, w2=W2, noise=spec)
+    driver = PLANNERS[params["planner"]](env, int(params["start"]), int(params["goal"]),
+                                         config, rng)
+    glance = float(params["glance"])
+    options = ({"glance_deg": glance} if params["backend"] == "kinematic" and glance > 0
+               else {})
+    robot = robots.make_robot(params["backend"], env, noise=parse_noise(spec, cells.delta_deg),
+                              rng=rng, **options)
     try:
-        run = execute(Plan.parse(params["plan"]), robot, start=int(params["start"]),
-                      goal=int(params["goal"]), cells=cells)
+        run = driver(robot)
+    except NoPlan:
+        run = None
     finally:
         robot.close()
     wall = time.perf_counter() - t0
+    plan = getattr(driver, "plan", None)
+    decisions = int(driver.decisions)
+    out = {"has_plan": run is not None,
+           "plan": "" if plan is None else plan.exact_text(),
+           "length": -1 if plan is None else len(plan.labels),
+           "plan_bumps": -1 if plan is None else plan.bumps,
+           "angles_used": -1 if plan is None else plan.angles_used,
+           "headings": "" if plan is None else heading_class(
+               cells.pose(int(params["start"]))[2], plan),
+           "decisions": decisions, "decision_s": float(driver.decision_s),
+           "decision_ms": 1e3 * float(driver.decision_s) / max(decisions, 1),
+           "wall_s": wall}
+    if run is None:
+        return {"success": False, "completed": False, "reason": "no plan",
+                "bumps_executed": 0, "deviations": 0, "early": 0, "late": 0,
+                "position_error_m": np.nan, "heading_error_deg": np.nan,
+                "final_x": np.nan, "final_y": np.nan, "final_heading": np.nan,
+                "sim_time_s": 0.0, **out}
     fx, fy, fh = run.final_pose
     return {"success": bool(run.success), "completed": bool(run.completed),
             "reason": run.reason, "bumps_executed": int(run.bumps),
@@ -89,75 +125,45 @@ def nav_trial(params: dict, rng: np.random.Generator) -> dict:
             "position_error_m": float(run.position_error),
             "heading_error_deg": float(run.heading_error),
             "final_x": float(fx), "final_y": float(fy), "final_heading": float(fh),
-            "sim_time_s": float(run.elapsed), "wall_s": wall}
+            "sim_time_s": float(run.elapsed), **out}
 
 
 # ============================================================================ pairs and trials
-def heading_class(start_heading: float, plan) -> str:
-    """'axis' when every heading along the plan is a multiple of 90°, else 'diagonal'.
-
-    In a room with walls on the grid lines an axis-aligned plan stays on cell centres; a
-    diagonal heading does not always (see docs/readme_montecarlo.md).
+def sample_pairs(name: str, seed: int, n: int, rng: np.random.Generator) -> pd.DataFrame:
+    """``n`` ordered pairs (start ≠ goal) the step model reaches, drawn uniformly without
+    replacement (all of them when there are fewer).
     """
-    h = float(start_heading)
-    heads = [h]
-    for a in plan.angles:
-        h += a
-        heads.append(h)
-    return "axis" if all(abs(x / 90.0 - round(x / 90.0)) < 1e-9 for x in heads) else "diagonal"
-
-
-def sample_pairs(name: str, n: int, rng: np.random.Generator) -> pd.DataFrame:
-    """``n`` reachable ordered pairs (start ≠ goal) drawn uniformly without replacement, with
-    their shortest plans.
-    """
-    _, cells = _world(name)
-    ap = Navigator(cells, ANGLES, W1, W2).all_pairs()
+    ap = Navigator(cells_of(world(name, seed)), ANGLES, W1, W2).all_pairs()
     W = ap.weights.copy()
     np.fill_diagonal(W, -1.0)
     ii, jj = np.nonzero(W > 0)
     pick = np.sort(rng.choice(len(ii), size=min(n, len(ii)), replace=False))
-    rows = []
-    for pair, s in enumerate(pick):
-        route = ap.route(int(ii[s]), int(jj[s]))
-        plan = route.plan
-        rows.append({"env": name, "pair": pair, "start": route.start, "goal": route.goal,
-                     "plan": str(plan), "length": len(plan.labels), "plan_bumps": plan.bumps,
-                     "angles_used": plan.angles_used, "cost": route.cost,
-                     "headings": heading_class(cells.pose(route.start)[2], plan)})
-    return pd.DataFrame(rows)
+    return pd.DataFrame({"env": name, "pair": np.arange(len(pick)),
+                         "start": ii[pick].astype(int), "goal": jj[pick].astype(int)})
 
 
-def noise_levels(delta_deg: float, sigmas, model_r) -> list[tuple[str, str, float]]:
-    """(spec, kind, level): Gaussian σ [deg] and the §7 model at ε = Δ with level 1 − r."""
-    out = [(f"gauss:{s:g}", "gauss", float(s)) for s in sigmas]
-    out += [(f"model:eps={delta_deg:g},r={r:g}", "model", round(1.0 - r, 10)) for r in model_r]
-    return out
+def build_trials(pairs: pd.DataFrame, planners, budget: dict, map_seed: int,
+                 glance: float = TWIN_GLANCE_DEG) -> list[dict]:
+    """Every (pair, planner, backend, noise level, repetition) as sweep parameters.
 
-
-def build_trials(pairs: pd.DataFrame, budget: dict) -> list[dict]:
-    """Every (pair, backend, noise level, repetition) as sweep parameters.
-
-    Exact levels (σ = 0) run once: the plan and the simulators are then deterministic.
+    The noise-free level runs once: the open-loop plans and both simulators are then
+    deterministic.
     """
     trials = []
     for _, p in pairs.iterrows():
-        _, cells = _world(p["env"])
         backends = [("kinematic", budget["reps"])]
-        if p["pair"] < budget["physics_pairs"]:
-            backends.append(("pybullet", budget["physics_reps"]))
-        for backend, reps in backends:
-            for spec, kind, level in noise_levels(cells.delta_deg, budget["sigmas"],
-                                                  budget["model_r"]):
-                for rep in range(1 if level == 0 else reps):
-                    trials.append({"env": p["env"], "pair": int(p["pair"]),
-                                   "start": int(p["start"]), "goal": int(p["goal"]),
-                                   "plan": p["plan"], "length": int(p["length"]),
-                                   "plan_bumps": int(p["plan_bumps"]),
-                                   "angles_used": int(p["angles_used"]),
-                                   "headings": p["headings"], "backend": backend,
-                                   "noise": spec, "noise_kind": kind, "noise_level": level,
-                                   "rep": rep})
+        if p["pair"] < budget["pybullet_pairs"]:
+            backends.append(("pybullet", budget["pybullet_reps"]))
+        for planner in planners:
+            for backend, reps in backends:
+                for sigma in budget["sigmas"]:
+                    for rep in range(1 if sigma == 0 else reps):
+                        trials.append({"env": p["env"], "map_seed": int(map_seed),
+                                       "pair": int(p["pair"]), "start": int(p["start"]),
+                                       "goal": int(p["goal"]), "planner": planner,
+                                       "backend": backend, "noise": f"gauss:{sigma:g}",
+                                       "noise_kind": "gauss", "noise_level": float(sigma),
+                                       "rep": rep, "glance": float(glance)})
     return trials
 
 
@@ -179,24 +185,25 @@ def wilson(k, n, confidence: float = CONFIDENCE) -> tuple[np.ndarray, np.ndarray
     return lo, hi
 
 
+LENGTH_LABELS = ["0-5", "6-10", "11-20", "21-40", "41+"]
+"""Labels of LENGTH_BINS, in order."""
+
+
 def length_bin(length) -> pd.Series:
-    """Plan length (symbols) binned into LENGTH_BINS, labelled '1-5', '6-10', ..., '41+'."""
-    labels = []
-    for a, b in zip(LENGTH_BINS[:-1], LENGTH_BINS[1:]):
-        labels.append(f"{a + 1}+" if np.isinf(b) else f"{a + 1}-{b}")
-    return pd.cut(pd.Series(length), bins=list(LENGTH_BINS), labels=labels).astype(str)
+    """Plan length [symbols] binned into LENGTH_BINS, labelled by LENGTH_LABELS."""
+    return pd.cut(pd.Series(length), bins=list(LENGTH_BINS), labels=LENGTH_LABELS).astype(str)
 
 
 def summarise(runs: pd.DataFrame, by: list[str]) -> pd.DataFrame:
-    """Success rate with a 95 % Wilson interval per group, plus mean deviations and median
-    final position error.
+    """Success rate with a 95 % Wilson interval per (planner, backend, noise level, *by*),
+    plus mean deviations and the median final position error [m].
     """
     runs = runs.copy()
     if "length_bin" in by:
-        labels = length_bin([b + 1 for b in LENGTH_BINS[:-1]]).tolist()     # in bin order
         runs["length_bin"] = pd.Categorical(length_bin(runs["length"]).values,
-                                            categories=labels, ordered=True)
-    keys = ["env", "backend", "noise_kind", "noise_level", "noise", *by]
+                                            categories=LENGTH_LABELS, ordered=True)
+        runs = runs[runs["length"] >= 0]                   # no plan: no length
+    keys = ["planner", "backend", "noise_kind", "noise_level", "noise", *by]
     g = runs.groupby(keys, sort=True, dropna=False, observed=True)
     out = g.agg(trials=("success", "size"), successes=("success", "sum"),
                 pairs=("pair", "nunique"), mean_deviations=("deviations", "mean"),
@@ -208,92 +215,151 @@ def summarise(runs: pd.DataFrame, by: list[str]) -> pd.DataFrame:
     return out
 
 
-# ============================================================================ figure
-def draw(runs_csv: Path, path: Path) -> None:
-    """Success rate against noise, one curve per (environment, backend), from runs.csv."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+def summarise_noise(runs: pd.DataFrame) -> pd.DataFrame:
+    """:func:`summarise` pooled over the maps (env = 'all'; ``pairs`` then counts pairs
+    summed over the maps) and per map.
+    """
+    runs = runs.assign(pair=runs["env"] + ":" + runs["pair"].astype(str))
+    pooled = summarise(runs, []).assign(env="all")
+    per_map = summarise(runs, ["env"])
+    return pd.concat([pooled, per_map], ignore_index=True)
 
-    from bouncesim.plots import save_figure
+
+def summarise_decisions(runs: pd.DataFrame) -> pd.DataFrame:
+    """Time per decision [ms] per (planner, map) in the twin: the mean (total decision time
+    over total decisions), the median and the maximum over the trials.
+    """
+    twin = runs[runs["backend"] == "kinematic"]
+    g = twin.groupby(["planner", "env"], sort=True)
+    out = g.agg(trials=("decision_s", "size"), decisions=("decisions", "sum"),
+                decision_s=("decision_s", "sum"), median_ms=("decision_ms", "median"),
+                max_ms=("decision_ms", "max")).reset_index()
+    out["mean_ms"] = 1e3 * out["decision_s"] / out["decisions"].clip(lower=1)
+    return out.drop(columns="decision_s")
+
+
+# ============================================================================ figures
+def _errorbar(ax, part, label, dodge=0.0, **style) -> None:
+    part = part.sort_values("noise_level")
+    x = part["noise_level"].to_numpy() + dodge
+    y = part["success_rate"].to_numpy()
+    err = np.vstack([y - part["ci_low"].to_numpy(), part["ci_high"].to_numpy() - y])
+    ax.errorbar(x, y, yerr=err, capsize=3, ms=4, label=label, **style)
+
+
+def _planner_style(planners) -> dict:
+    colours = {"step": "#888888", "exact": "#3b75af", "reliable": "#e08214",
+               "feedback": "#2ca02c"}
+    markers = {"step": "o", "exact": "s", "reliable": "^", "feedback": "D"}
+    return {p: {"color": colours.get(p, f"C{i + 4}"), "marker": markers.get(p, "v")}
+            for i, p in enumerate(planners)}
+
+
+def draw(runs_csv: Path, path: Path) -> None:
+    """Success against Gaussian turn noise σ, one curve per planner, pooled over the maps
+    (the twin solid, the PyBullet subset dashed), from runs.csv.
+    """
+    from bouncesim.plots import plt, save_figure
 
     runs = pd.read_csv(runs_csv)
-    s = summarise(runs, [])
-    fig, axes = plt.subplots(1, 2, figsize=(10.5, 4.0), sharey=True)
-    styles = {"kinematic": "-", "pybullet": "--"}
-    markers = {"lab": "o", "complex": "s"}
-    colours = {("lab", "kinematic"): "C0", ("lab", "pybullet"): "C9",
-               ("complex", "kinematic"): "C3", ("complex", "pybullet"): "C1"}
-    for ax, kind, xlabel in ((axes[0], "gauss", "Gaussian rotation noise σ [deg]"),
-                             (axes[1], "model", "docs/model.md §7 noise: 1 − r (ε = Δ = 45°)")):
-        groups = list(s.groupby(["env", "backend"], sort=False))
-        levels = s.loc[s["noise_kind"] == kind, "noise_level"]
-        span = float(levels.max()) if len(levels) and levels.max() > 0 else 1.0
-        for i, ((env, backend), sub) in enumerate(groups):
-            dodge = (i - (len(groups) - 1) / 2) * 0.008 * span     # keep error bars apart
-            exact = sub[sub["noise_level"] == 0]
-            part = sub[sub["noise_kind"] == kind]
-            if kind == "model":            # the noise-free point is r = 1
-                part = pd.concat([exact, part])
-            part = part.sort_values("noise_level")
+    s = summarise_noise(runs)
+    s = s[(s["env"] == "all") & (s["noise_kind"] == "gauss")]
+    planners = list(dict.fromkeys(runs["planner"]))
+    style = _planner_style(planners)
+    n_maps = runs["env"].nunique()
+    span = max(float(s["noise_level"].max()), 1.0)
+    fig, ax = plt.subplots(figsize=(6.8, 4.3))
+    for i, planner in enumerate(planners):
+        for backend, ls, fill in (("kinematic", "-", None), ("pybullet", "--", "none")):
+            part = s[(s["planner"] == planner) & (s["backend"] == backend)]
             if part.empty:
                 continue
-            x = part["noise_level"].to_numpy() + dodge
-            y = part["success_rate"].to_numpy()
-            err = np.vstack([y - part["ci_low"].to_numpy(), part["ci_high"].to_numpy() - y])
-            n = int(part["pairs"].max())
-            ax.errorbar(x, y, yerr=err, ls=styles.get(backend, ":"),
-                        marker=markers.get(env, "^"), ms=4, capsize=3,
-                        color=colours.get((env, backend)),
-                        label=f"{env}, {backend} ({n} pairs)")
-        ax.set_xlabel(xlabel)
-        ax.grid(alpha=0.3)
-        ax.set_ylim(-0.02, 1.02)
-    axes[0].set_ylabel("success rate (95 % Wilson interval)")
-    axes[0].legend(fontsize=8, loc="upper right")
-    fig.suptitle("Shortest bouncing plans (Φ = {45°, 90°, 135°}) executed under rotation noise",
-                 fontsize=10)
+            where = "twin" if backend == "kinematic" else "PyBullet"
+            dodge = (i - (len(planners) - 1) / 2) * 0.012 * span + (
+                0.006 * span if backend == "pybullet" else 0.0)
+            _errorbar(ax, part, f"{planner}, {where} ({int(part['pairs'].max())} pairs)",
+                      dodge, ls=ls, mfc=fill, lw=1.6 if backend == "kinematic" else 1.0,
+                      **style[planner])
+    ax.set_xlabel("Gaussian turn noise σ [deg]")
+    ax.set_ylabel("success rate (95 % Wilson interval)")
+    ax.set_ylim(-0.02, 1.02)
+    ax.set_xticks(sorted(s["noise_level"].unique()))
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7.5, loc="upper right")
+    glance = float(runs["glance"].iloc[0]) if "glance" in runs else 0.0
+    arc = f"±{glance:g}°" if glance > 0 else "front half"
+    ax.set_title(f"Navigation success under turn noise: {n_maps} maps pooled\n"
+                 f"(Φ = {{45°, 90°, 135°}}, K = 8, pairs the step model reaches; twin bumper "
+                 f"{arc})", fontsize=9)
     save_figure(fig, path, dpi=130)
 
 
-def draw_by_length(runs_csv: Path, path: Path, backend: str = "kinematic") -> None:
-    """Success rate against plan length (binned), one curve per noise level, one panel per
-    environment, for one backend, from runs.csv.
-    """
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from bouncesim.plots import save_figure
+def draw_by_map(runs_csv: Path, path: Path) -> None:
+    """Success against σ per map (twin), one curve per planner, from runs.csv."""
+    from bouncesim.plots import plt, save_figure
 
     runs = pd.read_csv(runs_csv)
-    runs = runs[runs["backend"] == backend]
+    s = summarise_noise(runs)
+    s = s[(s["env"] != "all") & (s["backend"] == "kinematic")]
+    names = list(dict.fromkeys(runs["env"]))
+    planners = list(dict.fromkeys(runs["planner"]))
+    style = _planner_style(planners)
+    cols = min(len(names), 3)
+    rows = -(-len(names) // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(3.4 * cols, 2.6 * rows), sharex=True,
+                             sharey=True, squeeze=False)
+    for ax, name in zip(axes.flat, names):
+        for planner in planners:
+            part = s[(s["env"] == name) & (s["planner"] == planner)]
+            if not part.empty:
+                _errorbar(ax, part, planner, lw=1.3, **style[planner])
+        n = int(s.loc[s["env"] == name, "pairs"].max())
+        ax.set_title(f"{name} ({n} pairs)", fontsize=9)
+        ax.set_ylim(-0.02, 1.02)
+        ax.grid(alpha=0.3)
+    for ax in axes.flat[len(names):]:
+        ax.set_visible(False)
+    for ax in axes[-1]:
+        ax.set_xlabel("σ [deg]")
+    for ax in axes[:, 0]:
+        ax.set_ylabel("success (twin)")
+    axes.flat[0].legend(fontsize=7)
+    save_figure(fig, path, dpi=130)
+
+
+def draw_by_length(runs_csv: Path, path: Path) -> None:
+    """Success against plan length (binned) in the twin, one panel per planner, one curve
+    per noise level, pooled over the maps, from runs.csv.
+    """
+    from bouncesim.plots import plt, save_figure
+
+    runs = pd.read_csv(runs_csv)
+    runs = runs[(runs["backend"] == "kinematic") & (runs["length"] >= 0)]
     if runs.empty:
         return
+    runs = runs.assign(pair=runs["env"] + ":" + runs["pair"].astype(str))
     s = summarise(runs, ["length_bin"])
-    names = list(dict.fromkeys(runs["env"]))
-    fig, axes = plt.subplots(1, len(names), figsize=(5.2 * len(names), 4.0), sharey=True,
-                             squeeze=False)
-    for ax, env in zip(axes[0], names):
-        sub = s[s["env"] == env]
-        bins = list(sub["length_bin"].cat.categories)
-        levels = sub.drop_duplicates("noise").sort_values(["noise_kind", "noise_level"])
-        for i, (_, lev) in enumerate(levels.iterrows()):
-            part = sub[sub["noise"] == lev["noise"]]
-            x = np.array([bins.index(b) for b in part["length_bin"]]) + 0.04 * (
+    planners = list(dict.fromkeys(runs["planner"]))
+    fig, axes = plt.subplots(1, len(planners), figsize=(5.0 * len(planners), 3.8),
+                             sharey=True, squeeze=False)
+    for ax, planner in zip(axes[0], planners):
+        sub = s[s["planner"] == planner]
+        levels = sorted(sub["noise_level"].unique())
+        for i, level in enumerate(levels):
+            part = sub[sub["noise_level"] == level]
+            x = np.array([LENGTH_LABELS.index(b) for b in part["length_bin"]]) + 0.05 * (
                 i - (len(levels) - 1) / 2)
             y = part["success_rate"].to_numpy()
             err = np.vstack([y - part["ci_low"].to_numpy(), part["ci_high"].to_numpy() - y])
-            ax.errorbar(x, y, yerr=err, marker="o" if lev["noise_kind"] == "gauss" else "s",
-                        ms=3.5, capsize=2, lw=1.2,
-                        ls="-" if lev["noise_kind"] == "gauss" else "--", label=lev["noise"])
-        mine = runs[runs["env"] == env].drop_duplicates("pair")
+            ax.errorbar(x, y, yerr=err, marker="o", ms=3.5, capsize=2, lw=1.2,
+                        label=f"σ = {level:g}°")
+        mine = runs[runs["planner"] == planner].drop_duplicates("pair")
         n_by_bin = mine.assign(b=length_bin(mine["length"]).values).groupby("b").size()
-        ax.set_xticks(range(len(bins)))
-        ax.set_xticklabels([f"{b}\n({int(n_by_bin.get(b, 0))} pairs)" for b in bins],
+        ax.set_xticks(range(len(LENGTH_LABELS)))
+        ax.set_xticklabels([f"{b}\n({int(n_by_bin.get(b, 0))} pairs)" for b in LENGTH_LABELS],
                            fontsize=8)
         ax.set_xlabel("plan length [symbols]")
-        ax.set_title(f"{env}, {backend}", fontsize=10)
+        ax.set_title(f"{planner} planner, twin, all maps", fontsize=10)
         ax.grid(alpha=0.3)
         ax.set_ylim(-0.02, 1.02)
     axes[0][0].set_ylabel("success rate (95 % Wilson interval)")
@@ -308,29 +374,32 @@ class Config:
 
     Attributes
     ----------
-    pairs : int               pairs per environment
-    physics_pairs : int       of those, pairs also run in PyBullet (0 for none)
-    reps : int                noisy repetitions per pair and level in the twin
-    physics_reps : int        noisy repetitions per pair and level in PyBullet
-    sigmas : tuple of float   Gaussian rotation noise σ [deg]
-    model_r : tuple of float  r of the docs/model.md §7 noise at ε = Δ
-    envs : tuple of str       environments
+    pairs : int               pairs per map
+    pybullet_pairs : int      of those, pairs also driven in PyBullet (0 for none)
+    reps : int                noisy repetitions per pair, planner and level in the twin
+    pybullet_reps : int       noisy repetitions per pair, planner and level in PyBullet
+    sigmas : tuple of float   Gaussian turn noise σ [deg] (docs/model.md §18)
+    twin_glance : float       the twin's bumper arc [deg] (80: like the PyBullet body;
+                              0: the front-half bumper the planners model, §8)
+    planners : tuple of str   names in :data:`experiments.nav_planners.PLANNERS`
+    maps : tuple of str       map names (:func:`world`)
     restart : bool            delete the output folder's earlier sweep instead of resuming it
     plot_only : bool          redraw the figures and summaries from an existing runs.csv
     quick : bool              recorded; ``main`` turns it into the QUICK budget
-    seed : int                root seed (pair sampling and the sweep)
+    seed : int                root seed (random maps, pair sampling and the sweep)
     out : Path                output folder
     workers, dask_local, dask : the executor (see ``add_executor_args``)
     progress : bool           show a progress bar
     """
 
     pairs: int = FULL["pairs"]
-    physics_pairs: int = FULL["physics_pairs"]
+    pybullet_pairs: int = FULL["pybullet_pairs"]
     reps: int = FULL["reps"]
-    physics_reps: int = FULL["physics_reps"]
+    pybullet_reps: int = FULL["pybullet_reps"]
     sigmas: tuple[float, ...] = FULL["sigmas"]
-    model_r: tuple[float, ...] = FULL["model_r"]
-    envs: tuple[str, ...] = ENVS
+    twin_glance: float = TWIN_GLANCE_DEG
+    planners: tuple[str, ...] = ("step", "exact")
+    maps: tuple[str, ...] = MAPS
     restart: bool = False
     plot_only: bool = False
     quick: bool = False
@@ -346,7 +415,8 @@ def run(config: Config) -> Path:
     """Sample the pairs, run (or resume) the sweep, write the summaries and figures.
 
     With ``plot_only``, redraw from an existing runs.csv. Raises :class:`envs.UserError` for
-    a bad budget, a missing runs.csv or a different earlier sweep; returns the output folder.
+    a bad budget, an unknown planner or map, a missing runs.csv or a different earlier
+    sweep; returns the output folder.
     """
     out = output_dir(config.out)
     if config.plot_only:
@@ -357,50 +427,57 @@ def run(config: Config) -> Path:
     for key in ("pairs", "reps"):
         if getattr(config, key) < 1:
             raise envs.UserError(f"--{key} must be at least 1, got {getattr(config, key)}.")
-    if config.physics_pairs > 0:
+    unknown = [p for p in config.planners if p not in PLANNERS]
+    if unknown or not config.planners:
+        raise envs.UserError(f"unknown planner {', '.join(unknown) or '(none)'}; choose from "
+                             f"{', '.join(PLANNERS)}.")
+    if config.pybullet_pairs > 0:
         try:
             import pybullet  # noqa: F401
         except ImportError:
             print("nav_montecarlo: pybullet is not installed; running the twin only.")
-            config = replace(config, physics_pairs=0)
+            config = replace(config, pybullet_pairs=0)
     budget = {key: getattr(config, key) for key in FULL}
-    names = list(config.envs)
     pair_rng = np.random.default_rng(np.random.SeedSequence([config.seed, 1]))
     t0 = time.perf_counter()
-    pairs = pd.concat([sample_pairs(name, budget["pairs"], pair_rng) for name in names],
-                      ignore_index=True)
-    plan_s = time.perf_counter() - t0
-    trials = build_trials(pairs, budget)
+    pairs = pd.concat([sample_pairs(name, config.seed, budget["pairs"], pair_rng)
+                       for name in config.maps], ignore_index=True)
+    sample_s = time.perf_counter() - t0
+    trials = build_trials(pairs, config.planners, budget, config.seed, config.twin_glance)
     if config.restart:
         for f in ("runs.jsonl", "runs.csv", "config.json"):
             (out / f).unlink(missing_ok=True)
     # the keys of this dict are the sweep's identity: earlier result folders resume with it
     record = {"experiment": "nav_montecarlo", "seed": config.seed, "quick": config.quick,
-              "envs": names, "angles": list(ANGLES), "w1": W1, "w2": W2,
-              "discretisation": "catalogue defaults (0.34 m cells, K = 8, Δ = 45°)",
-              "pairs_per_env": budget["pairs"],
-              "physics_pairs_per_env": budget["physics_pairs"],
+              "maps": list(config.maps), "planners": list(config.planners),
+              "angles": list(ANGLES), "w1": W1, "w2": W2,
+              "discretisation": "0.34 m cells, K = 8, Δ = 45° on every map",
+              "pairs_per_map": budget["pairs"],
+              "pybullet_pairs_per_map": budget["pybullet_pairs"],
               "gauss_sigmas_deg": list(budget["sigmas"]),
-              "model_noise": {"eps_deg": "Δ = 360°/K of the environment (45° at K = 8, "
-                              "the smallest non-zero ε the model allows)",
-                              "r": list(budget["model_r"])},
-              "reps_twin": budget["reps"], "reps_pybullet": budget["physics_reps"],
-              "exact_levels_run_once": True,
-              "twin_glance_deg": TWIN_GLANCE_DEG,
-              "twin_glance_note": "the twin's bumper ignores contacts more than 80° from "
-              "the heading, like the PyBullet body's bumper arc (as experiments.nav_fig3)",
+              "reps_twin": budget["reps"], "reps_pybullet": budget["pybullet_reps"],
+              "noise_free_level_run_once": True,
+              "twin_glance_deg": config.twin_glance,
+              "twin_glance_note": "the twin's bumper ignores contacts more than this from "
+              "the heading (80: the PyBullet body's bumper arc, as experiments.nav_fig3; "
+              "0: the front-half bumper of docs/model.md §8 that the planners model)",
               "executor": {"speed_m_s": 0.2, "back_off_m": 0.0},
-              "pair_sampling": "uniform without replacement over reachable ordered pairs "
-              "(start != goal), numpy default_rng(SeedSequence([seed, 1])), per "
-              "environment in order; PyBullet runs the first physics_pairs of them",
+              "pair_sampling": "uniform without replacement over the ordered pairs "
+              "(start != goal) the step model reaches, numpy default_rng(SeedSequence([seed, "
+              "1])), per map in order; PyBullet drives the first pybullet_pairs of them",
+              "random_maps": "rectN: benchmarks.maps.random_rectilinear_room, polyN: "
+              "experiments.nav_exact.random_polygon_room(sides=(5, 7)), each with "
+              "default_rng(SeedSequence([seed, 3, 0 or 1, N]))",
               "success": "final position in the goal cell and heading within ±Δ/2 "
-              "(docs/model.md §8)",
+              "(docs/model.md §8); a pair without a plan is a failure",
+              "decision_time": "open-loop planners: one decision per drive, the wall time "
+              "of the plan query (computed once per worker process and pair, then cached)",
               "confidence_intervals": "95 % Wilson score (scipy.stats.binomtest)",
-              "length_bins": [str(b) for b in LENGTH_BINS]}
+              "length_bins": LENGTH_LABELS}
     sweep = Sweep(nav_trial, trials, config.seed, out, record, name="runs")
     executor = make_executor(config)
-    print(f"nav_montecarlo: {len(pairs)} pairs ({plan_s:.1f} s planning), "
-          f"{len(trials)} trials")
+    print(f"nav_montecarlo: {len(pairs)} pairs on {len(config.maps)} maps "
+          f"({sample_s:.1f} s sampling), {len(trials)} trials")
     result = sweep.run(executor, progress=config.progress)
     ex = result.executor
     where = f" on {ex['kind']} with {ex['workers']} worker(s)" if "workers" in ex else ""
@@ -410,28 +487,44 @@ def run(config: Config) -> Path:
     return out
 
 
+def _csv_list(text: str) -> tuple[str, ...]:
+    return tuple(s.strip() for s in str(text).split(",") if s.strip())
+
+
 def main(argv=None) -> int:
     """Parse the command line into a :class:`Config` and :func:`run` it (exit status)."""
     p = experiment_parser("nav_montecarlo", __doc__.splitlines()[0])
     p.add_argument("--pairs", type=int, default=None,
-                   help="pairs per environment (default 300; 12 with --quick)")
-    p.add_argument("--physics-pairs", type=int, default=None,
-                   help="of those, pairs also run in PyBullet (default 40; 2 with --quick; "
-                   "0 for none)")
+                   help=f"pairs per map (default {FULL['pairs']}; {QUICK['pairs']} with "
+                   "--quick)")
+    p.add_argument("--pybullet-pairs", "--physics-pairs", dest="pybullet_pairs", type=int,
+                   default=None, help=f"of those, pairs also driven in PyBullet (default "
+                   f"{FULL['pybullet_pairs']}; {QUICK['pybullet_pairs']} with --quick)")
     p.add_argument("--reps", type=int, default=None,
-                   help="noisy repetitions per pair and level in the twin (default 10)")
-    p.add_argument("--envs", default=",".join(ENVS), help="environments (default lab,complex)")
+                   help=f"noisy repetitions per pair, planner and level in the twin (default "
+                   f"{FULL['reps']}; {QUICK['reps']} with --quick)")
+    p.add_argument("--planners", default="step,exact",
+                   help=f"planners to compare (registered: {', '.join(PLANNERS)})")
+    p.add_argument("--maps", default=None, help=f"maps: {MAPS_HELP} (default {','.join(MAPS)}; "
+                   f"{','.join(QUICK_MAPS)} with --quick)")
+    p.add_argument("--twin-glance", type=float, default=TWIN_GLANCE_DEG,
+                   help="the twin's bumper arc [deg] (default 80, the PyBullet body's; 0 for "
+                   "the front-half bumper the planners model)")
     p.add_argument("--restart", action="store_true",
                    help="delete the output folder's earlier sweep instead of resuming it")
     p.add_argument("--plot-only", action="store_true",
-                   help="redraw the figure and summaries from an existing runs.csv")
+                   help="redraw the figures and summaries from an existing runs.csv")
     add_executor_args(p)
     args = p.parse_args(argv)
+    import matplotlib
+    matplotlib.use("Agg")                      # this script writes files only
     budget = dict(QUICK if args.quick else FULL)
-    for key in ("pairs", "physics_pairs", "reps"):
+    for key in ("pairs", "pybullet_pairs", "reps"):
         if getattr(args, key) is not None:
             budget[key] = getattr(args, key)
-    config = Config(**budget, envs=tuple(s.strip() for s in args.envs.split(",") if s.strip()),
+    maps = _csv_list(args.maps) if args.maps else (QUICK_MAPS if args.quick else MAPS)
+    config = Config(**budget, planners=_csv_list(args.planners), maps=maps,
+                    twin_glance=args.twin_glance,
                     restart=args.restart, plot_only=args.plot_only, quick=args.quick,
                     seed=args.seed, out=args.out, workers=args.workers,
                     dask_local=args.dask_local, dask=args.dask, progress=not args.no_progress)
@@ -444,22 +537,27 @@ def main(argv=None) -> int:
 
 
 def _report(out: Path, runs: pd.DataFrame) -> None:
-    by_noise = summarise(runs, [])
+    by_noise = summarise_noise(runs)
     by_noise.to_csv(out / "summary_noise.csv", index=False)
-    summarise(runs, ["length_bin"]).to_csv(out / "summary_length.csv", index=False)
-    summarise(runs, ["angles_used"]).to_csv(out / "summary_angles.csv", index=False)
-    summarise(runs, ["headings"]).to_csv(out / "summary_headings.csv", index=False)
+    pooled = runs.assign(pair=runs["env"] + ":" + runs["pair"].astype(str))
+    summarise(pooled, ["length_bin"]).to_csv(out / "summary_length.csv", index=False)
+    summarise(pooled[pooled["headings"].notna()], ["env", "headings"]).to_csv(
+        out / "summary_headings.csv", index=False)
+    decisions = summarise_decisions(runs)
+    decisions.to_csv(out / "summary_decisions.csv", index=False)
     phys = runs.loc[runs["backend"] == "pybullet", ["env", "pair"]].drop_duplicates()
     if len(phys):                   # both backends on the same pairs
         same = runs.merge(phys, on=["env", "pair"])
-        summarise(same, []).to_csv(out / "summary_paired.csv", index=False)
+        summarise_noise(same).to_csv(out / "summary_paired.csv", index=False)
     draw(out / "runs.csv", out / "success.png")
+    draw_by_map(out / "runs.csv", out / "success_by_map.png")
     draw_by_length(out / "runs.csv", out / "success_by_length.png")
-    cols = ["env", "backend", "noise", "trials", "success_rate", "ci_low", "ci_high",
-            "mean_deviations"]
-    print(by_noise[cols].to_string(index=False, float_format=lambda x: f"{x:.3f}"))
-    print(f"wrote {out}/runs.csv, summary_*.csv, success.png, success_by_length.png, "
-          f"config.json")
+    cols = ["planner", "backend", "noise", "trials", "success_rate", "ci_low", "ci_high"]
+    print(by_noise.loc[by_noise["env"] == "all", cols].to_string(
+        index=False, float_format=lambda x: f"{x:.3f}"))
+    print(decisions.to_string(index=False, float_format=lambda x: f"{x:.2f}"))
+    print(f"wrote {out}/runs.csv, summary_*.csv, success.png, success_by_map.png, "
+          f"success_by_length.png, config.json")
 
 
 if __name__ == "__main__":

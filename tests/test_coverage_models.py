@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 import envs
+from benchmarks.maps import random_rectilinear_room
 from bouncesim.robots.kinematic import KinematicBatch
 from bouncesim.robots.noise import SteppedNoise
 from envs import Environment, UserError
@@ -230,18 +231,7 @@ def test_event_matches_twin_catalogue(name):
 
 
 def _random_rectilinear(rng, K=360):
-    W = 0.34 * int(rng.integers(6, 10))
-    H = 0.34 * int(rng.integers(5, 8))
-    obs = []
-    for _ in range(int(rng.integers(1, 3))):
-        w, h = 0.34 * int(rng.integers(1, 3)), 0.34 * int(rng.integers(1, 3))
-        x = 0.34 * int(rng.integers(1, round(W / 0.34) - 2))
-        y = 0.34 * int(rng.integers(1, round(H / 0.34) - 2))
-        obs.append([[x, y], [x + w, y], [x + w, y + h], [x, y + h]])
-    import shapely
-    u = shapely.union_all([shapely.Polygon(o) for o in obs])
-    obs = [list(p.exterior.coords)[:-1] for p in shapely.get_parts(u)]
-    return _env(_rect(W, H), obs, K=K, name="rect")
+    return random_rectilinear_room(rng, orientations=K, name="rect")
 
 
 def _random_polygon(rng, K=360):

@@ -33,6 +33,10 @@ def test_nav_fig3_quick(tmp_path, physics):
     plans = pd.read_csv(tmp_path / "plans.csv")
     assert list(plans["ours"]) == ["90° 90° 00000000 90° 90°", "135° 135° 0"]
     assert (tmp_path / "fig3_paths.png").stat().st_size > 0
+    # lab's walls lie on the grid: the exact planner returns the same strings, with flights
+    assert [e.split(" | ")[0] for e in plans["exact"]] == list(plans["ours"])
+    assert plans["exact_cost"].to_numpy() == pytest.approx(plans["cost"].to_numpy(), abs=1e-6)
+    assert (tmp_path / "fig3_step_vs_exact.png").stat().st_size > 0
     cfg = _config(tmp_path)
     assert cfg["angles"] == [90.0, 135.0] and cfg["physics"] is physics
     if physics:

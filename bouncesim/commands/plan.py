@@ -7,10 +7,14 @@ import math
 import sys
 from pathlib import Path
 
+import numpy as np
+
+from bouncesim.robots.noise import parse_noise
 from envs import UserError
 from planners.cells import CellSpace
 from planners.exact import ExactNavigator, step_flights
 from planners.navigation import Navigator
+from planners.reliable import DEFAULT_PARTICLES, DEFAULT_SLACK, ReliableNavigator
 
 from .common import (
     add_env_args,
@@ -73,9 +77,11 @@ def add_planner_args(p) -> None:
                    help="weight of a step or a same-angle bump (default 1)")
     p.add_argument("--w2", type=float, default=100.0,
                    help="weight of a bump that changes the angle (default 100)")
-    p.add_argument("--planner", choices=("step", "exact"), default="step",
+    p.add_argument("--planner", choices=("step", "exact", "reliable"), default="step",
                    help="step: the paper's step model (docs/model.md §6, default); exact: "
-                   "plans over exact bump poses that a continuous robot follows (§15)")
+                   "plans over exact bump poses that a continuous robot follows (§15); "
+                   "reliable: the near-optimal exact plan most likely to succeed under "
+                   "--noise (§21)")
 
 
 def make_navigator(args, cells: CellSpace | None = None) -> Navigator | ExactNavigator:
@@ -87,6 +93,14 @@ def make_navigator(args, cells: CellSpace | None = None) -> Navigator | ExactNav
         cells = make_cells(args, load_env(args))
     if getattr(args, "planner", "step") == "exact":
         return ExactNavigator(cells, parse_angles(args.angles), args.w1, args.w2)
+    if args.planner == "reliable":      # its particles: a stream of their own from --seed
+        if not hasattr(args, "noise"):
+            raise UserError("--planner reliable is for plan and run-plan (it needs --noise).")
+        return ReliableNavigator(
+            cells, parse_angles(args.angles), parse_noise(args.noise, cells.delta_deg),
+            args.w1, args.w2, slack=getattr(args, "slack", DEFAULT_SLACK),
+            particles=getattr(args, "particles", DEFAULT_PARTICLES),
+            rng=np.random.default_rng([args.seed, 20]))
     nav = Navigator(cells, parse_angles(args.angles), args.w1, args.w2,
                     max_memory=max_memory(args))
     check_fits(args, cells, nav.angles, task="plan", searches=1)
@@ -126,6 +140,16 @@ def register(sub) -> None:
     p.add_argument("--pairs", type=Path, metavar="FILE.csv",
                    help="many queries: a CSV with columns start,goal (z or \"X,Y,DEG\")")
     p.add_argument("--json", action="store_true", help="one JSON object per query and line")
+    p.add_argument("--noise", default="none", metavar="SPEC",
+                   help="reliable: the rotation noise to plan for, gauss:SIGMA or "
+                   "model:eps=E,r=R [deg] (default none)")
+    p.add_argument("--particles", type=int, default=DEFAULT_PARTICLES, metavar="N",
+                   help=f"reliable: particles per success estimate (default "
+                   f"{DEFAULT_PARTICLES})")
+    p.add_argument("--slack", type=float, default=DEFAULT_SLACK, metavar="COST",
+                   help=f"reliable: candidates cost at most this more than the cheapest "
+                   f"(default {DEFAULT_SLACK:g})")
+    p.add_argument("--seed", type=int, default=0, help="reliable: seed of the particles")
     p.set_defaults(func=run)
 
 
@@ -185,6 +209,11 @@ def run(args) -> int:
             print(f"{s} -> {g}: {route.plan.exact_text()}  (cost {route.cost:.4g}, "
                   f"{route.angles_used} angle(s), {route.plan.bumps} bumps; the zeros are "
                   f"round(flight / h), approximate off the axes)")
+            if args.planner == "reliable":
+                lo, hi = route.p_success_ci
+                print(f"  p_success {route.p_success:.3f} [{lo:.3f}, {hi:.3f}] under "
+                      f"{route.noise} ({route.particles} particles; {route.candidates} "
+                      f"candidates, the exact plan's {route.p_exact:.3f})")
         else:
             print(f"{s} -> {g}: {route.plan}  (cost {route.cost:g}, "
                   f"{route.angles_used} angle(s), {len(route.plan)} observations)")

@@ -18,6 +18,7 @@ from .common import (
     load_env,
     make_cells,
     make_rng,
+    parse_angles,
     print_json,
     progress,
 )
@@ -54,6 +55,7 @@ def register(sub) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter)
     add_env_args(p)
     add_planner_args(p)
+    _add_feedback_args(p)
     p.add_argument("--start", required=True, metavar="S", help="start: z or X,Y,DEG")
     p.add_argument("--goal", required=True, metavar="G", help="goal: z or X,Y,DEG")
     p.add_argument("--robot", choices=ROBOTS, default="kinematic",
@@ -118,7 +120,8 @@ def run(args) -> int:
     """Run ``bouncesim run-plan``: plan, execute on the chosen body; exit status (4: failed)."""
     env = load_env(args)
     cells = make_cells(args, env)
-    nav = make_navigator(args, cells)
+    feedback = getattr(args, "planner", None) == "feedback"
+    nav = None if feedback else make_navigator(args, cells)
     start = parse_config(args.start, cells, "start")
     goal = parse_config(args.goal, cells, "goal")
     noise = parse_noise(args.noise, cells.delta_deg)
@@ -137,6 +140,10 @@ def run(args) -> int:
         raise UserError("--noise is for simulated robots; a real Create 2 brings its own.")
     if args.robot in ("create2", "emulator") and (args.gui or args.record):
         raise UserError("--gui and --record need --robot pybullet.")
+    if feedback:
+        return _run_feedback(args, env, cells, start, goal, noise)
+    if args.turn_sigma is not None:
+        raise UserError("--turn-sigma is for --planner feedback.")
     route = nav.plan(start, goal)
     if route is None:
         if args.json:
@@ -229,3 +236,54 @@ def _plot(path, env, cells, route, result) -> None:
              f"{status}")
     save_figure(plan_vs_executed(env, cells, _planned(route), result.trace, goal=result.goal_pose,
                                  title=title), path, dpi=150)
+
+
+# ---------------------------------------------------------------- feedback (docs/model.md §22)
+def _add_feedback_args(p) -> None:
+    """``--planner feedback`` (run-plan only) and the turn noise its filter assumes."""
+    for action in p._actions:
+        if action.dest == "planner":
+            action.choices = (*action.choices, "feedback")
+            action.help += ("; feedback (run-plan only): a particle filter re-plans after "
+                            "every bump (§22)")
+    p.add_argument("--turn-sigma", type=float, default=None, metavar="DEG",
+                   help="feedback only: the turn noise σ [deg] the filter assumes (default: "
+                   "the σ of --noise; set it on a real robot)")
+
+
+def _run_feedback(args, env, cells, start: int, goal: int, noise) -> int:
+    """``run-plan --planner feedback``: drive the robot by feedback (bouncesim.navigate)."""
+    from bouncesim.navigate import navigate_feedback
+    from planners.feedback import FeedbackConfig
+    if args.plot:
+        raise UserError("--plot is not available with --planner feedback yet.")
+    declared = noise if args.turn_sigma is None else float(args.turn_sigma)
+    robot_rng, filter_rng = make_rng(args.seed).spawn(2)
+    say = progress(args)
+    robot = make_robot(args.robot, env, noise=noise, rng=robot_rng, **_robot_options(args))
+    with robot:
+        check_speed(args.speed, robot)
+        flush_warnings()
+        if say:
+            say(f"feedback navigation on the {args.robot} robot")
+        result = navigate_feedback(robot, env, start, goal, declared, filter_rng,
+                                   angles=parse_angles(args.angles), cells=cells,
+                                   config=FeedbackConfig(), speed=args.speed,
+                                   back_off=args.back_off, w1=args.w1, w2=args.w2)
+    if args.trace:
+        result.trace.to_csv(args.trace)
+    unknown = result.final_pose is None and result.completed
+    if args.json:
+        out = {"start": start, "goal": goal, "robot": args.robot, "noise": str(noise),
+               "seed": args.seed, "glance": args.glance}
+        out.update(result.to_json())
+        print_json(out)
+    else:
+        print(f"{start} -> {goal}: feedback, executed {result.plan.exact_text()}")
+        ms = max(result.decision_ms, default=0.0)
+        err = "" if result.position_error is None else (
+            f" (final pose error {result.position_error:.3f} m, {result.heading_error:+.1f}°)")
+        status = ("success" if result.success else "finished" if unknown
+                  else f"failure: {result.reason}")
+        print(f"{status}{err}; {result.bumps} bump(s), slowest decision {ms:.1f} ms")
+    return 0 if result.success or unknown else EXIT_FAILURE

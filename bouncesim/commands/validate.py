@@ -68,7 +68,7 @@ tv near floor/2: each half has sqrt(2) times the pooled noise), steps = simulate
 the bumps per step of the model and of the simulation. With --alpha also the policy mix,
 executed in epochs of --epoch steps and predicted by the model's time-shared coverage
 (docs/model.md section 12). --contact sets the contact rule of the event model and the
-kinematic twin (docs/model.md section 20); the default follows the simulated body.
+kinematic twin (docs/model.md section 23); the default follows the simulated body.
 """
 
 EXAMPLES = """\
@@ -106,7 +106,7 @@ def register(sub) -> None:
                    help="PyBullet drive speed [m/s] (default 0.3)")
     p.add_argument("--contact", choices=("auto", "off", "pybullet"), default="auto",
                    help="contact rule of the event model and the twin (docs/model.md section "
-                   "20): off = every front contact bumps, pybullet = the fitted bumper arc "
+                   "23): off = every front contact bumps, pybullet = the fitted bumper arc "
                    "and slide; auto (default) = pybullet with --backend pybullet, else off")
     p.add_argument("--seed", type=int, default=0, help="root seed (default 0)")
     p.add_argument("--out", type=Path, default=None, metavar="DIR",
@@ -190,7 +190,7 @@ def _parse_alpha(text: str | None, model, angles, noise) -> tuple | None:
 
 # ----------------------------------------------------------------------------- run
 def contact_rule(args) -> ContactParams | None:
-    """The contact rule of ``--contact`` (docs/model.md §20) for ``--backend``."""
+    """The contact rule of ``--contact`` (docs/model.md §23) for ``--backend``."""
     choice = getattr(args, "contact", "auto")
     if choice == "auto":
         choice = "pybullet" if args.backend == "pybullet" else "off"

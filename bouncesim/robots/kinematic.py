@@ -29,7 +29,7 @@ Contact conventions (shared by both)
   β < −10° the right one. A contact behind the centre line (driving backwards into a wall) is
   not a bump: the robot stalls there, its clock runs on and the bumper stays open.
 - Opt-in (``KinematicRobot(contact=...)``, ``KinematicBatch(..., contact=...)``): the contact
-  rule of :mod:`envs.contact` (docs/model.md §20, shared with the event model): contacts met
+  rule of :mod:`envs.contact` (docs/model.md §23, shared with the event model): contacts met
   below the incidence β do not press the bumper; the body slides along the wall.
   ``glance_deg=g`` is the same rule with β = 90° − g and no friction. The default keeps the
   front-half bumper above.
@@ -106,7 +106,7 @@ class KinematicRobot(Robot):
         Accepted for parity with the PyBullet robot; in the twin both are exact (the wheels
         turn by exactly the commanded arc) and take the same time.
     contact : envs.motion.ContactParams, optional
-        Opt-in contact rule (docs/model.md §20, :mod:`envs.contact`). Default None: every
+        Opt-in contact rule (docs/model.md §23, :mod:`envs.contact`). Default None: every
         contact on the front half stops the robot and closes the bumper (the docs/model.md §8
         twin). With β = ``contact.beta_deg``, a wall met at incidence below β does not press
         the bumper: the body slides along the wall (heading kept, speed
@@ -384,7 +384,7 @@ class KinematicBatch:
     starts : (n_robots,) int array, optional
         Start configurations z (default: drawn uniformly from the N configurations).
     contact : envs.motion.ContactParams, optional
-        The contact rule of docs/model.md §20 (default None: the front-half bumper). A step
+        The contact rule of docs/model.md §23 (default None: the front-half bumper). A step
         is then h of clock: a robot that slides covers h·f of wall in it, and a step is a bump
         step when its bump comes more than STEP_TOL before the clock's h.
 
@@ -462,7 +462,7 @@ class KinematicBatch:
         move, bumped = step(drive_distance(free), self.h)     # docs/model.md §9
         counted = self.cell_of(self.pos)
         self.pos += move[:, None] * u
-        if self.contact is not None and bumped.any():         # slides: docs/model.md §20
+        if self.contact is not None and bumped.any():         # slides: docs/model.md §23
             self._slide(bumped, move, u)
         if bumped.any():
             idx = np.flatnonzero(bumped)

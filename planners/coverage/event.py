@@ -95,7 +95,7 @@ class EventSettings:
         evenly inside it at θ_k + ((l + ½)/n_θ − ½)Δ, each crossed with the ``samples``
         start points. Grid noise keeps the exact heading θ_k.
     contact : envs.motion.ContactParams, optional
-        The contact rule of docs/model.md §20 (default None: every contact bumps, §10).
+        The contact rule of docs/model.md §23 (default None: every contact bumps, §10).
     """
 
     bin_length: float = 0.03
@@ -291,7 +291,7 @@ def _step_cells(cs: CellSpace, start, u, n_fwd, dist, owner, weight, paths):
     reps = n_fwd
     idx = np.repeat(np.arange(len(start)), reps)
     m = np.arange(idx.size) - np.repeat(np.cumsum(reps) - reps, reps)
-    fpts, land = paths.points(idx, m * h), paths.end   # start + s·u unless it slid (§20)
+    fpts, land = paths.points(idx, m * h), paths.end   # start + s·u unless it slid (§23)
     cells = np.concatenate([cs.cell_of_point(fpts), cs.cell_of_point(land)])
     own = np.concatenate([owner[idx], owner])
     w = np.concatenate([weight[idx], weight])
@@ -402,7 +402,7 @@ class EventModel:
         into = (u * bd.seg_inward[seg]).sum(axis=1) < -_INTO_TOL
         dist = np.zeros(len(pts))
         dist[~into] = _cast(caster, pts[~into], u[~into])
-        paths = contact_flights(caster, pts, u, dist, st.contact)   # slides below β (§20)
+        paths = contact_flights(caster, pts, u, dist, st.contact)   # slides below β (§23)
         land, dist, into = paths.end, paths.clock, into & (paths.clock == 0)
         lb = b.copy()                        # an immediate bump lands in its own bin
         lb[~into] = bd.bin_of(land[~into])

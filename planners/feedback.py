@@ -1,0 +1,366 @@
+"""Feedback navigation: a particle Bayes filter over bump poses, and a decision rule that
+re-plans from the belief after every bump (docs/model.md §22).
+
+The robot senses only what a bump-and-clock robot has: the duration of every flight
+(distance = commanded speed × time) and which side of the bumper closed. This module turns
+those readings into a belief over the robot's pose and the belief into the next bouncing
+angle and the final drive. It is pure (numpy, scipy, the motion layer and the exact planner);
+the loop that drives a robot is :func:`bouncesim.navigate.navigate_feedback`.
+
+- :class:`ParticleFilter` (in :mod:`planners.feedback_filter`, re-exported): n weighted
+  poses (x [m], y [m], heading [deg]). A turn by φ adds φ plus a draw of the declared turn
+  noise N(0, σ² + σ_floor²) to every heading; a flight moves every particle along its exact
+  ray cast (:mod:`envs.motion`) to its contact and weighs it by the measured distance
+  (Gaussian, σ_d = ``dist_sigma_m`` + ``dist_sigma_rel`` · d) and by the bumper side its
+  contact bearing predicts. Systematic resampling when the effective sample size drops
+  below ``resample_ess`` · n. When no particle is consistent with a reading (distance more
+  than ``consistent_z`` σ_d off, or the wrong side), the belief is re-initialised: first
+  around the previous belief with headings widened by ``reinit_sigma_deg``, then, if still
+  nothing fits, globally (poses uniform over the free space and headings, kept when their
+  flight matches the reading).
+- :class:`FeedbackNavigator`: after every bump, plans exactly (the §15 search, started from
+  the pose of a particle with its heading's offset from the Δ grid kept) from the most likely
+  particle and ``votes`` − 1 more drawn by weight; every distinct plan is scored by its
+  success under the belief (the belief's particles pushed through the plan's turns and
+  flights with the declared noise, then the best final drive); the best score wins and its
+  first angle is turned. The final drive is the length that puts the most belief mass in the
+  goal cell (:func:`final_drive`).
+
+Examples
+--------
+A 2 m × 2 m room; the robot at (0.5, 1) facing east bumps the east wall after
+2 − 0.17 − 0.5 = 1.33 m, on both switches. A belief split between heading 0° and heading 30°
+learns which it was (at 30° the flight is 1.33 / cos 30° = 1.536 m, and the wall is met 30°
+to the right of the heading: the right switch only):
+
+>>> import numpy as np
+>>> from envs import Environment
+>>> env = Environment.from_dict({"boundary": [[0, 0], [2, 0], [2, 2], [0, 2]],
+...     "robot_radius": 0.17, "discretization": {"cell_size": 0.25, "orientations": 8}})
+>>> pf = ParticleFilter(env, FeedbackConfig(particles=4), np.random.default_rng(0),
+...                     poses=[[0.5, 1.0, 0.0]] * 2 + [[0.5, 1.0, 30.0]] * 2)
+>>> up = pf.flight(1.33, left=True, right=True)
+>>> pf.weights.round(3).tolist(), up.reinit
+([0.5, 0.5, 0.0, 0.0], 0)
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from envs.motion import BUMP_RANGE, drive_distance, unit
+
+from .cells import CellSpace
+from .exact import ExactNavigator, chords
+from .feedback_filter import (
+    SIDES,
+    FeedbackConfig,
+    FlightUpdate,
+    ParticleFilter,
+    flights,
+    side_of,
+)
+
+__all__ = ["FeedbackConfig", "FlightUpdate", "ParticleFilter", "Candidate", "FeedbackNavigator",
+           "goal_intervals", "final_drive", "side_of", "SIDES"]
+
+_MAX_SETTLED = 3000      # a plan search from one pose gives up after this many states
+_MAX_FINAL_CANDIDATES = 128   # final drive lengths tried
+
+
+# ============================================================================ the final drive
+def goal_intervals(pos, heading_deg, D, cell_box, goal_heading_deg: float, delta_deg: float):
+    """The drive lengths that end each particle's flight in the goal cell.
+
+    Parameters
+    ----------
+    pos : (n, 2) [m];  heading_deg : (n,) [deg];  D : (n,) flight lengths to the bump [m]
+    cell_box : (x0, y0, x1, y1) the goal cell's square [m]
+    goal_heading_deg, delta_deg : a particle whose heading is more than Δ/2 from the goal
+                                  heading gets no interval
+
+    Returns
+    -------
+    a, b : (n,) [m]   a drive d ends in the cell when a <= d <= b (b = inf: the flight lands
+                      in the cell, where the bump stops the robot); a = inf: never
+    """
+    pos = np.asarray(pos, dtype=float).reshape(-1, 2)
+    u = unit(heading_deg)
+    lo = np.zeros(len(pos))
+    hi = np.asarray(D, dtype=float).copy()
+    box = np.asarray(cell_box, dtype=float)
+    for ax in (0, 1):
+        p, c = pos[:, ax], u[:, ax]
+        inside = (p >= box[ax]) & (p <= box[ax + 2])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t0, t1 = (box[ax] - p) / c, (box[ax + 2] - p) / c
+        zero = c == 0
+        lo = np.where(zero, np.where(inside, lo, np.inf), np.maximum(lo, np.minimum(t0, t1)))
+        hi = np.where(zero, np.where(inside, hi, -np.inf), np.minimum(hi, np.maximum(t0, t1)))
+    dh = (np.asarray(heading_deg, dtype=float) - goal_heading_deg + 180.0) % 360.0 - 180.0
+    ok = (lo <= hi) & (np.abs(dh) <= delta_deg / 2)
+    lands = ok & (hi >= np.asarray(D) - 1e-9)
+    a = np.where(ok, lo, np.inf)
+    b = np.where(lands, np.inf, np.where(ok, hi, -np.inf))
+    return a, b
+
+
+def final_drive(pos, heading_deg, D, w, cell_box, goal_heading_deg: float, delta_deg: float,
+                margin: float) -> tuple[float, float]:
+    """The final drive d [m] that puts the most weight in the goal cell.
+
+    A particle (pos, heading, flight D to its bump, weight w) ends at pos + min(d, D)·u. It
+    counts when that point lies in the cell and its heading is within Δ/2 of the goal's,
+    in full once the point lies ``margin`` [m] or deeper inside the cell (depth: the distance
+    to the cell's border), in proportion to its depth when shallower. The best d maximises
+    that weight, then the weighted depth. Candidates: the ends of every particle's interval
+    in the cell (:func:`goal_intervals`), their midpoints, and every flight's point nearest
+    the cell's centre.
+
+    Returns (d, mass): mass is the weight whose end point lies in the cell at all; nothing
+    in the cell gives (0, 0).
+
+    >>> pos, D = [[0.1, 0.5], [0.1, 0.6]], [3.0, 3.0]
+    >>> final_drive(pos, [0.0, 0.0], D, [0.5, 0.5], (1.0, 0.0, 2.0, 1.0), 0.0, 45.0, 0.02)
+    (1.4, 1.0)
+    """
+    pos = np.asarray(pos, dtype=float).reshape(-1, 2)
+    head, D, w = (np.asarray(v, dtype=float).reshape(-1) for v in (heading_deg, D, w))
+    a, b = goal_intervals(pos, head, D, cell_box, goal_heading_deg, delta_deg)
+    ok = np.isfinite(a)
+    if not ok.any():
+        return 0.0, 0.0
+    u = unit(head)
+    box = np.asarray(cell_box, dtype=float)
+    centre = (box[:2] + box[2:]) / 2
+    half = (box[2] - box[0]) / 2
+    near = np.clip(((centre - pos) * u).sum(1), a, np.minimum(b, D))[ok]
+    ends = np.unique(np.concatenate([a[ok], b[ok & np.isfinite(b)]]))
+    cand = np.unique(np.round(np.concatenate([ends, (ends[:-1] + ends[1:]) / 2, near]), 4))
+    cand = cand[cand >= 0]
+    if len(cand) > _MAX_FINAL_CANDIDATES:          # evenly spread over the sorted ones
+        cand = cand[np.linspace(0, len(cand) - 1, _MAX_FINAL_CANDIDATES).round().astype(int)]
+    t = np.minimum(cand[:, None], D[None])                       # (C, n) travelled
+    end = pos[None] + t[..., None] * u[None]
+    depth = half - np.abs(end - centre).max(axis=2)
+    good = (np.abs((head - goal_heading_deg + 180.0) % 360.0 - 180.0) <= delta_deg / 2)[None]
+    inside = good & (depth >= 0)
+    soft = (w[None] * np.where(inside, np.clip(depth / max(margin, 1e-12), 0, 1), 0)).sum(1)
+    deep = (w[None] * np.where(inside, depth, 0)).sum(1)
+    best = np.lexsort((-deep, -np.round(soft, 9)))[0]
+    return float(cand[best]), float((w[None] * inside).sum(1)[best])
+
+
+# ============================================================================ decisions
+@dataclass(frozen=True)
+class Candidate:
+    """A plan from one particle's pose: fly, then turn by each angle and fly, then the
+    final drive on the last flight (docs/model.md §22).
+
+    Attributes
+    ----------
+    angles : tuple of float    bouncing angles in order [deg]
+    flights : tuple of float   expected flights from the planned-from pose [m] (the first
+                               is the current flight: 0 right after a bump)
+    final_m : float            the plan's own final drive [m]
+    cost : float               §15's cost
+    p_success : float          estimated success under the belief (nan: not scored)
+    """
+
+    angles: tuple
+    flights: tuple
+    final_m: float
+    cost: float
+    p_success: float = float("nan")
+
+
+class FeedbackNavigator:
+    """Chooses bouncing angles and the final drive from a :class:`ParticleFilter`'s belief
+    (docs/model.md §22).
+
+    Parameters
+    ----------
+    cells : CellSpace
+    angles : sequence of float   bouncing angles Φ [deg]
+    goal : int                   goal configuration z
+    config : FeedbackConfig
+    w1, w2 : float               §15's weights
+    """
+
+    def __init__(self, cells: CellSpace, angles, goal: int, config: FeedbackConfig | None = None,
+                 w1: float = 1.0, w2: float = 100.0) -> None:
+        self.cells, self.cfg = cells, config if config is not None else FeedbackConfig()
+        self.nav = ExactNavigator(cells, angles, w1, w2)
+        self.goal = self.nav._check(goal, "goal")
+        gp, self.gk = (int(v) for v in cells.pk(self.goal))
+        lo = np.asarray(cells.env.origin, dtype=float) + cells.cells_ij[gp] * cells.h
+        self.box = (float(lo[0]), float(lo[1]), float(lo[0] + cells.h), float(lo[1] + cells.h))
+        self.goal_heading = self.gk * cells.delta_deg
+        _ = self.nav._scalar_boundary           # build the contact bins now, not at a bump
+
+    # ------------------------------------------------------------------ planning
+    def plan_from(self, x: float, y: float, heading_deg: float) -> Candidate | None:
+        """§15's cheapest plan from a pose whose heading may lie off the Δ grid: the offset
+        ε = heading − kΔ is kept on every later heading (turns are multiples of Δ), so the
+        flights are cast at kΔ + ε. The first flight is the current one (0 right after a
+        bump). None when the goal is not reached.
+
+        With turn noise (``edge_guard`` · turn spread = g > 0), a flight after a turn is not
+        taken when the same flight at heading ± g bumps at once: it runs along a wall the
+        robot touches, a knife edge (§19) that a few degrees of turn error close.
+        """
+        plans = self.plans_from(x, y, heading_deg, 0.0)
+        return plans[0] if plans else None
+
+    def plans_from(self, x: float, y: float, heading_deg: float, slack: float,
+                   bumped: bool = False) -> list[Candidate]:
+        """Like :meth:`plan_from`, every goal arrival within ``slack`` of the cheapest
+        (one per settled state whose flight reaches the goal, distinct angle sequences
+        only), cheapest first. ``bumped``: the robot is at a contact, the first flight is 0.
+        """
+        cs, nav = self.cells, self.nav
+        K, m, h, dlt = cs.K, nav.m, cs.h, cs.delta_deg
+        k0 = int(round(heading_deg / dlt))
+        eps = float(heading_deg) - k0 * dlt
+        k0 %= K
+        units = [tuple(float(v) for v in u) for u in unit(np.arange(K) * dlt + eps)]
+        guard = self.cfg.edge_guard * self.cfg.turn_spread_deg
+        plus = [tuple(float(v) for v in u) for u in unit(np.arange(K) * dlt + eps + guard)]
+        minus = [tuple(float(v) for v in u) for u in unit(np.arange(K) * dlt + eps - guard)]
+        w1, w2 = nav.w1, nav.w2
+        first_bump = w1 if m == 1 else min(w1, w2)
+        steps = nav._steps.tolist()
+        gx0, gy0, gx1, gy1 = self.box
+        gk, gp = self.gk, int(cs.pk(self.goal)[0])
+        cast, bin_of = nav.caster.cast_one, nav._bin_of_scalar
+
+        def bound(px: float, py: float) -> float:
+            return w1 / h * math.hypot(max(gx0 - px, px - gx1, 0.0), max(gy0 - py, py - gy1, 0.0))
+
+        # heap: (key, order, state, cost, x, y, k, angle index, node),
+        # node = (parent node, angle, flight)
+        heap = [(0.0, 0, None, 0.0, float(x), float(y), k0, -1, None)]
+        settled, order, best, arrivals = set(), 1, math.inf, []
+        while heap and len(settled) < _MAX_SETTLED:
+            key, _, st, c, px, py, k, a, node = heapq.heappop(heap)
+            if st in settled:
+                continue
+            if key > best + slack:
+                break
+            settled.add(st)
+            ux, uy = units[k]
+            t = 0.0 if (bumped and st is None) else cast(px, py, ux, uy)
+            if math.isinf(t):
+                return []
+            D = 0.0 if t <= BUMP_RANGE else drive_distance(t)
+            if guard and st is not None and D > 1e-3 and (
+                    cast(px, py, *plus[k]) <= BUMP_RANGE or
+                    cast(px, py, *minus[k]) <= BUMP_RANGE):
+                continue                       # along a wall it touches: a knife edge
+            if k == gk and min(px, px + D * ux) <= gx1 and max(px, px + D * ux) >= gx0 and \
+                    min(py, py + D * uy) <= gy1 and max(py, py + D * uy) >= gy0:
+                _, p, tt, depth = chords(cs, [[px, py]], [[ux, uy]], [D])
+                for pi, ti, di in zip(p.tolist(), tt.tolist(), depth.tolist()):
+                    if pi == gp and di >= nav.min_depth:
+                        arrivals.append((c + w1 * ti / h, len(arrivals), node, ti))
+                        best = min(best, c + w1 * ti / h)
+            lx, ly = px + D * ux, py + D * uy
+            lb = bin_of(lx, ly)
+            hb = bound(lx, ly)
+            for b in range(m):
+                k2 = (k + steps[b]) % K
+                tgt = (lb, k2, b)
+                if tgt in settled:
+                    continue
+                c2 = c + w1 * D / h + (first_bump if a < 0 else (w1 if a == b else w2))
+                heapq.heappush(heap, (c2 + hb, order, tgt, c2, lx, ly, k2, b,
+                                      (node, nav.angles[b], D)))
+                order += 1
+        out: dict = {}
+        for cost, _, node, final in sorted(arrivals):
+            if cost > best + slack:
+                break
+            angles, flights = [], []
+            while node is not None:
+                node, ang, fl = node
+                angles.append(ang)
+                flights.append(fl)
+            key = tuple(reversed(angles))
+            if key not in out:
+                out[key] = Candidate(key, tuple(reversed(flights)), float(final), cost)
+        return list(out.values())
+
+    # ------------------------------------------------------------------ scoring
+    def score(self, pos, heading, angles, rng: np.random.Generator,
+              bumped: bool = False) -> float:
+        """Estimated success of flying (not when ``bumped``: at a contact), then turning by
+        each angle and flying, then the best final drive, for equally weighted particles
+        (pos (n, 2), heading (n,) [deg]) under the declared noise.
+        """
+        caster = self.nav.caster
+        pos, head = np.array(pos, dtype=float), np.array(heading, dtype=float)
+        s = self.cfg.turn_spread_deg
+        for j, a in enumerate(angles):
+            if not (bumped and j == 0):
+                D, u, _ = flights(caster, pos, head, bearings=False)
+                pos = pos + D[:, None] * u
+            head = head + a + (rng.normal(0.0, s, len(head)) if s > 0 else 0.0)
+        return self.final(pos, head, np.full(len(head), 1.0 / len(head)))[1]
+
+    def final(self, pos, heading, w) -> tuple[float, float]:
+        """(drive [m], belief mass in the goal cell) of the best final drive on the current
+        flight of weighted particles.
+        """
+        pos, heading = np.asarray(pos, dtype=float), np.asarray(heading, dtype=float)
+        D, _, _ = flights(self.nav.caster, pos, heading, bearings=False)
+        return final_drive(pos, heading, D, w, self.box, self.goal_heading,
+                           self.cells.delta_deg, self.cfg.margin_m)
+
+    def heading_offset(self, belief: ParticleFilter) -> float:
+        """[deg] the belief's mean heading offset ε̄ from the Δ grid (the weighted circular
+        mean of θ − kΔ on the circle of period Δ), in [−Δ/2, Δ/2].
+        """
+        d = self.cells.delta_deg
+        a = np.radians(belief.heading * (360.0 / d))
+        m = math.atan2(float(belief.weights @ np.sin(a)), float(belief.weights @ np.cos(a)))
+        return math.degrees(m) * d / 360.0
+
+    def choose(self, belief: ParticleFilter, rng: np.random.Generator,
+               keep: tuple = (), bumped: bool = False, shift: float = 0.0) -> list[Candidate]:
+        """Scored candidate plans from the belief, best first (empty: no particle planned
+        from reaches the goal). Planned from the heaviest particle and ``votes`` − 1 drawn by
+        weight (distinct poses only); ``keep``, the rest of the previous choice's angles, is
+        a candidate too (cost +inf: it loses ties). Each distinct angle sequence is scored by
+        :meth:`score` on ``eval_particles`` drawn from the belief. Ties keep the cheaper plan.
+        ``bumped``: the robot is at a contact (plans start with a turn); ``shift`` [deg]: the
+        next turn is commanded ``shift`` short of its angle (heading correction, §22), so
+        plans and scores see every heading less ``shift``.
+        """
+        cfg = self.cfg
+        top = int(np.argmax(belief.weights))
+        pos, head = belief.sample(max(cfg.votes - 1, 0))
+        pos = np.vstack([belief.pos[top:top + 1], pos])
+        head = np.concatenate([belief.heading[top:top + 1], head])
+        seen_pose, plans = set(), {}
+        for (x, y), th in zip(pos.tolist(), head.tolist()):
+            key = (round(x, 2), round(y, 2), round(th * 2) / 2)   # 1 cm, 0.5°
+            if key in seen_pose:
+                continue
+            seen_pose.add(key)
+            for cand in self.plans_from(x, y, th - shift, cfg.slack, bumped)[:cfg.per_pose]:
+                if cand.angles not in plans or cand.cost < plans[cand.angles].cost:
+                    plans[cand.angles] = cand
+        if keep and tuple(keep) not in plans:
+            plans[tuple(keep)] = Candidate(tuple(keep), (), float("nan"), math.inf)
+        if not plans:
+            return []
+        epos, ehead = belief.sample(cfg.eval_particles)
+        scored = [Candidate(c.angles, c.flights, c.final_m, c.cost,
+                            self.score(epos, ehead - shift, c.angles, rng, bumped))
+                  for c in plans.values()]
+        scored.sort(key=lambda c: (-round(c.p_success, 9), c.cost))
+        return scored

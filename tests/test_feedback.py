@@ -1,0 +1,243 @@
+"""Feedback navigation (planners/feedback.py, bouncesim/navigate.py; docs/model.md §22).
+
+Evidence: hand-computed filter updates and final drives in a rectangle; the pose planner
+against the exact planner (§15, an independent search over the same states); the filter's
+support against the twin's true pose; runs on the OI emulator through a serial transport;
+feedback against open-loop exact plans under noise, bounded by Wilson intervals.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+import envs
+from bouncesim.navigate import declared_sigma, navigate_feedback
+from bouncesim.robots.kinematic import KinematicRobot
+from bouncesim.robots.noise import GaussianNoise, SteppedNoise
+from bouncesim.runs.execute import execute
+from envs import Environment
+from planners.cells import CellSpace
+from planners.exact import ExactNavigator
+from planners.feedback import (
+    FeedbackConfig,
+    FeedbackNavigator,
+    ParticleFilter,
+    final_drive,
+    goal_intervals,
+)
+
+from .alarm import alarm
+
+ANGLES = (45.0, 90.0, 135.0)
+RECT = Environment.from_dict({"name": "rect", "boundary": [[0, 0], [2, 0], [2, 2], [0, 2]],
+                              "robot_radius": 0.17,
+                              "discretization": {"cell_size": 0.25, "orientations": 8}})
+# a 2.72 m × 2.04 m room with a square pillar off the cell grid (8 × 6 cells of 0.34 m)
+ROOM = Environment.from_dict({
+    "name": "pillar-room", "boundary": [[0, 0], [2.72, 0], [2.72, 2.04], [0, 2.04]],
+    "obstacles": [[[1.2, 0.8], [1.55, 0.8], [1.55, 1.15], [1.2, 1.15]]],
+    "robot_radius": 0.17, "discretization": {"cell_size": 0.34, "orientations": 8}})
+
+
+# ---------------------------------------------------------------- the filter, by hand
+@pytest.mark.parametrize("d,left,right,heavy", [
+    (1.33, True, True, 0.0),                         # 2 − 0.17 − 0.5: straight into the wall
+    (1.33 / math.cos(math.radians(30)), False, True, 30.0),   # the wall 30° to the right
+    (1.33 / math.cos(math.radians(30)), True, False, -30.0)])  # ... or to the left
+def test_flight_reading_picks_the_heading_by_distance_and_side(d, left, right, heavy):
+    # particles at (0.5, 1) facing 0°, 30° and −30° into the east wall of a 2 m × 2 m room
+    poses = [[0.5, 1.0, h] for h in (0.0, 30.0, -30.0) for _ in range(2)]
+    pf = ParticleFilter(RECT, FeedbackConfig(particles=6), np.random.default_rng(0),
+                        poses=poses)
+    up = pf.flight(d, left, right)
+    assert up.reinit == 0 and up.consistent == 2
+    heads = (pf.heading + 180) % 360 - 180
+    assert np.allclose(heads, heavy)                  # resampled onto the one that fits
+    y = 1.0 + 1.33 * math.tan(math.radians(heavy))
+    assert np.allclose(pf.pos, [2 - 0.17, y], atol=1e-8)
+
+
+def test_no_particle_fits_reinitialises_around_the_previous_belief():
+    # every particle says 1.33 m; the robot bumped after 1.415 m with the wall on its right
+    # (heading +20°): stage 1 widens the headings (σ = 10°); the posterior mean is pulled
+    # toward the prior's 0° by σ_θ²/(σ_θ² + 10²) with the reading's σ_θ ≈ 0.024 m /
+    # (0.009 m/°) ≈ 2.7°, i.e. to about 18.6°
+    pf = ParticleFilter(RECT, FeedbackConfig(particles=200), np.random.default_rng(1),
+                        start=(0.5, 1.0, 0.0))
+    up = pf.flight(1.33 / math.cos(math.radians(20)), False, True)
+    assert up.consistent == 0 and up.reinit == 1
+    heads = (pf.heading + 180) % 360 - 180
+    assert abs(np.average(heads, weights=pf.weights) - 18.6) < 1.5
+
+
+def test_goal_intervals_and_final_drive_by_hand():
+    box = (1.0, 0.0, 2.0, 1.0)
+    # a flight along y = 0.5 enters the cell after 0.9 m and leaves after 1.9 m; one that
+    # lands at x = 1.6 stops in it whatever the drive beyond 0.9 m; a heading 60° off the
+    # goal's (Δ/2 = 22.5°) has no interval
+    a, b = goal_intervals([[0.1, 0.5]] * 3, [0.0, 0.0, 60.0], [3.0, 1.5, 3.0], box, 0.0, 45.0)
+    assert np.allclose(a[:2], 0.9) and b[0] == pytest.approx(1.9) and b[1] == np.inf
+    assert a[2] == np.inf
+    # weights 0.3 / 0.3 / 0.4 on flights along y = 0.5, 0.9 and 3.0 (the last misses the
+    # cell): the drive ends where the deepest point of the two lies, x = 1.5 (d = 1.4)
+    d, mass = final_drive([[0.1, 0.5], [0.1, 0.9], [0.1, 3.0]], [0.0] * 3, [3.0] * 3,
+                          [0.3, 0.3, 0.4], box, 0.0, 45.0, 0.02)
+    assert d == pytest.approx(1.4) and mass == pytest.approx(0.6)
+
+
+# ---------------------------------------------------------------- planning from a pose
+def test_plan_from_a_configuration_is_the_exact_planners_plan():
+    # the same states and costs searched by a second implementation (§15): equal costs
+    cells = CellSpace(ROOM)
+    exact = ExactNavigator(cells, ANGLES)
+    rng = np.random.default_rng(5)
+    checked = 0
+    while checked < 12:
+        s, g = (int(v) for v in rng.integers(0, cells.N, 2))
+        route = exact.plan(s, g) if s != g else None
+        if route is None:
+            continue
+        cand = FeedbackNavigator(cells, ANGLES, g).plan_from(*cells.pose(s))
+        assert cand is not None
+        assert cand.cost == pytest.approx(route.cost, abs=1e-6)
+        assert len(cand.angles) == route.plan.bumps
+        checked += 1
+
+
+# ---------------------------------------------------------------- the twin
+@pytest.mark.parametrize("floor", [0.0, 0.5])
+def test_filter_support_holds_the_true_pose_on_noise_free_runs(floor):
+    # after every flight and turn some particle lies within 1 cm and 1° of the twin's pose
+    # (floor 0: all of them); the belief stays tight (weighted spread < 0.1 m), so this is
+    # not satisfied by a cloud spread over the room
+    cells = CellSpace(ROOM)
+    exact = ExactNavigator(cells, ANGLES)
+    rng = np.random.default_rng(11)
+    cfg = FeedbackConfig(sigma_floor_deg=floor)
+    runs = 0
+    while runs < 6:
+        s, g = (int(v) for v in rng.integers(0, cells.N, 2))
+        if s == g or exact.plan(s, g) is None:
+            continue
+        bot = KinematicRobot(ROOM)
+        worst = []
+
+        def check(event, belief, bot=bot, worst=worst):
+            x, y, th = bot.true_pose()
+            dpos = np.hypot(belief.pos[:, 0] - x, belief.pos[:, 1] - y)
+            dth = np.abs((belief.heading - th + 180) % 360 - 180)
+            live = belief.weights > 0
+            near = (dpos <= 0.01) & (dth <= 1.0)
+            mean = np.average(belief.pos, axis=0, weights=belief.weights)
+            spread = np.sqrt(np.average((belief.pos - mean) ** 2, axis=0,
+                                        weights=belief.weights)).max()
+            worst.append(((near & live).any(), near[live].all(), float(spread)))
+
+        run = navigate_feedback(bot, ROOM, s, g, None, np.random.default_rng(runs),
+                                config=cfg, on_belief=check)
+        assert run.success, run.reason
+        assert run.reinits == 0
+        assert all(any_ for any_, _, _ in worst)
+        assert all(spread < 0.1 for _, _, spread in worst)
+        if floor == 0:
+            assert all(all_ for _, all_, _ in worst)
+        runs += 1
+
+
+def test_declared_sigma_of_the_noise_models():
+    assert declared_sigma(None) == 0 and declared_sigma(GaussianNoise(2.0)) == 2.0
+    # §7 model, ε = 2Δ, r = 0.5: offsets ±1°, ±2° each with probability 1/8
+    s = declared_sigma(SteppedNoise(2.0, 0.5, 1.0))
+    assert s == pytest.approx(math.sqrt((1 + 4) * 2 / 8))
+
+
+# ---------------------------------------------------------------- noise: feedback vs open loop
+def _wilson(k: int, n: int) -> tuple[float, float]:
+    from scipy.stats import binomtest
+    ci = binomtest(k, n).proportion_ci(confidence_level=0.95, method="wilson")
+    return ci.low, ci.high
+
+
+@pytest.mark.slow
+def test_feedback_beats_open_loop_exact_plans_at_two_degrees():
+    # 30 seeded pairs of a small room, σ = 2°, the same robot noise seed for both: the
+    # feedback success's Wilson interval lies above the open-loop one's
+    cells = CellSpace(ROOM)
+    exact = ExactNavigator(cells, ANGLES)
+    rng = np.random.default_rng(3)
+    noise = GaussianNoise(2.0)
+    fb = ol = n = 0
+    while n < 30:
+        s, g = (int(v) for v in rng.integers(0, cells.N, 2))
+        route = exact.plan(s, g) if s != g else None
+        if route is None:
+            continue
+        fb += bool(navigate_feedback(KinematicRobot(ROOM, noise, n), ROOM, s, g, noise,
+                                     np.random.default_rng(1000 + n)).success)
+        ol += bool(execute(route.plan, KinematicRobot(ROOM, noise, n), start=s, goal=g).success)
+        n += 1
+    lo_fb, _ = _wilson(fb, n)
+    _, hi_ol = _wilson(ol, n)
+    assert lo_fb > hi_ol, (fb, ol, n)
+
+
+# ---------------------------------------------------------------- the emulator and the CLI
+def test_feedback_reaches_the_goal_on_the_oi_emulator():
+    pytest.importorskip("serial")
+    from bouncesim.robots.create2 import Create2Robot, OIEmulator
+    cells = CellSpace(ROOM)
+    pairs = [(cells.z(0, 0), cells.z(cells.P - 1, 2)), (cells.z(9, 1), cells.z(20, 4))]
+    for s, g in pairs:
+        assert ExactNavigator(cells, ANGLES).plan(s, g) is not None
+        with alarm(60):
+            emu = OIEmulator(ROOM, lockstep=True).start()
+            with Create2Robot(emu.url, emulator=emu, own_emulator=True) as bot:
+                run = navigate_feedback(bot, ROOM, s, g, 1.0, np.random.default_rng(0),
+                                        speed=0.5)
+        assert run.success, run.reason
+        assert run.bumps >= 1
+
+
+def test_run_plan_feedback_cli_json(tmp_path, capsys):
+    from bouncesim.cli import main
+    path = tmp_path / "room.json"
+    path.write_text(json.dumps(ROOM.to_dict()))
+    args = ["run-plan", str(path), "--angles", "45,90,135", "--start", "0", "--goal", "100",
+            "--planner", "feedback", "--noise", "gauss:2", "--json", "--quiet"]
+    code = main(args)
+    out = json.loads(capsys.readouterr().out)
+    assert code == (0 if out["success"] else 4)
+    assert out["planner"] == "feedback" and out["noise"] == "gauss:2"
+    assert len(out["decision_ms"]) >= 1 and out["bumps"] >= 1
+    no_feedback = args[:8] + ["--turn-sigma", "2"]
+    assert main(no_feedback) == 2                     # --turn-sigma needs --planner feedback
+
+
+def test_nav_feedback_experiment_writes_its_tables(tmp_path):
+    import pandas as pd
+
+    from experiments import nav_feedback
+    cfg = nav_feedback.Config(pairs=1, sigmas=(2.0,), maps=("lab",), corrected=False,
+                              quick=True, out=tmp_path)
+    nav_feedback.run(cfg)
+    runs = pd.read_csv(tmp_path / "runs.csv")
+    assert sorted(runs.planner) == ["exact", "feedback"] and runs.success.dtype == bool
+    summary = pd.read_csv(tmp_path / "summary.csv")
+    assert ((summary.wilson_low <= summary.success) & (summary.success <= summary.wilson_high)
+            ).all()
+    assert (tmp_path / "success.png").stat().st_size > 0
+    assert json.loads((tmp_path / "config.json").read_text())["quick"] is True
+
+
+def test_feedback_is_a_planner_of_the_navigation_experiments():
+    from bouncesim.robots import make_robot
+    from experiments.nav_planners import PLANNERS, NavConfig
+    env = envs.load("lab")
+    driver = PLANNERS["feedback"](env, 8, 0, NavConfig(), np.random.default_rng(0))
+    run = driver(make_robot("kinematic", env))
+    assert run.success and driver.plan is None
+    assert driver.decisions == run.bumps == 4 and driver.decision_s > 0   # one per bump
