@@ -47,6 +47,7 @@ from functools import cached_property, lru_cache
 import numpy as np
 
 from .environment import Environment
+from .errors import UserError
 
 __all__ = ["WallCaster", "LocalCaster", "casters", "unit", "unit_rad", "drive_distance",
            "step", "flight_steps", "grid_index", "CONTACT_GAP", "BUMP_RANGE", "STEP_TOL",
@@ -461,7 +462,8 @@ def casters(env: Environment, step: float | None = None) -> tuple[WallCaster, Lo
 @dataclass(frozen=True)
 class ContactParams:
     """How a disk robot meets a straight wall (data only; docs/model.md §16, "Contact calibration
-    (PyBullet)"). Fitted to the PyBullet Create 2 by ``experiments/contact_calibration.py``.
+    (PyBullet)"). Fitted to the PyBullet Create 2 by ``experiments/contact_calibration.py``;
+    the rule that uses it is :mod:`envs.contact` (§23).
 
     Attributes
     ----------
@@ -476,6 +478,13 @@ class ContactParams:
 
     beta_deg: float = 9.6
     slide_friction: float = 0.006
+
+    def __post_init__(self) -> None:
+        b, mu = float(self.beta_deg), float(self.slide_friction)
+        if not (0.0 <= b < 90.0 and 0.0 <= mu and math.cos(math.radians(b))
+                > mu * math.sin(math.radians(b))):
+            raise UserError(f"a contact rule needs 0 <= beta < 90 degrees and a friction "
+                            f"0 <= mu < 1/tan(beta), got beta {b:g}, mu {mu:g}.")
 
 
 PYBULLET_CONTACT = ContactParams()

@@ -23,6 +23,7 @@ import numpy as np
 
 import envs
 from envs import UserError
+from envs.motion import PYBULLET_CONTACT, ContactParams
 from planners.cells import CellSpace
 from planners.coverage import (
     MODELS,
@@ -66,7 +67,8 @@ the simulation (what sampling noise alone gives at half the steps; a model that 
 tv near floor/2: each half has sqrt(2) times the pooled noise), steps = simulated steps, and
 the bumps per step of the model and of the simulation. With --alpha also the policy mix,
 executed in epochs of --epoch steps and predicted by the model's time-shared coverage
-(docs/model.md section 12).
+(docs/model.md section 12). --contact sets the contact rule of the event model and the
+kinematic twin (docs/model.md section 23); the default follows the simulated body.
 """
 
 EXAMPLES = """\
@@ -102,6 +104,10 @@ def register(sub) -> None:
                    help="steps per epoch of the mix (default 1000)")
     p.add_argument("--speed", type=float, default=0.3, metavar="M/S",
                    help="PyBullet drive speed [m/s] (default 0.3)")
+    p.add_argument("--contact", choices=("auto", "off", "pybullet"), default="auto",
+                   help="contact rule of the event model and the twin (docs/model.md section "
+                   "23): off = every front contact bumps, pybullet = the fitted bumper arc "
+                   "and slide; auto (default) = pybullet with --backend pybullet, else off")
     p.add_argument("--seed", type=int, default=0, help="root seed (default 0)")
     p.add_argument("--out", type=Path, default=None, metavar="DIR",
                    help="keep the sweep's journal, runs.csv and config.json here (a re-run "
@@ -126,12 +132,14 @@ def simulate_trial(params: dict, rng: np.random.Generator) -> dict:
                     tuple(float(a) for a in params["alpha"].split()),
                     float(params["eps"]), float(params["r"]))
     n, steps = int(params["robots"]), int(params["steps"])
+    contact = params.get("contact", "off")
+    contact = None if contact == "off" else ContactParams(*map(float, contact.split()))
     epoch, burn_in = int(params["epoch"]), int(params["burn_in"])
     t0 = time.perf_counter()
     if params["backend"] == "kinematic":
         from ..robots.kinematic import KinematicBatch
-        res = KinematicBatch(env, n, rng, cells=cs).run(mix, steps, epoch=epoch,
-                                                        burn_in=burn_in)
+        res = KinematicBatch(env, n, rng, cells=cs, contact=contact).run(
+            mix, steps, epoch=epoch, burn_in=burn_in)
         counts, dropped, bumps = res.counts, res.dropped, res.bumps
     else:
         from ..robots.pybullet.batch import PyBulletBatch
@@ -181,6 +189,21 @@ def _parse_alpha(text: str | None, model, angles, noise) -> tuple | None:
 
 
 # ----------------------------------------------------------------------------- run
+def contact_rule(args) -> ContactParams | None:
+    """The contact rule of ``--contact`` (docs/model.md §23) for ``--backend``."""
+    choice = getattr(args, "contact", "auto")
+    if choice == "auto":
+        choice = "pybullet" if args.backend == "pybullet" else "off"
+    if choice == "off":
+        return None
+    if args.model != "event":
+        if args.contact == "auto":
+            return None
+        raise UserError(f"the contact rule is part of the event model only, not the "
+                        f"{args.model} model.")
+    return PYBULLET_CONTACT
+
+
 def _check(args) -> None:
     if args.steps is not None and args.steps < 2:
         raise UserError(f"--steps must be at least 2, got {args.steps}.")
@@ -214,7 +237,8 @@ def run(args) -> int:
         from ..robots.pybullet.robot import _import_pybullet
         _import_pybullet()                      # one sentence when pybullet is missing
     t0 = time.perf_counter()
-    model = model_for(cs, args.model)
+    contact = contact_rule(args)
+    model = model_for(cs, args.model, None if contact is None else {"contact": contact})
     per = [model.analyse(a, noise) for a in angles]
     alpha = _parse_alpha(args.alpha, model, angles, noise)
     policies = [(_label(a), (a,), (1.0,)) for a in angles]
@@ -236,7 +260,9 @@ def run(args) -> int:
                            "alpha": " ".join(repr(float(a)) for a in al),
                            "eps": float(args.eps), "r": float(args.r), "backend": backend,
                            "robots": robots, "steps": per_robot, "burn_in": args.burn_in,
-                           "epoch": args.epoch, "speed": float(args.speed)})
+                           "epoch": args.epoch, "speed": float(args.speed),
+                           "contact": "off" if contact is None else
+                           f"{contact.beta_deg!r} {contact.slide_friction!r}"})
     record = {"command": "validate", "model": args.model, "predict_s": round(predict_s, 3)}
     progress = not args.no_progress and sys.stderr.isatty()
     with tempfile.TemporaryDirectory() as tmp:
@@ -256,6 +282,7 @@ def run(args) -> int:
                      "bumps_per_step_model": bumps_model[lab],
                      "bumps_per_step_sim": float(sub.bumps.sum()) / steps if steps else math.nan,
                      "model": args.model, "backend": backend, "env": env.name,
+                     "contact": "off" if contact is None else "pybullet",
                      **({"alpha": list(al)} if lab == "mix" else {})})
     if args.json:
         for r in rows:

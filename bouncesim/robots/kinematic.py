@@ -28,9 +28,11 @@ Contact conventions (shared by both)
   point relative to the heading: |β| <= 10° closes both switches, β > 10° the left one and
   β < −10° the right one. A contact behind the centre line (driving backwards into a wall) is
   not a bump: the robot stalls there, its clock runs on and the bumper stays open.
-- Opt-in for the single robot only (``KinematicRobot(glance_deg=...)``): contacts more than
-  ``glance_deg`` from the heading do not press the bumper; the body slides along the wall.
-  The default and the batch keep the front-half bumper above.
+- Opt-in (``KinematicRobot(contact=...)``, ``KinematicBatch(..., contact=...)``): the contact
+  rule of :mod:`envs.contact` (docs/model.md §23, shared with the event model): contacts met
+  below the incidence β do not press the bumper; the body slides along the wall.
+  ``glance_deg=g`` is the same rule with β = 90° − g and no friction. The default keeps the
+  front-half bumper above.
 
 Examples
 --------
@@ -53,6 +55,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from envs import Environment, UserError
+from envs.contact import advance, closes_bumper, front_contacts, glancing, leg_length
 
 # The motion layer (shared with the coverage models in planners); the casters and constants
 # are re-exported here under their old names.
@@ -60,6 +63,7 @@ from envs.motion import (  # noqa: F401
     BUMP_RANGE,
     CONTACT_GAP,
     STEP_TOL,
+    ContactParams,
     LocalCaster,
     WallCaster,
     casters,
@@ -80,8 +84,6 @@ __all__ = ["WallCaster", "LocalCaster", "casters", "KinematicRobot", "KinematicB
 CENTRE_ZONE_DEG = 10.0
 """[deg] contacts within ±this of straight ahead close both bumper switches."""
 _EXACT = NoNoise()
-_MAX_EVENTS = 64         # contacts and slides handled within one forward drive
-_SAME_CONTACT = 1e-5     # [m] contacts closer than this are one
 _SCALAR_MAX = 8          # batches up to this size cast robot by robot in plain Python
 
 
@@ -103,14 +105,17 @@ class KinematicRobot(Robot):
     turn : {"clock", "encoders"}
         Accepted for parity with the PyBullet robot; in the twin both are exact (the wheels
         turn by exactly the commanded arc) and take the same time.
+    contact : envs.motion.ContactParams, optional
+        Opt-in contact rule (docs/model.md §23, :mod:`envs.contact`). Default None: every
+        contact on the front half stops the robot and closes the bumper (the docs/model.md §8
+        twin). With β = ``contact.beta_deg``, a wall met at incidence below β does not press
+        the bumper: the body slides along the wall (heading kept, speed
+        v·(cos α − μ sin α) along it; around a corner it wraps on the corner's circle until it
+        can go straight on). ``envs.motion.PYBULLET_CONTACT`` is the PyBullet robot's fit.
+        Two glancing contacts at once (a pocket) count as a bump.
     glance_deg : float, optional
-        Opt-in glancing-contact model. Default None: every contact on the front half stops
-        the robot and closes the bumper (the docs/model.md §8 twin). With a value in (0°, 90°), a
-        contact whose bearing from the heading exceeds it (a wall met at less than
-        90° − glance_deg) does not press the bumper: the body slides along the wall (heading
-        kept, speed v·sin β along the wall; around a corner it wraps on the corner's circle
-        until it can go straight on). 80 matches the PyBullet robot's bumper arc. Two
-        glancing contacts at once (a pocket) stall the robot without a bump.
+        The same rule given as a bumper arc ±glance_deg in (0°, 90°): β = 90° − glance_deg,
+        μ = 0 (80 matches the PyBullet robot's arc). Not together with ``contact``.
     spec : RobotSpec, optional
         Body figures; default the Create 2 with the environment's radius.
 
@@ -124,7 +129,8 @@ class KinematicRobot(Robot):
 
     def __init__(self, env: Environment, noise: NoiseModel | None = None, rng=None, *,
                  turn_speed: float = 0.1, turn: str = "clock",
-                 spec: RobotSpec | None = None, glance_deg: float | None = None) -> None:
+                 spec: RobotSpec | None = None, glance_deg: float | None = None,
+                 contact: ContactParams | None = None) -> None:
         self.env = env
         self.noise, self.rng = noise_and_rng(noise, rng)
         self.spec = spec if spec is not None else replace(CREATE2, radius=env.robot_radius)
@@ -137,7 +143,12 @@ class KinematicRobot(Robot):
         self.turn_mode = turn
         if glance_deg is not None and not 0 < float(glance_deg) < 90:
             raise UserError(f"glance_deg must lie in (0, 90) degrees, got {glance_deg}.")
-        self.glance_deg = None if glance_deg is None else float(glance_deg)
+        if glance_deg is not None:
+            if contact is not None:
+                raise UserError("give the contact rule as contact or as glance_deg, not both.")
+            contact = ContactParams(beta_deg=90.0 - float(glance_deg), slide_friction=0.0)
+        self.contact = contact
+        self.glance_deg = None if contact is None else 90.0 - contact.beta_deg
         self.caster, self.local = casters(env)
         cells = CellSpace(env)
         x, y = cells.centres[0]
@@ -194,23 +205,11 @@ class KinematicRobot(Robot):
         """Stop both wheels."""
         self._speed = 0.0
 
-    def _contacts(self) -> list[tuple[float, float, float, tuple | None]]:
-        """Front contacts within BUMP_RANGE ahead: (bearing β [deg], x, y, side or None)."""
-        x, y, ux, uy = self._x, self._y, self._ux, self._uy
-        out = []
-        for px, py, side in self.local.cast_one(x, y, ux, uy, BUMP_RANGE):
-            wx, wy = px - x, py - y
-            beta = math.degrees(math.atan2(ux * wy - uy * wx, ux * wx + uy * wy))
-            if abs(beta) < 90.0:       # behind the centre line: not the bumper
-                out.append((beta, px, py, side))
-        return out
-
     def bumper(self) -> tuple[bool, bool]:
         """(left, right) switches: closed by a contact within the bumper arc."""
-        arc = 90.0 if self.glance_deg is None else self.glance_deg
         left = right = False
-        for beta, _, _, _ in self._contacts():
-            if abs(beta) <= arc:
+        for beta, *_ in front_contacts(self.local, self._x, self._y, self._ux, self._uy):
+            if closes_bumper(beta, self.contact):
                 left |= beta >= -CENTRE_ZONE_DEG
                 right |= beta <= CENTRE_ZONE_DEG
         return bool(left), bool(right)
@@ -252,89 +251,25 @@ class KinematicRobot(Robot):
         Returns (time of the bump that stopped the robot, or None; free distance left ahead
         [m] at the end). After a bump, or when wedged, the robot stays put.
         """
-        t = 0.0
-        for _ in range(_MAX_EVENTS):
-            reach = speed * (duration - t)
+        reach = speed * duration
+        if self.contact is None:
             ahead = self._free_distance(1.0, reach + CONTACT_GAP + BUMP_RANGE)
             dist = drive_distance(ahead)
             if dist > reach:
                 self._advance(reach)
                 return None, dist - reach
             self._advance(dist)
-            t += dist / speed
-            if self.glance_deg is None:
-                return t, 0.0
-            contacts = self._contacts()
-            if not contacts or any(abs(b) <= self.glance_deg for b, *_ in contacts):
-                return t, 0.0
-            used = self._slide(contacts, speed, duration - t)
-            if used is None:                     # wedged: pushes on without moving
-                return None, 0.0
-            t += used
-            if t >= duration:
-                return None, self._free_distance(1.0, BUMP_RANGE)
-        return None, 0.0
-
-    def _slide(self, contacts, speed: float, budget: float) -> float | None:
-        """Slide along the one glancing contact for at most ``budget`` [s]; the time used,
-        or None when the robot is wedged (two walls at once, or the slide is blocked).
-        """
-        # contacts closer than _SAME_CONTACT are one (a wall's end and its corner vertex a
-        # micrometre apart); of those, a straight wall is preferred to its corner
-        groups: list[list] = []
-        for c in sorted(contacts, key=lambda c: c[3] is None):
-            for g in groups:
-                if math.hypot(c[1] - g[0][1], c[2] - g[0][2]) < _SAME_CONTACT:
-                    g.append(c)
-                    break
-            else:
-                groups.append([c])
-        if len(groups) != 1:
-            return None
-        beta, px, py, side = groups[0][0]
-        x, y, ux, uy = self._x, self._y, self._ux, self._uy
-        nx, ny = x - px, y - py
-        nn = math.hypot(nx, ny)
-        nx, ny = nx / nn, ny / nn                       # wall -> centre
-        un = ux * nx + uy * ny
-        tx, ty = ux - un * nx, uy - un * ny              # the push along the wall
-        ts = math.hypot(tx, ty)
-        if ts < 1e-12:
-            return None
-        tx, ty = tx / ts, ty / ts
-        if side is not None:                             # slide along a straight wall
-            Ax, Ay, ex, ey, L = side
-            lam = (x - Ax) * ex + (y - Ay) * ey
-            along = tx * ex + ty * ey
-            to_end = (L - lam if along > 0 else lam) / abs(along) + 1e-9
-            block = self.caster.cast_one(x, y, tx, ty)
-            d = min(to_end, drive_distance(block), speed * ts * budget)
-            if d <= 0:
-                return None
-            self._x += d * tx
-            self._y += d * ty
-            self._wheel[0] += d
-            self._wheel[1] += d
-            return d / (speed * ts)
-        # wrap around a corner V = (px, py) on the circle of radius r until the contact is
-        # abeam (bearing 90°): time (r / v) ln(tan(45°) / tan(β0 / 2))
-        r = self.env.robot_radius
-        b0 = math.radians(abs(beta))
-        full = (r / speed) * -math.log(math.tan(b0 / 2))
-        used = min(full, budget)
-        b1 = 2 * math.atan(math.tan(b0 / 2) * math.exp(speed * used / r))
-        turn = b1 - b0
-        sgn = 1.0 if (nx * ty - ny * tx) > 0 else -1.0   # the normal turns toward the push
-        c, s_ = math.cos(sgn * turn), math.sin(sgn * turn)
-        mx, my = c * nx - s_ * ny, s_ * nx + c * ny
-        qx, qy = px + r * mx, py + r * my
-        # the arc is at most 90° - glance_deg long: check that its end is clear of the walls
-        if not bool(self.env.points_free([[qx, qy]])[0]):
-            return None
-        self._x, self._y = qx, qy
-        self._wheel[0] += r * turn
-        self._wheel[1] += r * turn
-        return used
+            return dist / speed, 0.0
+        # the contact rule (envs.contact), shared with the event model
+        x, y, used, bumped, legs = advance(self.caster, self._x, self._y, self._ux, self._uy,
+                                           self.contact, reach)
+        self._x, self._y = x, y
+        travel = sum(leg_length(leg) for leg in legs)
+        self._wheel[0] += travel
+        self._wheel[1] += travel
+        if bumped:
+            return used / speed, 0.0
+        return None, drive_distance(self._free_distance(1.0, BUMP_RANGE + CONTACT_GAP))
 
     def drive_until_bump(self, speed: float, timeout: float) -> BumpEvent:
         """Exact equivalent of the polling default: jump to the contact or to the timeout.
@@ -448,6 +383,10 @@ class KinematicBatch:
     step : float, optional   step length [m] (default the cell size h)
     starts : (n_robots,) int array, optional
         Start configurations z (default: drawn uniformly from the N configurations).
+    contact : envs.motion.ContactParams, optional
+        The contact rule of docs/model.md §23 (default None: the front-half bumper). A step
+        is then h of clock: a robot that slides covers h·f of wall in it, and a step is a bump
+        step when its bump comes more than STEP_TOL before the clock's h.
 
     Attributes
     ----------
@@ -470,8 +409,10 @@ class KinematicBatch:
     """
 
     def __init__(self, env: Environment, n_robots: int, rng, *, cells: CellSpace | None = None,
-                 step: float | None = None, starts=None) -> None:
+                 step: float | None = None, starts=None,
+                 contact: ContactParams | None = None) -> None:
         self.env = env
+        self.contact = contact
         self.cells = cells if cells is not None else CellSpace(env)
         self.rng = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
         self.n = int(n_robots)
@@ -521,6 +462,8 @@ class KinematicBatch:
         move, bumped = step(drive_distance(free), self.h)     # docs/model.md §9
         counted = self.cell_of(self.pos)
         self.pos += move[:, None] * u
+        if self.contact is not None and bumped.any():         # slides: docs/model.md §23
+            self._slide(bumped, move, u)
         if bumped.any():
             idx = np.flatnonzero(bumped)
             counted[idx] = self.cell_of(self.pos[idx])
@@ -529,6 +472,18 @@ class KinematicBatch:
             self.heading[idx] = (self.heading[idx] + noise.sample_many(self.rng, ang)) % 360.0
             u[idx] = unit(self.heading[idx])
         return counted, bumped
+
+    def _slide(self, bumped: np.ndarray, move: np.ndarray, u: np.ndarray) -> None:
+        """Robots that met a contact outside the bumper arc in this step slide on with the
+        rest of the step's clock (:func:`envs.contact.advance`); ``bumped`` is updated.
+        """
+        idx = np.flatnonzero(bumped)
+        idx = idx[glancing(self.caster, self.pos[idx], u[idx], self.contact)]
+        for i in idx.tolist():
+            x, y, used, bump, _ = advance(self.caster, *self.pos[i].tolist(), *u[i].tolist(),
+                                          self.contact, self.h - float(move[i]))
+            self.pos[i] = (x, y)
+            bumped[i] = bump and float(move[i]) + used < self.h - STEP_TOL
 
     def run(self, policy, steps: int, *, epoch: int | None = None,
             noise: NoiseModel | None = None, burn_in: int = 0) -> BatchCoverage:

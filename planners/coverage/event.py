@@ -44,7 +44,8 @@ import shapely
 from shapely.geometry.polygon import orient
 
 from envs import UserError
-from envs.motion import CONTACT_GAP, casters, drive_distance, flight_steps, unit
+from envs.contact import contact_flights
+from envs.motion import CONTACT_GAP, ContactParams, casters, drive_distance, flight_steps, unit
 
 from ..cells import CellSpace
 from ..markov import (
@@ -57,7 +58,7 @@ from ..markov import (
 )
 from ..timeshare import DelayChain
 from .base import AngleCoverage, cached_build
-from .event_flights import FlightCells, StepTable, StraightFlights, step_table
+from .event_flights import FlightCells, StepTable, step_table
 from .noise import TurnNoise
 
 __all__ = ["EventSettings", "Boundary", "EventModel", "flight_steps", "analyse_contact_chain"]
@@ -94,11 +95,14 @@ class EventSettings:
         Gaussian noise only (docs/model.md §18): flight headings per heading bin, spread
         evenly inside it at θ_k + ((l + ½)/n_θ − ½)Δ, each crossed with the ``samples``
         start points. Grid noise keeps the exact heading θ_k.
+    contact : envs.motion.ContactParams, optional
+        The contact rule of docs/model.md §23 (default None: every contact bumps, §10).
     """
 
     bin_length: float = 0.03
     samples: int = 2
     heading_samples: int = 2
+    contact: ContactParams | None = None
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.bin_length) and self.bin_length > 0):
@@ -348,9 +352,10 @@ class EventModel:
         k0 = np.repeat(np.arange(K), cs.P)
         c0 = cs.centres[p0]
         d0 = _cast(caster, c0, uk[k0])
-        lb0 = bd.bin_of(c0 + d0[:, None] * uk[k0])
+        paths0 = contact_flights(caster, c0, uk[k0], d0, st.contact)
+        lb0 = bd.bin_of(paths0.end)
         self.start_pre = np.bincount(lb0 * K + k0, minlength=n) / float(p0.size)
-        self._start = (StraightFlights(c0, uk[k0], d0), lb0 * K + k0)   # for flight_cells
+        self._start = (paths0, lb0 * K + k0)       # for flight_cells
         self.build_seconds = time.perf_counter() - t0
 
     def _use(self, fs: "_Flights") -> None:
@@ -383,7 +388,8 @@ class EventModel:
         into = (u * bd.seg_inward[seg]).sum(axis=1) < -_INTO_TOL
         dist = np.zeros(len(pts))
         dist[~into] = _cast(caster, pts[~into], u[~into])
-        land = pts + dist[:, None] * u
+        paths = contact_flights(caster, pts, u, dist, st.contact)   # slides below β (§23)
+        land, dist, into = paths.end, paths.clock, into & (paths.clock == 0)
         lb = b.copy()                        # an immediate bump lands in its own bin
         lb[~into] = bd.bin_of(land[~into])
         # flights into another part of C-space thread a knife edge exactly on its axis (§19)
@@ -392,7 +398,7 @@ class EventModel:
         flight = sp.csr_matrix((w, (state, lb * K + k)), shape=(n, n))
         flight.sum_duplicates()
         n_fwd = flight_steps(dist, cs.h)
-        steps = step_table(cs, n_fwd, StraightFlights(pts, u, dist))
+        steps = step_table(cs, n_fwd, paths)
         fs = _Flights(flight=flight, flights=(state, lb * K + k, n_fwd + 1, w),
                       reward=steps.reward(state, w, n, cs.P),
                       length=np.bincount(state, weights=w * (n_fwd + 1), minlength=n),
@@ -472,14 +478,11 @@ class EventModel:
 
 def _power_stationary(Tg: sp.csr_matrix) -> tuple[np.ndarray, int]:
     """Stationary distribution of one irreducible class by damped power iteration (the
-    method before the aggregation solver; kept as the benchmark's reference).
-
-    x ← (1 − β) Tᵀx + βx with β = 0.05 (same fixed point; eigenvalues on the unit circle
-    other than 1 move inside it, so periodic classes converge). Stops when the geometric
-    error bound d·ρ/(1 − ρ) < 1e-6 in L1, with d the last change and ρ the observed
-    contraction of the change over 20 iterations. The matrix-vector products run in float32
-    (memory bound: 1.5 times faster; the result differs from float64 by ~2e-6 in L1 on
-    ``complex``), sums and the stopping test in float64. Returns (π, iterations).
+    benchmark's reference): x ← (1 − β) Tᵀx + βx with β = 0.05 (same fixed point; eigenvalues
+    on the unit circle other than 1 move inside it, so periodic classes converge). Stops when
+    d·ρ/(1 − ρ) < 1e-6 in L1 (d the last change, ρ the observed contraction over 20
+    iterations). Products in float32 (memory bound: 1.5 times faster; ~2e-6 from float64 in
+    L1 on ``complex``), sums and the stopping test in float64. Returns (π, iterations).
     """
     TT = sp.csr_matrix(Tg.T).astype(np.float32)
     n = TT.shape[0]
@@ -514,8 +517,7 @@ def _aggregated_stationary(Tg: sp.csr_matrix, agg: np.ndarray) -> tuple[np.ndarr
     steps x ← 0.95·Tᵀx + 0.05·x. π is a fixed point of the cycle. The coarse solve carries
     mass between weakly coupled regions (two rooms joined by a door few flights pass), the
     slow modes that stall the plain power iteration; the smoothing removes the fast ones.
-    Stops when d·ρ/(1 − ρ) < 1e-6 in L1 (d: the change over a cycle, ρ: its observed
-    contraction), as the power iteration did. Returns (π, cycles).
+    Stops when d·ρ/(1 − ρ) < 1e-6 in L1 (d: the change over a cycle, ρ: its contraction).
     """
     n = Tg.shape[0]
     _, agg = np.unique(np.asarray(agg), return_inverse=True)
@@ -545,7 +547,7 @@ def _aggregated_stationary(Tg: sp.csr_matrix, agg: np.ndarray) -> tuple[np.ndarr
         y /= y.sum()
         d = float(np.abs(y - x).sum())
         x = y
-        if d == 0.0:
+        if d == 0.0 or (cycles >= 500 and d > 1e-3):   # or stalled: the caller solves directly
             break
         if prev is not None and d < prev:
             rho = d / prev

@@ -1,0 +1,298 @@
+"""The contact rule: which contacts close the bumper, and how the body slides (docs/model.md §23).
+
+Part of the motion layer (:mod:`envs.motion` holds the casts, constants and the calibrated
+:class:`~envs.motion.ContactParams`); written once and used by the kinematic twin (one robot
+and the batch) and by the event coverage model, so that their flights are the same paths.
+
+- A front contact at bearing b from the heading (|b| < 90°) meets the wall at incidence
+  α = 90° − |b|. With ``contact`` = None every front contact closes the bumper (the paper's
+  front-half bumper, docs/model.md §9). With a :class:`~envs.motion.ContactParams` only
+  contacts with α ≥ β do (the bumper arc ±(90° − β)).
+- A contact outside the arc is a **slide**: the heading is kept and the body moves along the
+  wall with its velocity projected on the wall's tangent, reduced by friction: speed factor
+  f = cos α − μ sin α. Along a straight wall that is a straight leg; around a convex wall
+  corner the body wraps on the corner's circle of radius r until the corner is abeam
+  (bearing 90°), then drives straight on. A slide ends in a bump when a contact inside the
+  arc appears (a concave corner), and it continues on the next wall when the new contact is
+  again outside the arc.
+- Time is counted as clock length ℓ = v · time [m]: a straight metre costs 1 m of clock, a
+  sliding metre 1/f. A step is h of clock (docs/model.md §9: it drives h by the clock).
+- Decision: two distinct contacts outside the arc at once (a pocket), or a slide blocked at
+  once, count as a bump, so every flight ends in a bump (the twin stalled there before).
+
+>>> import envs
+>>> from envs.motion import ContactParams, casters
+>>> caster = casters(envs.load("lab"))[0]
+>>> # 5° into lab's south wall (C-space y = 0.17): slides east along the bottom row
+>>> x, y, used, bumped, legs = advance(caster, 0.51, 0.18, math.cos(math.radians(-5)),
+...                                    math.sin(math.radians(-5)), ContactParams(10.0, 0.0))
+>>> bumped, round(x, 4), round(y, 4), len(legs)
+(True, 2.89, 0.17, 3)
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .motion import BUMP_RANGE, GRAZE_TOL, ContactParams, WallCaster, drive_distance
+
+__all__ = ["advance", "front_contacts", "closes_bumper", "leg_point", "leg_length",
+           "ContactFlights", "contact_flights", "glancing"]
+
+_MAX_EVENTS = 1000       # contacts handled within one drive (collinear wall pieces add events)
+_SAME_CONTACT = 1e-5     # [m] contacts closer than this are one (a side's end and its vertex)
+_CHUNK = 4096            # rays per vectorised feature cast
+
+
+def front_contacts(caster: WallCaster, x: float, y: float, ux: float, uy: float
+                   ) -> list[tuple[float, float, float, tuple | None]]:
+    """Front contacts within BUMP_RANGE ahead: (bearing b [deg], x, y, side or None)."""
+    out = []
+    for px, py, side in caster.cast_one(x, y, ux, uy, BUMP_RANGE):
+        wx, wy = px - x, py - y
+        b = math.degrees(math.atan2(ux * wy - uy * wx, ux * wx + uy * wy))
+        if abs(b) < 90.0:       # behind the centre line: not the bumper
+            out.append((b, px, py, side))
+    return out
+
+
+def closes_bumper(bearing_deg: float, contact: ContactParams | None) -> bool:
+    """Whether a front contact at ``bearing_deg`` [deg] closes the bumper."""
+    arc = 90.0 if contact is None else 90.0 - contact.beta_deg
+    return abs(bearing_deg) <= arc
+
+
+def _group(contacts) -> list[list]:
+    groups: list[list] = []
+    for c in sorted(contacts, key=lambda c: c[3] is None):     # a side before its vertex
+        for g in groups:
+            if math.hypot(c[1] - g[0][1], c[2] - g[0][2]) < _SAME_CONTACT:
+                g.append(c)
+                break
+        else:
+            groups.append([c])
+    return groups
+
+
+def _clear(caster: WallCaster, x: float, y: float) -> bool:
+    """Whether a disk at (x, y) stays off every wall (by more than r − GRAZE_TOL)."""
+    p = np.array([x, y])
+    lam = np.clip(((p - caster.A) * caster.e).sum(1), 0.0, caster.L)
+    foot = caster.A + lam[:, None] * caster.e
+    return bool(np.hypot(*(p - foot).T).min() >= caster.r - GRAZE_TOL)
+
+
+def _gd_inv(x: float) -> float:
+    """The inverse Gudermannian, ∫₀ˣ dγ / cos γ = asinh(tan x)."""
+    return math.asinh(math.tan(x))
+
+
+def advance(caster: WallCaster, x: float, y: float, ux: float, uy: float,
+            contact: ContactParams | None, budget: float = math.inf):
+    """Drive forward along the heading (ux, uy) under the contact rule, for at most ``budget``
+    [m] of clock length.
+
+    Returns
+    -------
+    x, y : float         where the robot ends [m]
+    used : float         clock length used [m] (= budget unless it bumped first)
+    bumped : bool        whether a contact closed the bumper (then ``used`` is its clock)
+    legs : list          the path: ("line", x0, y0, dx, dy, length, rate) with rate the clock
+                         per metre, and ("arc", Vx, Vy, mx, my, sign, γ0, μ, r, clock) for a
+                         wrap around the corner V from the outward normal (mx, my) at
+                         incidence γ0 [rad]; see :func:`leg_point`
+    """
+    used = 0.0
+    legs: list[tuple] = []
+    mu = 0.0 if contact is None else float(contact.slide_friction)
+    r = caster.r
+    for _ in range(_MAX_EVENTS):
+        left = budget - used
+        d = drive_distance(caster.cast_one(x, y, ux, uy))
+        if d >= left:                                  # the clock runs out first
+            if left > 0:
+                legs.append(("line", x, y, ux, uy, left, 1.0))
+            return x + left * ux, y + left * uy, budget, False, legs
+        if d > 0:
+            legs.append(("line", x, y, ux, uy, d, 1.0))
+            x, y, used = x + d * ux, y + d * uy, used + d
+            left = budget - used
+        cs = front_contacts(caster, x, y, ux, uy)
+        if contact is None or not cs or any(closes_bumper(b, contact) for b, *_ in cs):
+            return x, y, used, True, legs
+        groups = _group(cs)
+        if len(groups) != 1:                           # a pocket: counted as a bump
+            return x, y, used, True, legs
+        _, px, py, side = groups[0][0]
+        if side is not None:                           # the side's own normal, exactly
+            nx, ny = -side[3], side[2]
+            if (x - px) * nx + (y - py) * ny < 0:
+                nx, ny = -nx, -ny
+        else:
+            nx, ny = x - px, y - py
+            nn = math.hypot(nx, ny)
+            nx, ny = nx / nn, ny / nn                  # wall -> centre
+        un = ux * nx + uy * ny                         # −sin α
+        tx, ty = ux - un * nx, uy - un * ny            # the push along the wall
+        ts = math.hypot(tx, ty)                        # cos α
+        f = ts + mu * un                               # speed factor cos α − μ sin α
+        if ts < 1e-12 or f <= 0:
+            return x, y, used, True, legs
+        tx, ty = tx / ts, ty / ts
+        if side is not None:                           # slide along a straight wall
+            Ax, Ay, ex, ey, L = side
+            tx, ty = (ex, ey) if tx * ex + ty * ey > 0 else (-ex, -ey)
+            lam = (x - Ax) * ex + (y - Ay) * ey
+            along = tx * ex + ty * ey
+            to_end = (L - lam if along > 0 else lam) / abs(along) + 1e-9
+            block = drive_distance(caster.cast_one(x, y, tx, ty))
+            d = min(to_end, block, left * f)
+            if d <= 0:                                 # blocked at once: a bump
+                return x, y, used, True, legs
+            legs.append(("line", x, y, tx, ty, d, 1.0 / f))
+            x, y = x + d * tx, y + d * ty
+            if d == left * f:
+                return x, y, budget, False, legs
+            used += d / f
+            continue
+        # wrap around the corner V = (px, py) until it is abeam; γ: incidence on the circle
+        g0 = math.asin(min(max(-un, 0.0), 1.0))
+        c = math.atan(mu)
+        k = math.sqrt(1.0 + mu * mu)
+        full = r / k * (_gd_inv(g0 + c) - _gd_inv(c))
+        part = left < full
+        clock = left if part else full
+        g1 = math.atan(math.sinh(_gd_inv(g0 + c) - clock * k / r)) - c if part else 0.0
+        sgn = 1.0 if (nx * ty - ny * tx) > 0 else -1.0  # the normal turns toward the push
+        a = sgn * (g0 - max(g1, 0.0))
+        mx, my = math.cos(a) * nx - math.sin(a) * ny, math.sin(a) * nx + math.cos(a) * ny
+        qx, qy = px + r * mx, py + r * my
+        if not _clear(caster, qx, qy):                 # another wall in the way: a bump
+            return x, y, used, True, legs
+        legs.append(("arc", px, py, nx, ny, sgn, g0, mu, r, clock))
+        x, y = qx, qy
+        if part:
+            return x, y, budget, False, legs
+        used += full
+    return x, y, used, True, legs
+
+
+def leg_length(leg: tuple) -> float:
+    """Geometric length [m] of a leg of :func:`advance`."""
+    if leg[0] == "line":
+        return leg[5]
+    _, _, _, _, _, _, g0, mu, r, clock = leg
+    c, k = math.atan(mu), math.sqrt(1.0 + mu * mu)
+    g1 = math.atan(math.sinh(_gd_inv(g0 + c) - clock * k / r)) - c
+    return r * (g0 - max(g1, 0.0))
+
+
+def leg_clock(leg: tuple) -> float:
+    """Clock length [m] of a leg."""
+    return leg[5] * leg[6] if leg[0] == "line" else leg[9]
+
+
+def leg_point(leg: tuple, s: float) -> tuple[float, float]:
+    """The point [m] reached ``s`` [m] of clock into a leg (0 <= s <= its clock)."""
+    if leg[0] == "line":
+        _, x0, y0, dx, dy, _, rate = leg
+        d = s / rate if rate != 1.0 else s
+        return x0 + d * dx, y0 + d * dy
+    _, vx, vy, nx, ny, sgn, g0, mu, r, _ = leg
+    c, k = math.atan(mu), math.sqrt(1.0 + mu * mu)
+    g1 = math.atan(math.sinh(_gd_inv(g0 + c) - s * k / r)) - c
+    a = sgn * (g0 - max(g1, 0.0))
+    return (vx + r * (math.cos(a) * nx - math.sin(a) * ny),
+            vy + r * (math.sin(a) * nx + math.cos(a) * ny))
+
+
+def glancing(caster: WallCaster, pos, u, contact: ContactParams) -> np.ndarray:
+    """(n,) bool: robots at ``pos`` (n, 2) heading ``u`` (n, 2) whose first contact ahead may
+    lie outside the bumper arc (the feature they hit first is met at incidence below β, or it
+    is more than BUMP_RANGE away). A conservative filter: :func:`advance` decides.
+    """
+    pos = np.asarray(pos, dtype=float).reshape(-1, 2)
+    u = np.asarray(u, dtype=float).reshape(-1, 2)
+    out = np.zeros(len(pos), dtype=bool)
+    ns = len(caster.L)
+    sin_b = math.sin(math.radians(contact.beta_deg)) + 1e-6
+    for s in range(0, len(pos), _CHUNK):
+        p, v = pos[s:s + _CHUNK], u[s:s + _CHUNK]
+        fd = caster.feature_distances(p, v)
+        j = np.argmin(fd, axis=1)
+        t = fd[np.arange(len(p)), j]
+        side = j < ns
+        js = np.where(side, j, 0)
+        lam = np.clip(((p - caster.A[js]) * caster.e[js]).sum(1), 0.0, caster.L[js])
+        foot = caster.A[js] + lam[:, None] * caster.e[js]
+        cp = np.where(side[:, None], foot, caster.vertices[np.where(side, 0, j - ns)])
+        w = cp - p
+        cosb = (w * v).sum(1) / np.maximum(np.hypot(w[:, 0], w[:, 1]), 1e-300)
+        out[s:s + len(p)] = (cosb < sin_b) | ~(t <= BUMP_RANGE)
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class ContactFlights:
+    """Flights from starts along headings until their bump, under a contact rule.
+
+    Attributes
+    ----------
+    start, u : (n, 2)     flight starts [m] and headings
+    straight : (n,)       the first straight drive [m]
+    clock : (n,)          clock length to the bump [m] (= straight unless it slid)
+    end : (n, 2)          the bump position [m]
+    legs : dict           flight index -> legs of :func:`advance` (only flights that slid)
+    """
+
+    start: np.ndarray
+    u: np.ndarray
+    straight: np.ndarray
+    clock: np.ndarray
+    end: np.ndarray
+    legs: dict
+
+    def points(self, idx, s) -> np.ndarray:
+        """(m, 2) points [m] of flights ``idx`` after ``s`` [m] of clock (each <= its clock)."""
+        idx = np.asarray(idx, dtype=np.int64)
+        s = np.asarray(s, dtype=float)
+        out = self.start[idx] + s[:, None] * self.u[idx]
+        for m in np.flatnonzero(np.isin(idx, np.fromiter(self.legs, np.int64,
+                                                          len(self.legs)))):
+            rest = float(s[m])
+            for leg in self.legs[int(idx[m])]:
+                c = leg_clock(leg)
+                if rest <= c:
+                    break
+                rest -= c
+            out[m] = leg_point(leg, min(rest, c))
+        return out
+
+
+def contact_flights(caster: WallCaster, start, u, straight, contact: ContactParams | None
+                    ) -> ContactFlights:
+    """Continue straight flights (``straight`` [m] from ``start`` along ``u``, each ending at
+    a contact) under the contact rule: those whose contact lies outside the bumper arc slide
+    on (:func:`advance`) until their bump. With ``contact`` None every flight ends where it
+    is (end = start + straight·u, bitwise).
+    """
+    start = np.asarray(start, dtype=float).reshape(-1, 2)
+    u = np.asarray(u, dtype=float).reshape(-1, 2)
+    straight = np.asarray(straight, dtype=float)
+    end = start + straight[:, None] * u
+    clock = straight.copy()
+    legs = {}
+    slide = np.zeros(len(start), bool) if contact is None else glancing(caster, end, u, contact)
+    for i in np.flatnonzero(slide):
+        x, y, used, _, lg = advance(caster, float(end[i, 0]), float(end[i, 1]),
+                                    float(u[i, 0]), float(u[i, 1]), contact)
+        if used > 0:
+            first = ("line", float(start[i, 0]), float(start[i, 1]), float(u[i, 0]),
+                     float(u[i, 1]), float(straight[i]), 1.0)
+            legs[int(i)] = [first, *lg]
+            clock[i] += used
+            end[i] = (x, y)
+    return ContactFlights(start=start, u=u, straight=straight, clock=clock, end=end, legs=legs)
