@@ -73,6 +73,7 @@ _INTO_TOL = 0.03         # u · inward normal below −this: a flight of length 
 _DIRECT_MAX = 20000      # closed classes up to this size are solved directly (power method)
 _POWER_TOL = 1e-6        # L1 error bound at which the power iteration stops
 _POWER_MAX = 200000      # iterations cap
+_POWER_FIRST = 3000      # power iterations tried before the aggregation (docs/model.md §10)
 _LAZY = 0.05             # weight of the current iterate (damps periodic modes)
 _AGG_SWEEPS = 10         # damped power steps per aggregation-disaggregation cycle
 _AGG_MAX = 20000         # cycles cap
@@ -476,7 +477,8 @@ class EventModel:
                              steps_per_flight=float(fs.length @ res.pi))
 
 
-def _power_stationary(Tg: sp.csr_matrix) -> tuple[np.ndarray, int]:
+def _power_stationary(Tg: sp.csr_matrix, max_iter: int | None = None
+                      ) -> tuple[np.ndarray, int]:
     """Stationary distribution of one irreducible class by damped power iteration (the
     benchmark's reference): x ← (1 − β) Tᵀx + βx with β = 0.05 (same fixed point; eigenvalues
     on the unit circle other than 1 move inside it, so periodic classes converge). Stops when
@@ -490,7 +492,7 @@ def _power_stationary(Tg: sp.csr_matrix) -> tuple[np.ndarray, int]:
     a, b = np.float32(1.0 - _LAZY), np.float32(_LAZY)
     prev = None
     y = x
-    for it in range(1, _POWER_MAX + 1):
+    for it in range(1, (_POWER_MAX if max_iter is None else max_iter) + 1):
         y = a * (TT @ x) + b * x
         if it % 20 == 0:
             d = float(np.abs(y - x).sum(dtype=np.float64))
@@ -506,7 +508,8 @@ def _power_stationary(Tg: sp.csr_matrix) -> tuple[np.ndarray, int]:
     return y / y.sum(), it
 
 
-def _aggregated_stationary(Tg: sp.csr_matrix, agg: np.ndarray) -> tuple[np.ndarray, int]:
+def _aggregated_stationary(Tg: sp.csr_matrix, agg: np.ndarray, x0=None
+                           ) -> tuple[np.ndarray, int]:
     """Stationary distribution of one irreducible class by iterative aggregation–
     disaggregation (Takahashi's method; docs/model.md §10).
 
@@ -526,7 +529,7 @@ def _aggregated_stationary(Tg: sp.csr_matrix, agg: np.ndarray) -> tuple[np.ndarr
     TA = sp.csr_matrix(Tg @ A)                              # state -> aggregate
     TT = sp.csr_matrix(Tg.T)
     size = np.bincount(agg, minlength=m)
-    x = np.full(n, 1.0 / n)
+    x = np.full(n, 1.0 / n) if x0 is None else np.asarray(x0, dtype=float) / np.sum(x0)
     prev = None
     cycles = 0
     while cycles < _AGG_MAX:
@@ -549,6 +552,8 @@ def _aggregated_stationary(Tg: sp.csr_matrix, agg: np.ndarray) -> tuple[np.ndarr
         x = y
         if d == 0.0 or (cycles >= 500 and d > 1e-3):   # or stalled: the caller solves directly
             break
+        if x0 is not None and cycles == 1 and d < 10 * _POWER_TOL:   # x0 was its fixed point
+            break
         if prev is not None and d < prev:
             rho = d / prev
             if d * rho / (1 - rho) < _POWER_TOL:
@@ -563,10 +568,10 @@ def analyse_contact_chain(T, start, aggregates=None, method: str = "aggregation"
 
     Closed classes and absorption (from ``start``, only needed with several classes) as in
     :mod:`planners.markov`. Classes of up to 20000 states are solved directly
-    (:func:`planners.markov.stationary_distributions`); larger ones by iterative
-    aggregation–disaggregation over ``aggregates`` (e.g. the contact bins), checked by its
-    residual ‖Tᵀx − x‖₁ ≤ 1e-6 and solved directly when it did not converge (it stalls on
-    some chains: 20000 cycles without converging on an empty room at K = 360, 75°). With
+    (:func:`planners.markov.stationary_distributions`); larger ones by the damped power
+    iteration (≤ 3000 iterations), then aggregation–disaggregation over ``aggregates`` (the
+    contact bins) from that iterate (one cycle if it was the fixed point), checked by its
+    residual ‖Tᵀx − x‖₁ ≤ 1e-6, else solved directly (docs/model.md §10). With
     ``method="power"`` (or no aggregates) the large classes use the damped power iteration,
     which stalls on slowly mixing ones (two rooms joined by a door: docs/model.md §10).
     """
@@ -583,8 +588,9 @@ def analyse_contact_chain(T, start, aggregates=None, method: str = "aggregation"
             if aggregates is None or method == "power":
                 stat[g], _ = _power_stationary(Tg)
                 continue
-            x, _ = _aggregated_stationary(Tg, np.asarray(aggregates)[g])
-            if np.abs(Tg.T @ x - x).sum() > _POWER_TOL:     # not converged: solve directly
+            x, _ = _power_stationary(Tg, _POWER_FIRST)      # fast where the class mixes fast
+            x, _ = _aggregated_stationary(Tg, np.asarray(aggregates)[g], x0=x)  # checks it
+            if np.abs(Tg.T @ x - x).sum() > _POWER_TOL:         # not converged: direct solve
                 x = stationary_distributions(Tg, [np.arange(len(g))])
             stat[g] = x
     if len(groups) > 1:
