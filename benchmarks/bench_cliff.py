@@ -6,7 +6,7 @@
 For every map at K = 360 (angles 30°, 75°, 315°, ε = 5°, r = 0.8): the event model's build
 time, then per method the wall time of the three chains and the largest over the angles of
 the residual ‖πT − π‖₁ and of the L1 distance between the two methods' π (docs/model.md §10).
-Maps: the two-room office of :mod:`benchmarks.maps` with a door one robot wide
+Maps: the two-room office of :mod:`envs.generated` with a door one robot wide
 (``office``, a knife edge: the rooms are separate classes), 0.1 µm wider (``office-pinhole``:
 the rooms are joined by the few flights along the door's axis, a slowly mixing class), and
 0.40 m wide (``office-wide``), and the catalogue maps. The power iteration is the method
@@ -22,10 +22,9 @@ import time
 import numpy as np
 
 import planners.coverage.event as event
+from envs.generated import load_map
 from planners.cells import CellSpace
 from planners.coverage import TurnNoise, clear_cache, model_for
-
-from .maps import load_map
 
 ANGLES = (30.0, 75.0, 315.0)
 NOISE = TurnNoise(5.0, 0.8)

@@ -21,6 +21,7 @@ import time
 
 import numpy as np
 
+from envs.generated import load_map
 from planners.cells import CellSpace
 from planners.coverage import (
     Horizon,
@@ -30,8 +31,6 @@ from planners.coverage import (
     steps_to_limit,
     steps_to_limit_each,
 )
-
-from .maps import load_map
 
 ANGLES = (30.0, 75.0, 315.0)
 ALPHA = np.array([0.2, 0.3, 0.5])

@@ -22,6 +22,7 @@ import time
 
 import numpy as np
 
+from envs.generated import load_map
 from planners.cells import CellSpace
 from planners.coverage import (
     MODELS,
@@ -32,8 +33,6 @@ from planners.coverage import (
     timeshared_coverage,
 )
 from planners.metrics import tv_distance
-
-from .maps import load_map
 
 ANGLES = (30.0, 75.0, 315.0)
 EPS, R = 5.0, 0.8
@@ -55,7 +54,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m benchmarks.bench_models",
                                  description=__doc__.split("\n\n")[0])
     ap.add_argument("--env", default="complex",
-                    help="a catalogue map or a map of benchmarks.maps (office, office-pinhole, "
+                    help="a catalogue map or a map of envs.generated (office, office-pinhole, "
                     "office-wide)")
     ap.add_argument("--orientations", type=int, default=360)
     ap.add_argument("--twin-steps", type=int, default=2_000_000,

@@ -6,7 +6,7 @@
         [--restart] [--plot-only]
 
 Maps (:func:`world`): the catalogue (``lab``, ``fig1``, ``complex``, ``studio``), random
-rectilinear rooms with blocks (``rectN``: :func:`benchmarks.maps.random_rectilinear_room`),
+rectilinear rooms with blocks (``rectN``: :func:`envs.generated.random_rectilinear_room`),
 the pentagon room with a hexagonal pillar (``pentagon``) and random pentagon or hexagon rooms
 with a polygonal hole (``polyN``: :func:`experiments.nav_exact.random_polygon_room`), all at
 h = 0.34 m, K = 8. Per map, ``pairs`` ordered (start, goal) pairs (start ≠ goal) are drawn
@@ -465,7 +465,7 @@ def run(config: Config) -> Path:
               "pair_sampling": "uniform without replacement over the ordered pairs "
               "(start != goal) the step model reaches, numpy default_rng(SeedSequence([seed, "
               "1])), per map in order; PyBullet drives the first pybullet_pairs of them",
-              "random_maps": "rectN: benchmarks.maps.random_rectilinear_room, polyN: "
+              "random_maps": "rectN: envs.generated.random_rectilinear_room, polyN: "
               "experiments.nav_exact.random_polygon_room(sides=(5, 7)), each with "
               "default_rng(SeedSequence([seed, 3, 0 or 1, N]))",
               "success": "final position in the goal cell and heading within ±Δ/2 "

@@ -16,7 +16,7 @@ Adding a planner is one line: ``PLANNERS["reliable"] = reliable_driver``, where
 ``reliable_driver(env, start, goal, config, rng)`` returns such a driver.
 
 Maps (:func:`world`): catalogue names, ``pentagon`` (a pentagon room with a hexagonal
-pillar), ``rectN`` (random rectilinear rooms, :func:`benchmarks.maps.random_rectilinear_room`)
+pillar), ``rectN`` (random rectilinear rooms, :func:`envs.generated.random_rectilinear_room`)
 and ``polyN`` (random pentagon or hexagon rooms with a polygonal hole,
 :func:`experiments.nav_exact.random_polygon_room`).
 
@@ -41,11 +41,11 @@ from functools import lru_cache
 import numpy as np
 
 import envs
-from benchmarks.maps import random_rectilinear_room
 from bouncesim.navigate import navigate_feedback
 from bouncesim.robots.noise import parse_noise
 from bouncesim.runs.execute import execute
 from envs import Environment
+from envs.generated import random_rectilinear_room
 from planners.cells import CellSpace
 from planners.exact import ExactNavigator
 from planners.navigation import Navigator

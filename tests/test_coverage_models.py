@@ -16,10 +16,10 @@ import numpy as np
 import pytest
 
 import envs
-from benchmarks.maps import random_rectilinear_room
 from bouncesim.robots.kinematic import KinematicBatch
 from bouncesim.robots.noise import SteppedNoise
 from envs import Environment, UserError
+from envs.generated import random_rectilinear_room
 from planners.cells import CellSpace
 from planners.coverage import (
     MODELS,

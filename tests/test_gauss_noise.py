@@ -12,8 +12,8 @@ import pytest
 import scipy.sparse as sp
 
 import envs
-from benchmarks.maps import office
 from envs import Environment, UserError
+from envs.generated import office
 from planners.cells import CellSpace
 from planners.coverage import TurnNoise, model_for
 from planners.coverage.event import EventSettings, _aggregated_stationary

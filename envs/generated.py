@@ -1,5 +1,6 @@
-"""Benchmark maps that are not in the catalogue: the slowly mixing two-room office, and random
-rectilinear rooms with blocks (:func:`random_rectilinear_room`).
+"""Generated maps that are not in the catalogue, shared by the benchmarks, experiments and
+tests: the slowly mixing two-room office, and random rectilinear rooms with blocks
+(:func:`random_rectilinear_room`).
 
 :func:`office` is the map of the issue that found the event model's performance cliff: a
 4.08 m × 2.72 m office (12 × 8 cells of 0.34 m) split by a partition with one door, and a
@@ -16,8 +17,8 @@ from __future__ import annotations
 import numpy as np
 import shapely
 
-import envs
-from envs import Environment
+from . import load
+from .environment import Environment
 
 __all__ = ["MAPS", "load_map", "office", "random_rectilinear_room"]
 
@@ -46,7 +47,7 @@ def office(door: float = 2 * R, orientations: int = 360) -> Environment:
     ]
     return Environment.from_dict({
         "name": "office",
-        "description": "two rooms joined by one door (benchmarks.maps.office)",
+        "description": "two rooms joined by one door (envs.generated.office)",
         "boundary": [[0, 0], [W, 0], [W, Hh], [0, Hh]], "obstacles": obstacles,
         "robot_radius": R,
         "discretization": {"cell_size": H, "orientations": int(orientations)}})
@@ -96,4 +97,4 @@ def load_map(name: str, orientations: int) -> Environment:
     """A benchmark map (:data:`MAPS`) or a catalogue map, at K = ``orientations``."""
     if name in MAPS:
         return MAPS[name](orientations)
-    return envs.load(name, orientations=orientations)
+    return load(name, orientations=orientations)
