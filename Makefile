@@ -15,11 +15,14 @@ $(STAMP): pyproject.toml
 run: $(STAMP)
 	$(PY) -m experiments.nav_fig3
 
+# the suite runs on every core (pytest-xdist; TEST_WORKERS=0 runs it in one process)
+TEST_WORKERS ?= auto
+
 test: $(STAMP)
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist worksteal
 
 test-quick: $(STAMP)
-	$(PY) -m pytest -q -m "not slow and not physics"
+	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist worksteal -m "not slow and not physics"
 
 test-under-load: $(STAMP)
 	bash tests/under_load.sh

@@ -24,7 +24,7 @@ if [ "$what" = hogs ] || [ "$what" = all ]; then
   echo "== the suite with $HOGS CPU hogs"
   for _ in $(seq "$HOGS"); do "$PY" -c "while True: pass" & hogs+=($!); done
   start=$(date +%s)
-  "$PY" -m pytest -q -p no:cacheprovider || status=1
+  "$PY" -m pytest -q -n auto --dist worksteal -p no:cacheprovider || status=1
   echo "(with $HOGS hogs: $(( $(date +%s) - start )) s)"
   for p in "${hogs[@]}"; do kill "$p" 2>/dev/null; done
   hogs=()
