@@ -33,7 +33,7 @@ from planners.navigation import Navigator
 
 from .common import experiment_parser, output_dir, write_config
 
-__all__ = ["Config", "PENTAGON", "random_polygon_room", "run", "main"]
+__all__ = ["Config", "PENTAGON", "map_named", "random_polygon_room", "run", "main"]
 
 ANGLES = (45.0, 90.0, 135.0)
 W1, W2 = 1.0, 100.0
@@ -83,7 +83,10 @@ class Config:
     out: Path = Path("results") / "nav_exact"
 
 
-def _env(name: str, seed: int) -> Environment:
+def map_named(name: str, seed: int) -> Environment:
+    """A catalogue map, ``pentagon`` (:data:`PENTAGON`) or ``randomN`` (random polygon room N
+    of root seed ``seed``); the navigation experiments share these names.
+    """
     if name == "pentagon":
         return Environment.from_dict(PENTAGON)
     if name.startswith("random"):
@@ -99,7 +102,7 @@ def _execute(env, cells, plan, s, g):
 
 def run_map(name: str, config: Config) -> pd.DataFrame:
     """One row per sampled pair: both plans, their costs, twin outcomes and query times."""
-    env = _env(name, config.seed)
+    env = map_named(name, config.seed)
     cells = CellSpace(env)
     step = Navigator(cells, ANGLES, W1, W2)
     exact = ExactNavigator(cells, ANGLES, W1, W2)

@@ -36,7 +36,7 @@ from planners.exact import ExactNavigator
 from planners.feedback import FeedbackConfig
 
 from .common import experiment_parser, output_dir, write_config
-from .nav_exact import random_polygon_room
+from .nav_exact import map_named
 from .nav_montecarlo import wilson
 
 __all__ = ["Config", "run", "run_map", "summarise", "draw", "main"]
@@ -71,13 +71,6 @@ class Config:
     out: Path = Path("results") / "nav_feedback"
 
 
-def _env(name: str, seed: int) -> envs.Environment:
-    if name.startswith("random"):
-        rng = np.random.default_rng(np.random.SeedSequence([seed, 2, int(name[6:])]))
-        return random_polygon_room(rng, name)
-    return envs.load(name)
-
-
 def _pairs(exact: ExactNavigator, n: int, rng: np.random.Generator) -> list[tuple]:
     """``n`` ordered pairs (start ≠ goal) with an exact plan, uniform by rejection."""
     N, out, tries = exact.cells.N, [], 0
@@ -91,7 +84,7 @@ def _pairs(exact: ExactNavigator, n: int, rng: np.random.Generator) -> list[tupl
 
 def run_map(name: str, config: Config) -> tuple[pd.DataFrame, pd.DataFrame]:
     """(runs, decisions) of one map: every pair × σ × {feedback, exact}."""
-    env = _env(name, config.seed)
+    env = map_named(name, config.seed)
     cells = CellSpace(env)
     exact = ExactNavigator(cells, ANGLES, W1, W2)
     rng = np.random.default_rng(np.random.SeedSequence([config.seed, 3, len(name)]))

@@ -39,7 +39,7 @@ from planners.cells import CellSpace
 from planners.reliable import W2_FACTORS, ReliableNavigator, draw_turns, rollout, wilson
 
 from .common import experiment_parser, output_dir, write_config
-from .nav_exact import PENTAGON, random_polygon_room
+from .nav_exact import map_named
 
 __all__ = ["Config", "funnel_stats", "run", "main"]
 
@@ -75,16 +75,6 @@ class Config:
     out: Path = Path("results") / "nav_reliable"
 
 
-def _env(name: str, seed: int) -> envs.Environment:
-    """A catalogue map, nav_exact's pentagon, or its random room N (the same seeds)."""
-    if name == "pentagon":
-        return envs.Environment.from_dict(PENTAGON)
-    if name.startswith("random"):
-        rng = np.random.default_rng(np.random.SeedSequence([seed, 2, int(name[6:])]))
-        return random_polygon_room(rng, name)
-    return envs.load(name)
-
-
 def funnel_stats(cells, route, start, goal, sigma, rng) -> dict:
     """Spread of the contact points [m] at each bump of a plan (RMS distance from the
     planned contact over the particles still running), the funnels (bumps whose spread is
@@ -115,7 +105,7 @@ def run_map(name: str, config: Config) -> pd.DataFrame:
     """Two rows per sampled pair (exact, reliable): plan, cost, predicted and twin success,
     funnel statistics and planning time.
     """
-    env = _env(name, config.seed)
+    env = map_named(name, config.seed)
     cells = CellSpace(env)
     ss = np.random.SeedSequence([config.seed, 13, len(name), sum(map(ord, name))])
     pick_rng, plan_rng, twin_rng, fun_rng = (np.random.default_rng(s) for s in ss.spawn(4))
