@@ -51,7 +51,7 @@ from functools import cached_property
 import numpy as np
 
 from envs import UserError
-from envs.contact import contact_flights
+from envs.contact import advance, closes_bumper, contact_flights, front_contacts
 from envs.motion import BUMP_RANGE, ContactParams, casters, drive_distance
 
 from .cells import CellSpace
@@ -322,9 +322,14 @@ class ExactNavigator:
                         if total < best - _IMPROVE:
                             best, best_arrival = total, (total, st, ti)
             lx, ly = x + D * ux, y + D * uy
-            if self.contact is not None:                  # a glancing contact slides on
-                fl = contact_flights(self.caster, [[x, y]], [[ux, uy]], [D], self.contact)
-                (lx, ly), flight[st] = fl.end[0].tolist(), float(fl.clock[0])
+            if self.contact is not None and not any(     # a glancing contact slides on
+                    closes_bumper(b, self.contact)
+                    for b, *_ in front_contacts(self.caster, lx, ly, ux, uy)):
+                # contact_flights for one flight in plain Python (3x faster); the same end
+                # and clock to 5e-9 m (advance may first close a ~1e-9 m gap)
+                sx, sy, extra, _, _ = advance(self.caster, lx, ly, ux, uy, self.contact)
+                if extra > 0:
+                    lx, ly, flight[st] = sx, sy, D + extra
             lb = bin_of(lx, ly)
             cf = c + w1 * float(flight[st]) / h
             hb = bound(lx, ly)
