@@ -42,6 +42,7 @@ from bouncesim import robots
 from bouncesim.robots.noise import parse_noise
 from bouncesim.runs.executors import add_executor_args, make_executor
 from bouncesim.runs.sweep import Sweep
+from envs.motion import ContactParams
 from planners.navigation import Navigator
 
 from .common import experiment_parser, output_dir
@@ -83,12 +84,14 @@ def nav_trial(params: dict, rng: np.random.Generator) -> dict:
     cells = cells_of(env)
     spec = params["noise"]
     t0 = time.perf_counter()
-    config = NavConfig(angles=ANGLES, w1=W1, w2=W2, noise=spec)
-    driver = PLANNERS[params["planner"]](env, int(params["start"]), int(params["goal"]),
-                                         config, rng)
     glance = float(params["glance"])
     options = ({"glance_deg": glance} if params["backend"] == "kinematic" and glance > 0
                else {})
+    # the exact planner plans for the twin's contact rule (KinematicRobot's glance_deg)
+    contact = ContactParams(90.0 - glance, 0.0) if options else None
+    config = NavConfig(angles=ANGLES, w1=W1, w2=W2, noise=spec, contact=contact)
+    driver = PLANNERS[params["planner"]](env, int(params["start"]), int(params["goal"]),
+                                         config, rng)
     robot = robots.make_robot(params["backend"], env, noise=parse_noise(spec, cells.delta_deg),
                               rng=rng, **options)
     try:

@@ -46,6 +46,7 @@ from bouncesim.robots.noise import parse_noise
 from bouncesim.runs.execute import execute
 from envs import Environment
 from envs.generated import random_rectilinear_room
+from envs.motion import ContactParams
 from planners.cells import CellSpace
 from planners.exact import ExactNavigator
 from planners.navigation import Navigator
@@ -75,6 +76,9 @@ class NavConfig:
     noise : str               the declared turn noise (``parse_noise`` spec); open-loop
                               planners ignore it, reliable and feedback planners use it
     speed : float             drive speed [m/s]
+    contact : ContactParams or None
+        The executing robot's contact rule (docs/model.md §23): the exact planner plans its
+        flights under it (§15); the other planners ignore it. None: every contact bumps.
     """
 
     angles: tuple = (45.0, 90.0, 135.0)
@@ -82,6 +86,7 @@ class NavConfig:
     w2: float = 100.0
     noise: str = "gauss:0"
     speed: float = 0.2
+    contact: ContactParams | None = None
 
 
 @lru_cache(maxsize=16)
@@ -91,9 +96,12 @@ def cells_of(env: Environment) -> CellSpace:
 
 
 @lru_cache(maxsize=16)
-def _navigator(kind: str, env: Environment, angles: tuple, w1: float, w2: float):
-    cls = {"step": Navigator, "exact": ExactNavigator}[kind]
-    nav = cls(cells_of(env), angles, w1, w2)
+def _navigator(kind: str, env: Environment, angles: tuple, w1: float, w2: float,
+               contact: ContactParams | None = None):
+    if kind == "exact":
+        nav = ExactNavigator(cells_of(env), angles, w1, w2, contact=contact)
+    else:
+        nav = Navigator(cells_of(env), angles, w1, w2)
     nav.plan(0, min(1, nav.cells.N - 1))     # warm-up: lazy tables are not a query's time
     return nav
 
@@ -130,8 +138,8 @@ class OpenLoopDriver:
 
 @lru_cache(maxsize=4096)
 def _planned(kind: str, env: Environment, start: int, goal: int, angles: tuple, w1: float,
-             w2: float):
-    nav = _navigator(kind, env, angles, w1, w2)
+             w2: float, contact: ContactParams | None = None):
+    nav = _navigator(kind, env, angles, w1, w2, contact)
     t0 = time.perf_counter()
     route = nav.plan(int(start), int(goal))
     return (None if route is None else route.plan), time.perf_counter() - t0
@@ -140,7 +148,8 @@ def _planned(kind: str, env: Environment, start: int, goal: int, angles: tuple, 
 def _open_loop(kind: str, env, start, goal, config: NavConfig) -> OpenLoopDriver:
     # the plan is cached per (map, pair, config): repetitions of a pair time its first query
     plan, seconds = _planned(kind, env, int(start), int(goal), tuple(config.angles),
-                             float(config.w1), float(config.w2))
+                             float(config.w1), float(config.w2),
+                             config.contact if kind == "exact" else None)
     return OpenLoopDriver(plan, int(start), int(goal), cells_of(env), config.speed, 1, seconds)
 
 
@@ -150,7 +159,9 @@ def step_driver(env, start, goal, config: NavConfig, rng: np.random.Generator):
 
 
 def exact_driver(env, start, goal, config: NavConfig, rng: np.random.Generator):
-    """The exact planner's plan (docs/model.md §15), executed open loop by its angles."""
+    """The exact planner's plan (docs/model.md §15) for ``config.contact``, executed open
+    loop by its angles.
+    """
     return _open_loop("exact", env, start, goal, config)
 
 

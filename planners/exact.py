@@ -17,6 +17,9 @@ the wall) and its heading after the turn. Flights are the exact ray casts of the
 - Goal: after the last turn the heading equals the goal heading and the flight passes through
   the goal cell; the plan ends with a final drive (``final_m``) by the clock to the point of
   that flight's chord through the cell nearest the cell's centre.
+- Contact rule (optional ``contact``, docs/model.md §23): a flight whose contact is outside
+  the bumper arc slides on to its bump (:func:`envs.contact.contact_flights`); it costs and
+  expects its clock length, and goal arrivals stay on its straight part.
 - Candidates: :meth:`ExactNavigator.plans` lists every goal arrival within a cost slack of
   the best (one per final state), for a reliability layer that ranks near-optimal plans.
 
@@ -48,10 +51,12 @@ from functools import cached_property
 import numpy as np
 
 from envs import UserError
-from envs.motion import BUMP_RANGE, casters, drive_distance
+from envs.contact import advance, closes_bumper, contact_flights, front_contacts
+from envs.motion import BUMP_RANGE, ContactParams, casters, drive_distance
 
 from .cells import CellSpace
 from .coverage.event import Boundary
+from .exact_chords import _origin, chords
 from .plan import Plan
 
 __all__ = ["ExactNavigator", "ExactRoute", "ExactAllPairs", "ExactSearch", "chords",
@@ -112,67 +117,6 @@ def step_flights(cells: CellSpace, start: int, plan: Plan) -> tuple[list, float]
     return flights, final
 
 
-# ============================================================================ geometry
-def chords(cells: CellSpace, pos, u, dist):
-    """The free cells each flight passes through, with the point of each chord nearest the
-    cell's centre.
-
-    Parameters
-    ----------
-    cells : CellSpace
-    pos : (n, 2) flight starts [m];  u : (n, 2) unit headings;  dist : (n,) lengths [m]
-
-    Returns
-    -------
-    flight : (c,) int     index of the flight
-    p : (c,) int          free position cell crossed (cells in no free cell are left out)
-    t : (c,) float        [m] along the flight: the point of the chord (the part of the flight
-                          inside the cell) nearest the cell's centre
-    depth : (c,) float    [m] that point's distance to the cell's border
-    """
-    pos = np.asarray(pos, dtype=float).reshape(-1, 2)
-    u = np.asarray(u, dtype=float).reshape(-1, 2)
-    dist = np.asarray(dist, dtype=float).reshape(-1)
-    h = cells.h
-    origin = _origin(cells)
-    rel = pos - origin
-    ts = [np.zeros((len(pos), 1)), dist[:, None]]
-    for ax in (0, 1):
-        c, p = u[:, ax], rel[:, ax]
-        nmax = int(np.ceil(np.max(dist * np.abs(c), initial=0.0) / h)) + 2
-        sgn = np.sign(c)
-        first = np.where(c > 0, np.floor(p / h) + 1, np.ceil(p / h) - 1)
-        g = first[:, None] + sgn[:, None] * np.arange(nmax)[None]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t = (g * h - p[:, None]) / c[:, None]
-        ok = (c[:, None] != 0) & (t > 0) & (t < dist[:, None])
-        ts.append(np.where(ok, t, dist[:, None]))
-    T = np.sort(np.concatenate(ts, axis=1), axis=1)
-    a, b = T[:, :-1], T[:, 1:]
-    # a flight of length 0 (a bump at once) still has its start point: a chord of length 0
-    fi, col = np.nonzero((b - a > 1e-12) | (np.arange(a.shape[1]) == 0)[None])
-    a, b = a[fi, col], b[fi, col]
-    mid = pos[fi] + ((a + b) / 2)[:, None] * u[fi]
-    cell = cells.cell_of_point(mid)
-    keep = cell >= 0
-    fi, a, b, cell = fi[keep], a[keep], b[keep], cell[keep]
-    # the point of the chord nearest the cell's centre, and its depth: the distance to the
-    # cell's border, min(x − X0, X1 − x, y − Y0, Y1 − y)
-    centre = cells.centres[cell]
-    t = np.clip(((centre - pos[fi]) * u[fi]).sum(1), a, b)
-    off = np.abs(pos[fi] + t[:, None] * u[fi] - centre)
-    best = h / 2 - off.max(axis=1)
-    return fi, cell, t, best
-
-
-def _origin(cells: CellSpace) -> np.ndarray:
-    o = getattr(cells, "_exact_origin", None)
-    if o is None:
-        o = np.asarray(cells.env.origin, dtype=float)
-        cells.__dict__["_exact_origin"] = o
-    return o
-
-
 # ============================================================================ the search
 @dataclass(eq=False)
 class ExactSearch:
@@ -183,7 +127,8 @@ class ExactSearch:
     cost : (S + 1,) float   cost of every state (inf: not reached); index S is the start
     pred : (S + 1,) int     predecessor state (−1: none)
     pos : (S + 1, 2) float  exact pose [m] of each state's best arrival
-    flight : (S + 1,) float length [m] of the flight leaving each settled state (nan: not cast)
+    flight : (S + 1,) float clock length [m] of the flight leaving each settled state to its
+                            bump (nan: not cast); its straight length without a contact rule
     used : (S + 1,) int     bit mask of the angles used on the way to each state
     goals : dict            goal configuration -> (cost, state, final_m), best arrivals
     arrivals : list         every goal arrival (cost, state, final_m, goal z) when recorded
@@ -210,11 +155,16 @@ class ExactNavigator:
     bin_length : float, optional contact-bin length [m] along the C-space boundary (h/4)
     min_depth : float            [m] the final stop must lie at least this deep inside the
                                  goal cell (default 1e-3)
+    contact : ContactParams, optional
+        The contact rule of the robot that executes the plans (docs/model.md §23): a flight
+        whose contact lies outside the bumper arc slides on (:func:`envs.contact.contact_flights`)
+        to its bump, and costs and expects its clock length. Default None: every contact
+        bumps (the front-half bumper).
     """
 
     def __init__(self, cells: CellSpace, angles: Iterable[float], w1: float = 1.0,
                  w2: float = 100.0, bin_length: float | None = None,
-                 min_depth: float = 1e-3) -> None:
+                 min_depth: float = 1e-3, contact: ContactParams | None = None) -> None:
         self.cells = cells
         angles = tuple(float(a) for a in angles)
         if not angles:
@@ -230,6 +180,7 @@ class ExactNavigator:
         self.bin_length = cells.h / 4 if bin_length is None else float(bin_length)
         self.min_depth = float(min_depth)
         self.caster = casters(cells.env)[0]
+        self.contact = contact
 
     @property
     def m(self) -> int:
@@ -371,8 +322,16 @@ class ExactNavigator:
                         if total < best - _IMPROVE:
                             best, best_arrival = total, (total, st, ti)
             lx, ly = x + D * ux, y + D * uy
+            if self.contact is not None and not any(     # a glancing contact slides on
+                    closes_bumper(b, self.contact)
+                    for b, *_ in front_contacts(self.caster, lx, ly, ux, uy)):
+                # contact_flights for one flight in plain Python (3x faster); the same end
+                # and clock to 5e-9 m (advance may first close a ~1e-9 m gap)
+                sx, sy, extra, _, _ = advance(self.caster, lx, ly, ux, uy, self.contact)
+                if extra > 0:
+                    lx, ly, flight[st] = sx, sy, D + extra
             lb = bin_of(lx, ly)
-            cf = c + w1 * D / h
+            cf = c + w1 * float(flight[st]) / h
             hb = bound(lx, ly)
             for b in range(m):
                 k2 = (k + steps[b]) % K
@@ -429,7 +388,11 @@ class ExactNavigator:
             src_i, local = np.divmod(band, SS)
             ks = np.where(local == S, k0[src_i], kstate[local])
             D, u = self._flights(pos[band], ks)
-            flight[band] = D
+            land, clock = pos[band] + D[:, None] * u, D
+            if self.contact is not None:                  # glancing contacts slide on
+                fl = contact_flights(self.caster, pos[band], u, D, self.contact)
+                land, clock = fl.end, fl.clock
+            flight[band] = clock
             # goal arrivals along the flights
             fi, p, t, depth = chords(cs, pos[band], u, D)
             ok = depth >= self.min_depth
@@ -446,7 +409,6 @@ class ExactNavigator:
                 gz, total, fi, t = gz[win], total[win], fi[win], t[win]
                 gcost[gz], gstate[gz], gt[gz] = total, band[fi], t
             # landings and turns
-            land = pos[band] + D[:, None] * u
             lb = bd.bin_of(land)
             row = np.repeat(np.arange(band.size), m)
             b = np.tile(np.arange(m), band.size)
@@ -454,7 +416,7 @@ class ExactNavigator:
             k2 = (ks[row] + self._steps[b]) % K
             tgt = src_i[row] * SS + (lb[row] * K + k2) * m + b
             w = np.where(a < 0, first_bump, np.where(a == b, w1, w2))
-            new = (cost[band] + w1 * D / h)[row] + w
+            new = (cost[band] + w1 * clock / h)[row] + w
             order = np.lexsort((new, tgt))
             tgt, new, row, b = tgt[order], new[order], row[order], b[order]
             firsts = np.ones(tgt.size, dtype=bool)

@@ -26,6 +26,7 @@ from .common import (
     parse_angles,
     print_json,
 )
+from .validate import contact_rule
 
 __all__ = ["add_planner_args", "make_navigator", "parse_config", "register", "route_json",
            "run"]
@@ -92,7 +93,11 @@ def make_navigator(args, cells: CellSpace | None = None) -> Navigator | ExactNav
     if cells is None:
         cells = make_cells(args, load_env(args))
     if getattr(args, "planner", "step") == "exact":
-        return ExactNavigator(cells, parse_angles(args.angles), args.w1, args.w2)
+        return ExactNavigator(cells, parse_angles(args.angles), args.w1, args.w2,
+                              contact=contact_rule(args) if hasattr(args, "contact") else None)
+    if getattr(args, "contact", "off") != "off":
+        raise UserError("--contact is for --planner exact (the step and reliable planners "
+                        "assume the front-half bumper).")
     if args.planner == "reliable":      # its particles: a stream of their own from --seed
         if not hasattr(args, "noise"):
             raise UserError("--planner reliable is for plan and run-plan (it needs --noise).")
@@ -140,6 +145,10 @@ def register(sub) -> None:
     p.add_argument("--pairs", type=Path, metavar="FILE.csv",
                    help="many queries: a CSV with columns start,goal (z or \"X,Y,DEG\")")
     p.add_argument("--json", action="store_true", help="one JSON object per query and line")
+    p.add_argument("--contact", choices=("off", "pybullet"), default="off",
+                   help="exact: the executing robot's contact rule (docs/model.md section 23): "
+                   "off = every front contact bumps (default), pybullet = the fitted bumper "
+                   "arc, glancing contacts slide on and flights expect their clock length")
     p.add_argument("--noise", default="none", metavar="SPEC",
                    help="reliable: the rotation noise to plan for, gauss:SIGMA or "
                    "model:eps=E,r=R [deg] (default none)")

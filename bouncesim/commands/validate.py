@@ -190,13 +190,15 @@ def _parse_alpha(text: str | None, model, angles, noise) -> tuple | None:
 
 # ----------------------------------------------------------------------------- run
 def contact_rule(args) -> ContactParams | None:
-    """The contact rule of ``--contact`` (docs/model.md §23) for ``--backend``."""
+    """The contact rule of ``--contact`` (docs/model.md §23) for ``--backend`` (also
+    ``plan --contact``, which has no ``--model``: its rule is the exact planner's).
+    """
     choice = getattr(args, "contact", "auto")
     if choice == "auto":
         choice = "pybullet" if args.backend == "pybullet" else "off"
     if choice == "off":
         return None
-    if args.model != "event":
+    if getattr(args, "model", "event") != "event":
         if args.contact == "auto":
             return None
         raise UserError(f"the contact rule is part of the event model only, not the "
