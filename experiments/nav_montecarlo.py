@@ -42,7 +42,7 @@ from bouncesim import robots
 from bouncesim.robots.noise import parse_noise
 from bouncesim.runs.executors import add_executor_args, make_executor
 from bouncesim.runs.sweep import Sweep
-from envs.motion import ContactParams
+from envs.motion import PYBULLET_CONTACT, ContactParams
 from planners.navigation import Navigator
 
 from .common import experiment_parser, output_dir
@@ -87,8 +87,10 @@ def nav_trial(params: dict, rng: np.random.Generator) -> dict:
     glance = float(params["glance"])
     options = ({"glance_deg": glance} if params["backend"] == "kinematic" and glance > 0
                else {})
-    # the exact planner plans for the twin's contact rule (KinematicRobot's glance_deg)
-    contact = ContactParams(90.0 - glance, 0.0) if options else None
+    # the exact planner plans for the body's contact rule: the twin's glance_deg, or
+    # PyBullet's fitted rule (docs/model.md §16, §23)
+    contact = (ContactParams(90.0 - glance, 0.0) if options else
+               PYBULLET_CONTACT if params["backend"] == "pybullet" else None)
     config = NavConfig(angles=ANGLES, w1=W1, w2=W2, noise=spec, contact=contact)
     driver = PLANNERS[params["planner"]](env, int(params["start"]), int(params["goal"]),
                                          config, rng)
