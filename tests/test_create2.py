@@ -154,12 +154,29 @@ def test_same_plan_through_the_cli_on_kinematic_and_emulator(capsys):
     assert main(common) == 0
     kin = capsys.readouterr().out
     with deadline(60):
-        assert main(common + ["--robot", "emulator", "--lockstep"]) == 0
+        assert main(common + ["--robot", "emulator", "--lockstep", "--link-timeout", "2"]) == 0
     emu = capsys.readouterr().out
     import json
     a, b = json.loads(kin), json.loads(emu)
     assert a["plan"] == b["plan"] and a["success"] and b["success"]
     assert b["robot"] == "emulator" and b["bumps"] == a["bumps"]
+
+
+def test_link_timeout_option_reaches_the_adapter_and_is_checked(capsys):
+    import argparse
+
+    from bouncesim.cli import main
+    from bouncesim.commands.run_plan import _robot_options
+    args = argparse.Namespace(robot="emulator", full=False, turn="encoders", sensing="stream",
+                              wheel_base=None, link_timeout=2.5, port="tcp", time_scale=1.0,
+                              fault=[], lockstep=True)
+    assert _robot_options(args)["link_timeout"] == 2.5
+    base = ["run-plan", "lab", "--angles", "90,135", "--start", "8", "--goal", "0"]
+    for extra in (["--link-timeout", "1"], ["--robot", "emulator", "--link-timeout", "0"],
+                  ["--robot", "emulator", "--link-timeout", "nan"]):
+        assert main(base + extra) == 2, extra
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "--link-timeout" in err[0], err
 
 
 @pytest.mark.physics
@@ -421,7 +438,10 @@ def test_fault_inside_a_plan_ends_the_run_stopped():
 def _controller(url: str) -> subprocess.Popen:
     cmd = [sys.executable, "-m", "bouncesim.cli", "run-plan", "lab", "--angles", "90",
            "--start", "103", "--goal", "8", "--robot", "create2", "--port", url,
-           "--speed", "0.2"]
+           "--speed", "0.2",
+           # this test is about signals: a host too busy to run the emulator's thread for
+           # half a second must not end the run as a lost link first
+           "--link-timeout", "30"]
     # A shell that starts a job in the background (as a CI runner may) sets SIGINT to
     # "ignore", which children inherit and Python then keeps: give the controller the
     # default disposition a foreground Ctrl-C meets.

@@ -78,6 +78,10 @@ def register(sub) -> None:
     p.add_argument("--wheel-base", type=float, default=None, metavar="M",
                    help="create2/emulator: effective wheel base [m] used to time or measure "
                    "turns (calibration; default 0.235)")
+    p.add_argument("--link-timeout", type=float, default=None, metavar="S",
+                   help="create2/emulator: seconds of listening without a valid sensor frame "
+                   "before the link counts as lost and the robot is stopped (default 0.5; "
+                   "raise it for a slow USB adapter or a heavily loaded host)")
     p.add_argument("--time-scale", type=float, default=1.0, metavar="X",
                    help="emulator only: run the emulated robot X times faster than real "
                    "time (default 1)")
@@ -131,9 +135,13 @@ def run(args) -> int:
         raise UserError("--glance is for --robot kinematic (the PyBullet bumper has its own "
                         "80° arc).")
     if args.robot not in ("create2", "emulator") and (args.port or args.full or
-                                                      args.wheel_base is not None):
-        raise UserError("--port, --full and --wheel-base are for --robot create2 or "
-                        "emulator.")
+                                                      args.wheel_base is not None or
+                                                      args.link_timeout is not None):
+        raise UserError("--port, --full, --wheel-base and --link-timeout are for --robot "
+                        "create2 or emulator.")
+    if args.link_timeout is not None and not 0 < args.link_timeout < float("inf"):
+        raise UserError(f"--link-timeout must be a positive number of seconds, got "
+                        f"{args.link_timeout:g}.")
     if args.robot != "emulator" and (args.time_scale != 1.0 or args.fault or args.lockstep):
         raise UserError("--time-scale, --lockstep and --fault are for --robot emulator.")
     if args.robot == "create2" and not noise.exact:
@@ -209,6 +217,8 @@ def _robot_options(args) -> dict:
         return {"gui": args.gui, "record": args.record}
     options = {"mode": "full" if args.full else "safe", "turn": args.turn,
                "sensing": args.sensing, "wheel_base": args.wheel_base}
+    if args.link_timeout is not None:
+        options["link_timeout"] = args.link_timeout
     if args.robot == "create2":
         if not args.port:
             raise UserError("--robot create2 needs --port (e.g. /dev/ttyUSB0).")
