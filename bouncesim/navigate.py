@@ -36,7 +36,7 @@ from planners.feedback import FeedbackConfig, FeedbackNavigator, ParticleFilter
 from planners.plan import Plan
 
 from .robots.base import Robot, RobotError
-from .runs.execute import check_speed
+from .runs.execute import check_speed, place_if_simulated
 from .runs.results import PlanRun
 from .runs.trace import Trace
 
@@ -155,10 +155,7 @@ def navigate_feedback(robot: Robot, env: Environment | None, start, goal: int, n
     else:
         start_pose = tuple(float(v) for v in start)
     goal_pose = cells.pose(fnav.goal)
-    try:
-        robot.place(*start_pose)
-    except NotImplementedError:
-        pass                                   # hardware: a person placed the robot
+    place_if_simulated(robot, start_pose)      # hardware: a person placed the robot
     belief = ParticleFilter(env, cfg, rng, start=start_pose)
     x0, y0, x1, y1 = env.bounds
     cap = math.hypot(x1 - x0, y1 - y0) + cells.h

@@ -59,7 +59,8 @@ from ..robots.base import Robot, RobotError
 from .results import Deviation, MixRun, PlanRun, SegmentDone
 from .trace import Trace
 
-__all__ = ["check_speed", "execute", "PlanRun", "MixRun", "Deviation", "SegmentDone"]
+__all__ = ["check_speed", "execute", "place_if_simulated", "PlanRun", "MixRun", "Deviation",
+           "SegmentDone"]
 
 
 def _wrap180(deg: float) -> float:
@@ -94,7 +95,7 @@ def _resolve_pose(spec, cells: CellSpace, what: str) -> tuple[int | None, tuple 
     return (z if z >= 0 else None), (x, y, h)
 
 
-def _place(robot: Robot, pose) -> bool:
+def place_if_simulated(robot: Robot, pose) -> bool:
     """Place a simulated robot; False on hardware (a person places it)."""
     if pose is None:
         return False
@@ -282,7 +283,7 @@ class _PlanRunner:
         self.bumps = 0
         self.completed = False
         self.label = plan.exact_text()
-        _place(robot, self.start_pose)
+        place_if_simulated(robot, self.start_pose)
 
     def _segments(self) -> list[tuple]:
         """(zeros or None, expected flight [m] or None, angle or None) per segment: an exact
@@ -420,7 +421,7 @@ class _MixRunner:
         if start is None:
             start = int(rng.integers(0, cells.N))
         _, start_pose = _resolve_pose(start, cells, "start")
-        _place(robot, start_pose)
+        place_if_simulated(robot, start_pose)
         self.counts = np.zeros(cells.P, dtype=np.int64)
         self.known = robot.true_pose() is not None
         self.dropped = self.bumps = self.done = 0
