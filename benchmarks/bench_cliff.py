@@ -2,6 +2,7 @@
 
     python -m benchmarks.bench_cliff                       # office maps + the catalogue
     python -m benchmarks.bench_cliff --maps office-pinhole --power-max 20000
+    python -m benchmarks.bench_cliff --maps complex --power-first 0   # aggregation alone
 
 For every map at K = 360 (angles 30°, 75°, 315°, ε = 5°, r = 0.8): the event model's build
 time, then per method the wall time of the three chains and the largest over the angles of
@@ -53,8 +54,13 @@ def main(argv=None) -> int:
     ap.add_argument("--orientations", type=int, default=360)
     ap.add_argument("--power-max", type=int, default=20000,
                     help="iteration cap of the power iteration per class (default 20000)")
+    ap.add_argument("--power-first", type=int, default=event._POWER_FIRST,
+                    help="power iterations the default method tries before its aggregation "
+                    f"(default {event._POWER_FIRST}; 0: the aggregation alone, the method "
+                    "before docs/model.md §10's power-first decision)")
     args = ap.parse_args(argv)
     event._POWER_MAX = args.power_max
+    event._POWER_FIRST = args.power_first
     print(f"K = {args.orientations}, angles 30/75/315, eps 5°, r 0.8; power capped at "
           f"{args.power_max} iterations")
     print("| map | P | states | largest class | build [s] | aggregation [s] | power [s] "

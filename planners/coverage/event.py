@@ -491,7 +491,7 @@ def _power_stationary(Tg: sp.csr_matrix, max_iter: int | None = None
     x = np.full(n, 1.0 / n, dtype=np.float32)
     a, b = np.float32(1.0 - _LAZY), np.float32(_LAZY)
     prev = None
-    y = x
+    y, it = x, 0
     for it in range(1, (_POWER_MAX if max_iter is None else max_iter) + 1):
         y = a * (TT @ x) + b * x
         if it % 20 == 0:
