@@ -69,9 +69,13 @@ class Hang(AssertionError):
     """An example ran longer than the time guard."""
 
 
+@contextlib.contextmanager
 def time_guard(seconds: float = TIMEOUT):
-    """A hang of an example fails it (a wall-clock alarm, generous: 30 s by default)."""
-    return alarm(seconds, Hang, "the example")
+    """A hang of an example fails it: more than ``seconds`` of CPU (30 s by default), which
+    a busy machine does not inflate, or ten times that of wall time (a blocked hang).
+    """
+    with alarm(10 * seconds, Hang, "the example"), alarm(seconds, Hang, "the example", "cpu"):
+        yield
 
 
 def assert_sentence(msg: str) -> None:
