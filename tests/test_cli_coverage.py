@@ -164,3 +164,38 @@ def test_table1_experiment_quick(tmp_path, capsys):
     for f in ("coverage.csv", "groups.csv", "fig10_limiting.png", "fig11_mix_vs_target.png",
               "fig9_groups_315.png"):
         assert (out / f).stat().st_size > 0, f
+
+
+def test_contact_rule_reaches_the_event_model(tmp_path, capsys):
+    """--contact pybullet gives the event model's coverage with the fitted rule (the same
+    numbers as the Python API with that rule, and different from no rule); the rule is
+    refused for the other models, and the header names the noise as given."""
+    import envs
+    from envs.motion import PYBULLET_CONTACT
+    from planners.cells import CellSpace
+    from planners.coverage import TurnNoise, model_for
+    # K = 72, ε = 5°: headings 5° off a wall occur, below the rule's β = 9.6°
+    args = ["coverage", "lab", "--orientations", "72", "--angles", "30", "--model", "event"]
+    got = {}
+    for contact in ("off", "pybullet"):
+        out = tmp_path / contact
+        assert main(args + ["--eps", "5", "--r", "0.8", "--contact", contact, "--no-plots",
+                            "--out", str(out)]) == 0
+        rows = read_csv(out / "coverage.csv")
+        got[contact] = np.array([float(r["q"]) for r in rows if r["angle"] == "30"])
+    summary = json.loads((tmp_path / "pybullet" / "alpha.json").read_text())
+    assert summary["model_settings"]["contact"] == {"beta_deg": PYBULLET_CONTACT.beta_deg,
+                                                    "slide_friction":
+                                                    PYBULLET_CONTACT.slide_friction}
+    cs = CellSpace(envs.load("lab", orientations=72))
+    want = model_for(cs, "event", {"contact": PYBULLET_CONTACT}).analyse(
+        30, TurnNoise(5, 0.8)).q
+    np.testing.assert_allclose(got["pybullet"], want, atol=1e-12)
+    assert 0.5 * np.abs(got["pybullet"] - got["off"]).sum() > 0.05     # measured: 0.17
+    capsys.readouterr()
+    assert main(["coverage", "lab", "--angles", "90", "--contact", "pybullet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1] == ("bouncesim: error: the contact rule is part of the event model only, "
+                       "not the step model.")
+    assert main(["coverage", "lab", "--angles", "90", "--noise", "gauss:45"]) == 0
+    assert "noise=gauss:45 " in capsys.readouterr().out

@@ -22,11 +22,12 @@ import envs
 from bouncesim.runs.options import parse_angles
 from envs import UserError
 from envs.diagnostics import diagnose
+from envs.motion import PYBULLET_CONTACT, ContactParams
 from planners.cells import CellSpace
 from planners.resources import check_memory, max_grid_cells, memory_warning, parse_memory
 
-__all__ = ["add_angle_noise_args", "add_env_args", "add_output", "check_fits", "check_outputs",
-           "load_env",
+__all__ = ["add_angle_noise_args", "add_contact_arg", "add_env_args", "add_output", "check_fits",
+           "check_outputs", "contact_rule", "load_env",
            "make_cells", "make_rng", "max_memory", "parse_angles", "print_json", "progress",
            "remove_created", "warn", "writable_path", "flush_warnings", "discard_warnings"]
 
@@ -55,6 +56,37 @@ def add_angle_noise_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--r", type=float, default=1.0, metavar="R",
                    help="reliability: probability of turning by exactly the angle, in [0, 1] "
                    "(default 1)")
+
+
+def add_contact_arg(p: argparse.ArgumentParser, auto: bool = False, what: str = "") -> None:
+    """--contact: the executing robot's contact rule (docs/model.md §23) for a model or a
+    planner; with ``auto`` also the choice "auto" (on with --backend pybullet) as default.
+    """
+    choices = ("auto", "off", "pybullet") if auto else ("off", "pybullet")
+    p.add_argument("--contact", choices=choices, default=choices[0],
+                   help=f"contact rule{what} (docs/model.md section 23): off = every front "
+                   "contact bumps, pybullet = the fitted bumper arc: glancing contacts slide "
+                   "on" + ("; auto (default) = pybullet with --backend pybullet, else off"
+                           if auto else " (default off)"))
+
+
+def contact_rule(args: argparse.Namespace) -> ContactParams | None:
+    """The contact rule of ``--contact`` (docs/model.md §23), or None for none. "auto" follows
+    ``--backend``; a rule is refused in one sentence for a ``--model`` other than event
+    (a command without ``--model``, such as ``plan``, passes it to its planner).
+    """
+    choice = getattr(args, "contact", "off")
+    if choice == "auto":
+        choice = "pybullet" if getattr(args, "backend", None) == "pybullet" else "off"
+    if choice == "off":
+        return None
+    model = getattr(args, "model", "event")
+    if model != "event":
+        if args.contact == "auto":
+            return None
+        raise UserError(f"the contact rule is part of the event model only, not the "
+                        f"{model} model.")
+    return PYBULLET_CONTACT
 
 
 def max_memory(args: argparse.Namespace) -> int:

@@ -10,7 +10,7 @@ from __future__ import annotations
 import csv
 import json
 import sys
-from dataclasses import fields
+from dataclasses import asdict, fields, is_dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -40,9 +40,11 @@ from planners.metrics import tv_distance
 
 from .common import (
     add_angle_noise_args,
+    add_contact_arg,
     add_env_args,
     add_output,
     check_fits,
+    contact_rule,
     flush_warnings,
     load_env,
     make_cells,
@@ -125,6 +127,7 @@ def register(sub) -> None:
                    help="a setting of the chosen model, repeatable: event: bin_length [m] "
                    "(default 0.03), samples (flight starts per bin, default 2); sampled: grid "
                    "(m x m points per cell, default 3), theta_samples (default 2)")
+    add_contact_arg(p, what=" of the event model")
     p.add_argument("--epoch", type=int, default=None, metavar="STEPS",
                    help="also predict the mix as it is executed: epochs of STEPS steps, each "
                    "with one angle drawn with probabilities alpha (docs/model.md section 8); "
@@ -177,6 +180,9 @@ def run(args) -> int:
         target = load_target(args.target, cs, args.target_space)
         target_desc = str(args.target)
     settings = parse_model_options(args.model, args.model_option)
+    contact = contact_rule(args)
+    if contact is not None:
+        settings = replace(settings or default_settings(args.model), contact=contact)
     if args.target_space not in MODELS[args.model].spaces:
         raise UserError(f"the {args.model} model predicts coverage over position cells only; "
                         "use --target-space positions.")
@@ -216,8 +222,9 @@ def run(args) -> int:
         pa["group_cells"] = group_cells(model, cov).tolist()
     summary["noise"] = str(noise)
     if settings is not None:
-        summary["model_settings"] = {k: getattr(settings, k)
-                                     for k in settings.__dataclass_fields__}
+        summary["model_settings"] = {
+            k: asdict(v) if is_dataclass(v) else v
+            for k, v in ((f.name, getattr(settings, f.name)) for f in fields(settings))}
     timeshared = None
     if args.epoch is not None:
         ts = timeshared_coverage(model, result.mix, epoch=args.epoch,
@@ -314,7 +321,7 @@ def summarise(result: MixDesign, cs: CellSpace, env_name: str, target_desc: str)
 def format_table(summary: dict) -> str:
     """A short human-readable table of alpha.json's content."""
     lines = [f"{summary['env']}: K={summary['K']} P={summary['P']} N={summary['N']} "
-             f"eps={summary['eps']}° r={summary['r']} target={summary['target']}",
+             f"noise={summary['noise']} target={summary['target']}",
              f"{'angle':>7} {'alpha':>10} {'groups':>7} {'largest':>8} {'transient':>10}"]
     for a, pa in zip(summary["alpha"], summary["per_angle"]):
         sizes = pa.get("group_cells", pa["group_sizes"])
@@ -383,7 +390,7 @@ def write_outputs(result: MixDesign, cs: CellSpace, out_dir, summary: dict,
         for a, q in zip(result.per_angle, qs):
             save_heatmap(out / f"heatmap_angle_{_num(a.angle)}.png", cs, q,
                          title=f"{cs.env.name}: coverage of {_num(a.angle)}°{over} "
-                         f"(eps {_num(result.eps)}°, r {result.r:g})")
+                         f"({_noise_label(result.noise)})")
         alpha_title = "alpha = " + ", ".join(f"{_num(a)}°: {al:.3f}" for a, al in
                                              zip(result.angles, result.alpha))
         save_mix_vs_target(out / "heatmap_mix_vs_target.png", cs, mixed, target_q,
@@ -394,6 +401,13 @@ def write_outputs(result: MixDesign, cs: CellSpace, out_dir, summary: dict,
                                title=f"{alpha_title}, executed in "
                                f"{summary['timeshared']['epoch']}-step epochs")
     return out
+
+
+def _noise_label(noise: TurnNoise) -> str:
+    """The rotation noise for a figure title."""
+    if noise.gaussian:
+        return f"Gaussian σ {_num(noise.sigma_deg)}°"
+    return f"eps {_num(noise.eps_deg)}°, r {noise.r:g}"
 
 
 def _num(x):

@@ -17,8 +17,10 @@ from planners.navigation import Navigator
 from planners.reliable import DEFAULT_PARTICLES, DEFAULT_SLACK, ReliableNavigator
 
 from .common import (
+    add_contact_arg,
     add_env_args,
     check_fits,
+    contact_rule,
     flush_warnings,
     load_env,
     make_cells,
@@ -26,7 +28,6 @@ from .common import (
     parse_angles,
     print_json,
 )
-from .validate import contact_rule
 
 __all__ = ["add_planner_args", "make_navigator", "parse_config", "register", "route_json",
            "run"]
@@ -145,10 +146,7 @@ def register(sub) -> None:
     p.add_argument("--pairs", type=Path, metavar="FILE.csv",
                    help="many queries: a CSV with columns start,goal (z or \"X,Y,DEG\")")
     p.add_argument("--json", action="store_true", help="one JSON object per query and line")
-    p.add_argument("--contact", choices=("off", "pybullet"), default="off",
-                   help="exact: the executing robot's contact rule (docs/model.md section 23): "
-                   "off = every front contact bumps (default), pybullet = the fitted bumper "
-                   "arc, glancing contacts slide on and flights expect their clock length")
+    add_contact_arg(p, what=" the exact planner plans for")
     p.add_argument("--noise", default="none", metavar="SPEC",
                    help="reliable: the rotation noise to plan for, gauss:SIGMA or "
                    "model:eps=E,r=R [deg] (default none)")

@@ -23,7 +23,7 @@ import numpy as np
 
 import envs
 from envs import UserError
-from envs.motion import PYBULLET_CONTACT, ContactParams
+from envs.motion import ContactParams
 from planners.cells import CellSpace
 from planners.coverage import (
     MODELS,
@@ -40,7 +40,9 @@ from ..runs.executors import add_executor_args, make_executor
 from ..runs.sweep import run_sweep
 from .common import (
     add_angle_noise_args,
+    add_contact_arg,
     add_env_args,
+    contact_rule,
     load_env,
     make_cells,
     parse_angles,
@@ -104,10 +106,7 @@ def register(sub) -> None:
                    help="steps per epoch of the mix (default 1000)")
     p.add_argument("--speed", type=float, default=0.3, metavar="M/S",
                    help="PyBullet drive speed [m/s] (default 0.3)")
-    p.add_argument("--contact", choices=("auto", "off", "pybullet"), default="auto",
-                   help="contact rule of the event model and the twin (docs/model.md section "
-                   "23): off = every front contact bumps, pybullet = the fitted bumper arc "
-                   "and slide; auto (default) = pybullet with --backend pybullet, else off")
+    add_contact_arg(p, auto=True, what=" of the event model and the twin")
     p.add_argument("--seed", type=int, default=0, help="root seed (default 0)")
     p.add_argument("--out", type=Path, default=None, metavar="DIR",
                    help="keep the sweep's journal, runs.csv and config.json here (a re-run "
@@ -189,23 +188,6 @@ def _parse_alpha(text: str | None, model, angles, noise) -> tuple | None:
 
 
 # ----------------------------------------------------------------------------- run
-def contact_rule(args) -> ContactParams | None:
-    """The contact rule of ``--contact`` (docs/model.md §23) for ``--backend`` (also
-    ``plan --contact``, which has no ``--model``: its rule is the exact planner's).
-    """
-    choice = getattr(args, "contact", "auto")
-    if choice == "auto":
-        choice = "pybullet" if args.backend == "pybullet" else "off"
-    if choice == "off":
-        return None
-    if getattr(args, "model", "event") != "event":
-        if args.contact == "auto":
-            return None
-        raise UserError(f"the contact rule is part of the event model only, not the "
-                        f"{args.model} model.")
-    return PYBULLET_CONTACT
-
-
 def _check(args) -> None:
     if args.steps is not None and args.steps < 2:
         raise UserError(f"--steps must be at least 2, got {args.steps}.")
