@@ -21,7 +21,7 @@ from bouncesim.runs.options import parse_angles
 from planners.cells import CellSpace
 from planners.navigation import Navigator
 
-from .common import experiment_parser, output_dir, write_config
+from .common import experiment_parser, name_list, output_dir, run_main, write_config
 
 __all__ = ["Config", "claims", "main", "run"]
 
@@ -115,15 +115,9 @@ def main(argv=None) -> int:
     import matplotlib
     matplotlib.use("Agg")                      # this script writes files only
     names = args.envs or ("lab" if args.quick else "lab,fig1")
-    try:
-        config = Config(angles=tuple(parse_angles(args.angles)),
-                        envs=tuple(n.strip() for n in names.split(",") if n.strip()),
-                        quick=args.quick, seed=args.seed, out=args.out)
-        run(config)
-    except envs.UserError as exc:
-        print(f"allpairs_fig7: error: {exc}", file=sys.stderr)
-        return 2
-    return 0
+    return run_main("allpairs_fig7", lambda: Config(
+        angles=tuple(parse_angles(args.angles)), envs=name_list(names), quick=args.quick,
+        seed=args.seed, out=args.out), run)
 
 
 if __name__ == "__main__":

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from dataclasses import asdict, dataclass, fields
 from datetime import UTC, datetime
 from pathlib import Path
@@ -12,8 +13,8 @@ from bouncesim.runs.metadata import git_revision, versions
 from envs import UserError
 from planners.coverage import MODELS, check_model
 
-__all__ = ["EXECUTION_FIELDS", "add_models_arg", "experiment_parser", "output_dir",
-           "recorded", "write_config"]
+__all__ = ["EXECUTION_FIELDS", "add_models_arg", "experiment_parser", "name_list", "output_dir",
+           "recorded", "run_main", "write_config"]
 
 
 
@@ -49,10 +50,26 @@ def experiment_parser(name: str, description: str, default_seed: int = 0
     return p
 
 
-def _model_list(text: str) -> list[str]:
-    names = [m.strip() for m in str(text).split(",") if m.strip()]
+def name_list(text: str) -> tuple[str, ...]:
+    """Comma-separated names (maps, environments) as a tuple, blanks dropped."""
+    return tuple(n.strip() for n in str(text).split(",") if n.strip())
+
+
+def run_main(name: str, make_config, run) -> int:
+    """An experiment's ``main`` after parsing: ``run(make_config())``; a :class:`UserError`
+    from either becomes ``<name>: error: <sentence>`` on stderr and exit status 2.
+    """
     try:
-        return [check_model(m) for m in names or [""]]
+        run(make_config())
+    except UserError as exc:
+        print(f"{name}: error: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
+def _model_list(text: str) -> list[str]:
+    try:
+        return [check_model(m) for m in name_list(text) or [""]]
     except UserError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
 

@@ -30,7 +30,7 @@ from bouncesim.plots import save_figure
 from planners.cells import CellSpace
 from planners.navigation import Navigator
 
-from .common import experiment_parser, output_dir, write_config
+from .common import experiment_parser, output_dir, run_main, write_config
 from .nav_montecarlo import wilson
 
 __all__ = ["Config", "draw", "episode", "main", "run", "sample_episodes", "summarise"]
@@ -202,14 +202,8 @@ def main(argv=None) -> int:
     p.add_argument("--env", default="lab", help="environment (default lab)")
     args = p.parse_args(argv)
     episodes = args.episodes if args.episodes is not None else (12 if args.quick else 200)
-    config = Config(env=args.env, episodes=episodes, quick=args.quick, seed=args.seed,
-                    out=args.out)
-    try:
-        run(config)
-    except envs.UserError as exc:
-        print(f"gym_policies: error: {exc}", file=sys.stderr)
-        return 2
-    return 0
+    return run_main("gym_policies", lambda: Config(
+        env=args.env, episodes=episodes, quick=args.quick, seed=args.seed, out=args.out), run)
 
 
 if __name__ == "__main__":

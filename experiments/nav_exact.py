@@ -31,7 +31,7 @@ from planners.cells import CellSpace
 from planners.exact import ExactNavigator
 from planners.navigation import Navigator
 
-from .common import experiment_parser, output_dir, write_config
+from .common import experiment_parser, name_list, output_dir, run_main, write_config
 
 __all__ = ["Config", "PENTAGON", "map_named", "random_polygon_room", "run", "main"]
 
@@ -198,15 +198,9 @@ def main(argv=None) -> int:
                    help="maps: catalogue names, pentagon, randomN")
     args = p.parse_args(argv)
     pairs = args.pairs if args.pairs is not None else (10 if args.quick else 200)
-    config = Config(pairs=pairs, maps=tuple(m.strip() for m in args.maps.split(",")
-                                            if m.strip()),
-                    quick=args.quick, seed=args.seed, out=args.out)
-    try:
-        run(config)
-    except envs.UserError as exc:
-        print(f"nav_exact: error: {exc}", file=sys.stderr)
-        return 2
-    return 0
+    return run_main("nav_exact", lambda: Config(
+        pairs=pairs, maps=name_list(args.maps), quick=args.quick, seed=args.seed,
+        out=args.out), run)
 
 
 if __name__ == "__main__":

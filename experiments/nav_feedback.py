@@ -35,7 +35,7 @@ from planners.cells import CellSpace
 from planners.exact import ExactNavigator
 from planners.feedback import FeedbackConfig
 
-from .common import experiment_parser, output_dir, write_config
+from .common import experiment_parser, name_list, output_dir, run_main, write_config
 from .nav_exact import map_named
 from .nav_montecarlo import wilson
 
@@ -206,15 +206,9 @@ def main(argv=None) -> int:
     p.add_argument("--maps", default=",".join(Config.maps), help="maps: names or randomN")
     args = p.parse_args(argv)
     pairs = args.pairs if args.pairs is not None else (4 if args.quick else Config.pairs)
-    config = Config(pairs=pairs, maps=tuple(m.strip() for m in args.maps.split(",")
-                                            if m.strip()),
-                    quick=args.quick, seed=args.seed, out=args.out)
-    try:
-        run(config)
-    except envs.UserError as exc:
-        print(f"nav_feedback: error: {exc}", file=sys.stderr)
-        return 2
-    return 0
+    return run_main("nav_feedback", lambda: Config(
+        pairs=pairs, maps=name_list(args.maps), quick=args.quick, seed=args.seed,
+        out=args.out), run)
 
 
 if __name__ == "__main__":

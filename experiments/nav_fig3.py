@@ -25,7 +25,7 @@ from planners.exact import ExactNavigator
 from planners.navigation import Navigator
 from planners.plan import Plan
 
-from .common import experiment_parser, output_dir, write_config
+from .common import experiment_parser, output_dir, run_main, write_config
 
 __all__ = ["CONTRAST", "PAPER_PLANS", "QUERIES", "Config", "draw_step_vs_exact",
            "exact_routes", "main", "plan_routes", "run", "step_vs_exact_rows"]
@@ -235,14 +235,9 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
     import matplotlib
     matplotlib.use("Agg")                      # this script writes files only
-    try:
-        config = Config(angles=tuple(parse_angles(args.angles)), physics=not args.no_physics,
-                        quick=args.quick, seed=args.seed, out=args.out)
-        run(config)
-    except envs.UserError as exc:
-        print(f"nav_fig3: error: {exc}", file=sys.stderr)
-        return 2
-    return 0
+    return run_main("nav_fig3", lambda: Config(
+        angles=tuple(parse_angles(args.angles)), physics=not args.no_physics,
+        quick=args.quick, seed=args.seed, out=args.out), run)
 
 
 if __name__ == "__main__":

@@ -38,7 +38,7 @@ from bouncesim.runs.execute import execute
 from planners.cells import CellSpace
 from planners.reliable import W2_FACTORS, ReliableNavigator, draw_turns, rollout, wilson
 
-from .common import experiment_parser, output_dir, write_config
+from .common import experiment_parser, name_list, output_dir, run_main, write_config
 from .nav_exact import map_named
 
 __all__ = ["Config", "funnel_stats", "run", "main"]
@@ -237,17 +237,11 @@ def main(argv=None) -> int:
     p.add_argument("--maps", default=",".join(Config.maps),
                    help="maps: catalogue names, pentagon, randomN")
     args = p.parse_args(argv)
-    config = Config(pairs=args.pairs or (4 if args.quick else 60),
-                    runs=args.runs or (20 if args.quick else 100), sigma=args.sigma,
-                    w2_factors=tuple(float(f) for f in args.w2_factors.split(",") if f),
-                    maps=tuple(m.strip() for m in args.maps.split(",") if m.strip()),
-                    quick=args.quick, seed=args.seed, out=args.out)
-    try:
-        run(config)
-    except envs.UserError as exc:
-        print(f"nav_reliable: error: {exc}", file=sys.stderr)
-        return 2
-    return 0
+    return run_main("nav_reliable", lambda: Config(
+        pairs=args.pairs or (4 if args.quick else 60),
+        runs=args.runs or (20 if args.quick else 100), sigma=args.sigma,
+        w2_factors=tuple(float(f) for f in args.w2_factors.split(",") if f),
+        maps=name_list(args.maps), quick=args.quick, seed=args.seed, out=args.out), run)
 
 
 if __name__ == "__main__":
