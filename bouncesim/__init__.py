@@ -11,7 +11,8 @@ first use, so ``import bouncesim`` stays light and never needs pybullet or pyser
 - coverage: :func:`design_mix`, :func:`model_for`, :data:`MODELS`, :class:`TurnNoise`
   (``planners.coverage``), :class:`PolicyMix`, :func:`tv_distance`;
 - robots: :func:`make_robot`, :func:`noise_for_mix` (``bouncesim.robots``);
-- runs: :func:`execute` (``bouncesim.runs.execute``), :class:`Trace`;
+- runs: :func:`execute` (``bouncesim.runs.execute``), :class:`Trace`,
+  :func:`navigate_feedback` (``bouncesim.navigate``: closed-loop navigation of any robot);
 - figures: :func:`draw_trace`, :func:`draw_env`, :func:`heatmap`, :func:`save_figure`.
 
 Examples
@@ -34,8 +35,8 @@ from typing import TYPE_CHECKING, Any
 
 __all__ = ["MODELS", "CellSpace", "ExactNavigator", "Navigator", "Plan", "PolicyMix", "Trace",
            "TurnNoise", "design_mix", "draw_env", "draw_trace", "env_names", "execute", "heatmap",
-           "import_map", "load", "make_robot", "model_for", "noise_for_mix", "save_figure",
-           "tv_distance"]
+           "import_map", "load", "make_robot", "model_for", "navigate_feedback", "noise_for_mix",
+           "save_figure", "tv_distance"]
 
 # public name -> (module, attribute): imported on first access (PEP 562)
 _LAZY = {
@@ -56,6 +57,7 @@ _LAZY = {
     "noise_for_mix": ("bouncesim.robots.noise", "noise_for_mix"),
     "execute": ("bouncesim.runs.execute", "execute"),
     "Trace": ("bouncesim.runs.trace", "Trace"),
+    "navigate_feedback": ("bouncesim.navigate", "navigate_feedback"),
     "draw_trace": ("bouncesim.plots", "draw_trace"),
     "draw_env": ("bouncesim.plots", "draw_env"),
     "save_figure": ("bouncesim.plots", "save_figure"),
@@ -74,6 +76,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs only; at run time __getattr__ im
     from planners.plan import Plan, PolicyMix
 
     from .coverage_plots import heatmap
+    from .navigate import navigate_feedback
     from .plots import draw_env, draw_trace, save_figure
     from .robots.factory import make_robot
     from .robots.noise import noise_for_mix
