@@ -10,8 +10,9 @@ the wall) and its heading after the turn. Flights are the exact ray casts of the
   bins are the event model's (:class:`planners.coverage.event.Boundary`, arc-length bins of
   h/4 by default). Each state keeps the exact pose of its first settled arrival. A single
   query is A* with scalar casts (a few hundred states); all pairs use Dial's buckets as wide
-  as the smallest edge weight: the lowest bucket is final as a whole, so it is expanded with
-  one vectorised ray cast over 256 starts' trees at once.
+  as the smallest edge weight: the lowest bucket is final as a whole, so it is expanded at
+  once over many starts' trees, with one vectorised ray cast for the flights not cast yet
+  (a flight depends on its pose and heading only: :mod:`planners.exact_batch`).
 - Cost: w1 per step-equivalent of travel (flight length / h) and per same-angle bump, w2 per
   change of angle; the first bump costs min(w1, w2) (any start angle, as in §6).
 - Goal: after the last turn the heading equals the goal heading and the flight passes through
@@ -64,6 +65,7 @@ __all__ = ["ExactNavigator", "ExactRoute", "ExactAllPairs", "ExactSearch", "chor
            "step_flights"]
 
 _IMPROVE = 1e-9          # a new arrival replaces a state's pose when cheaper by this
+_BATCH_BYTES = 4e8       # all pairs: the search arrays of one batch of starts [bytes]
 
 
 @dataclass(frozen=True)
@@ -404,10 +406,12 @@ class ExactNavigator:
         return [self._route(tree, s, g, c, st, t) for c, st, t, _ in rows]
 
     def all_pairs(self, max_memory=None, progress=None) -> ExactAllPairs:
-        """Every ordered pair: one full search per start, 256 starts at a time (the analogue
-        of Algorithm 2). ``max_memory`` is accepted for the shape of
-        :meth:`planners.navigation.Navigator.all_pairs` (the search keeps about 50 bytes
-        per contact state and start of a batch, about 0.2 GB on ``complex``);
+        """Every ordered pair: one full search per start, as many starts at a time as fit in
+        about 0.4 GB (the analogue of Algorithm 2; every distinct flight is cast once for
+        all starts). ``max_memory`` is accepted for the shape of
+        :meth:`planners.navigation.Navigator.all_pairs` (the search keeps about 14 bytes per
+        contact state and start of a batch, and the flight table about 0.2 kB per distinct
+        flight: 0.6 GB peak on ``complex``, all 1464 starts in one batch);
         ``progress(done, total)`` is called after every batch.
         """
         return ExactAllPairs(self, progress=progress)
@@ -422,9 +426,13 @@ class ExactAllPairs:
     angles_used : (N, N) int8  distinct angles of the plan, −1 where unreachable or i == j
     """
 
-    def __init__(self, nav: ExactNavigator, batch: int = 256, progress=None) -> None:
+    def __init__(self, nav: ExactNavigator, batch: int | None = None, progress=None) -> None:
         self.nav = nav
         N = nav.cells.N
+        if batch is None:                        # starts per batch: about 0.4 GB, even split
+            per_start = 14 * (nav.n_states + 1) + 24 * N
+            parts = -(-N // max(1, int(_BATCH_BYTES // per_start)))
+            batch = -(-N // parts)
         W = np.full((N, N), -1.0)
         used = np.full((N, N), -1, dtype=np.int8)
         bits = np.array([bin(i).count("1") for i in range(1 << nav.m)], dtype=np.int8)

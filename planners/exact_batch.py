@@ -186,8 +186,8 @@ def search_many(nav, starts: np.ndarray, table: FlightTable | None = None,
     wmin = min(w1, w2)
     first_bump = w1 if m == 1 else min(w1, w2)
     cost = np.full(B * SS, np.inf)
-    node = np.full(B * SS, -1, dtype=np.int64)     # settled: its node; else the parent's
-    used = np.zeros(B * SS, dtype=np.int32)
+    node = np.full(B * SS, -1, dtype=np.int32)     # settled: its node; else the parent's
+    used = np.zeros(B * SS, dtype=np.int32 if tree or m > 8 else np.uint8)
     done = np.zeros(B * SS, dtype=bool)
     pred = np.full(B * SS, -1, dtype=np.int64) if tree else None
     astate = np.append(np.tile(np.arange(m), nav.boundary.n_bins * K), -1)
@@ -215,7 +215,7 @@ def search_many(nav, starts: np.ndarray, table: FlightTable | None = None,
             nodes[root] = table.roots(starts[src_i[root]])
         if not root.all():
             nr = ~root
-            nodes[nr] = table.children(node[band[nr]], local[nr] % m)
+            nodes[nr] = table.children(node[band[nr]].astype(np.int64), local[nr] % m)
         node[band] = nodes
         c = cost[band]
         # goal arrivals along the flights (the band's rows in order, each node's in order)
