@@ -58,6 +58,7 @@ from envs.motion import BUMP_RANGE, ContactParams, casters, drive_distance
 from .cells import CellSpace
 from .coverage.event import Boundary
 from .exact_batch import FlightTable, search_many
+from .exact_cast import HeadingCaster
 from .exact_chords import _origin, chords
 from .plan import Plan
 
@@ -196,6 +197,11 @@ class ExactNavigator:
         return Boundary(self.cells.env, self.bin_length)
 
     @cached_property
+    def _heading_caster(self) -> HeadingCaster:
+        """Scalar casts along the K headings with the walls culled (bitwise the caster's)."""
+        return HeadingCaster(self.caster, self.cells.units, self.cells.h / 2)
+
+    @cached_property
     def _scalar_boundary(self) -> tuple:
         bd = self.boundary
         segs = [tuple(v) for v in np.column_stack(
@@ -283,7 +289,7 @@ class ExactNavigator:
         gx0, gy0, gx1, gy1 = float(glo[0]), float(glo[1]), float(glo[0] + h), \
             float(glo[1] + h)
         bin_of = self._bin_of_scalar
-        cast = self.caster.cast_one
+        cast = self._heading_caster.cast_one
 
         def bound(x: float, y: float) -> float:
             dx = max(gx0 - x, x - gx1, 0.0)
@@ -310,7 +316,7 @@ class ExactNavigator:
                 break
             cost[st], pred[st], pos[st], used[st] = c, pr, (x, y), mask
             ux, uy = units[k]
-            t = cast(x, y, ux, uy)
+            t = cast(x, y, k, ux, uy)
             if math.isinf(t):
                 raise UserError("a flight never meets a wall: the environment is not closed.")
             D = 0.0 if t <= BUMP_RANGE else drive_distance(t)
