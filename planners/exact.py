@@ -416,7 +416,7 @@ class ExactNavigator:
         about 0.4 GB (the analogue of Algorithm 2; every distinct flight is cast once for
         all starts). ``max_memory`` is accepted for the shape of
         :meth:`planners.navigation.Navigator.all_pairs` (the search keeps about 14 bytes per
-        contact state and start of a batch, and the flight table about 0.2 kB per distinct
+        contact state and start of a batch, and the flight table about 0.4 kB per distinct
         flight: 0.6 GB peak on ``complex``, all 1464 starts in one batch);
         ``progress(done, total)`` is called after every batch.
         """
