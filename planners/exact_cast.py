@@ -32,7 +32,9 @@ class HeadingCaster:
     ----------
     caster : WallCaster
     units : (K, 2) float   unit heading vectors
-    fine : float           fine grid cell [m]
+    fine : float           fine grid cell [m] (at least 1/64 of the walls' extent, so a
+                           large map does not make the tables explode; exactness does not
+                           depend on it)
     """
 
     def __init__(self, caster: WallCaster, units, fine: float) -> None:
@@ -41,7 +43,7 @@ class HeadingCaster:
         seg = caster.segments
         lo = np.minimum(seg[:, 0], seg[:, 1]).min(axis=0)
         hi = np.maximum(seg[:, 0], seg[:, 1]).max(axis=0)
-        g = float(fine)
+        g = max(float(fine), float((hi - lo).max()) / 64)
         self.g, self.x0, self.y0 = g, float(lo[0]), float(lo[1])
         self.nx = max(1, int(math.ceil((hi[0] - lo[0]) / g)))
         self.ny = max(1, int(math.ceil((hi[1] - lo[1]) / g)))
@@ -53,30 +55,15 @@ class HeadingCaster:
         d = caster.e * caster.L[:, None]                      # B − A
         V = caster.vertices
         sides, verts = caster._side_list, caster._vert_list
-        self.sides: list = []
-        self.verts: list = []
-        for u in units:
-            n = np.array([-u[1], u[0]])
-            an = (A[None] - cen[:, None]) @ n                  # (F, m)
-            au = (A[None] - cen[:, None]) @ u
-            dn, du = d @ n, d @ u
-            lo_l = np.zeros_like(an)
-            hi_l = np.ones_like(an)
-            ok = np.ones(an.shape, dtype=bool)
-            # the segment A + λ(B − A), λ ∈ [0, 1], clipped to p + λ q >= 0 (Liang–Barsky)
-            for p, q in ((R - an, -dn), (R + an, dn), (R + au, du)):
-                q = np.broadcast_to(q, p.shape)
-                with np.errstate(divide="ignore", invalid="ignore"):
-                    lam = -p / q
-                lo_l = np.where(q > 0, np.maximum(lo_l, lam), lo_l)
-                hi_l = np.where(q < 0, np.minimum(hi_l, lam), hi_l)
-                ok &= (q != 0) | (p >= 0)
-            ok &= lo_l <= hi_l
-            vn = (V[None] - cen[:, None]) @ n
-            vu = (V[None] - cen[:, None]) @ u
-            okv = (np.abs(vn) <= R) & (vu >= -R)
-            self.sides.append([[sides[i] for i in np.flatnonzero(row)] for row in ok])
-            self.verts.append([[verts[i] for i in np.flatnonzero(row)] for row in okv])
+        self.sides: list = [[] for _ in units]
+        self.verts: list = [[] for _ in units]
+        chunk = max(1, 1_000_000 // (len(A) + len(V)))    # cells per block of the tests
+        for lo_c in range(0, len(cen), chunk):
+            c = cen[lo_c:lo_c + chunk]
+            for ku, u in enumerate(units):
+                ok, okv = _near(A - c[:, None], d, V - c[:, None], u, R)
+                self.sides[ku].extend([sides[i] for i in np.flatnonzero(row)] for row in ok)
+                self.verts[ku].extend([verts[i] for i in np.flatnonzero(row)] for row in okv)
 
     def cast_one(self, x: float, y: float, k: int, ux: float, uy: float) -> float:
         """Contact distance [m] from (x, y) along heading ``k`` (unit vector (ux, uy) =
@@ -90,3 +77,27 @@ class HeadingCaster:
             return _cast_scalar(self.sides[k][f], self.verts[k][f], c.r, c._r2, c._graze,
                                 x, y, ux, uy)
         return c.cast_one(x, y, ux, uy)
+
+
+def _near(A, d, V, u, R: float):
+    """Which sides A + λd (λ ∈ [0, 1]) and corners V, given relative to the cell centres
+    ((F, m, 2) and (F, v, 2)), meet the half-strip |q·n| <= R, q·u >= −R (n ⟂ u):
+    (F, m) and (F, v) booleans.
+    """
+    n = np.array([-u[1], u[0]])
+    an, au = A @ n, A @ u                                  # (F, m)
+    dn, du = d @ n, d @ u
+    lo = np.zeros_like(an)
+    hi = np.ones_like(an)
+    ok = np.ones(an.shape, dtype=bool)
+    # the segment clipped to p + λ q >= 0 for the three sides of the half-strip (Liang–Barsky)
+    for p, q in ((R - an, -dn), (R + an, dn), (R + au, du)):
+        q = np.broadcast_to(q, p.shape)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            lam = -p / q
+        lo = np.where(q > 0, np.maximum(lo, lam), lo)
+        hi = np.where(q < 0, np.minimum(hi, lam), hi)
+        ok &= (q != 0) | (p >= 0)
+    ok &= lo <= hi
+    vn, vu = V @ n, V @ u
+    return ok, (np.abs(vn) <= R) & (vu >= -R)
