@@ -2,18 +2,22 @@
 version measured in the same run.
 
     python -m benchmarks.bench_navigation [--env complex] [--angles 45,90,135] [--ref-sources 0]
-                                          [--exact] [--exact-all-pairs]
+                                          [--exact] [--exact-all-pairs] [--exact-only]
+                                          [--exact-ref-starts 3]
 
 Rows: roadmap build (step table + sparse layered graph), one plan query (cold: a fresh
 single-source search), all pairs with the angle-use histogram. The networkx reference builds
 an nx.DiGraph over (z, a) nodes and runs one multi-source Dijkstra (with paths) per source;
 ``--ref-sources K`` times K random sources and extrapolates to all N (0 = all sources).
 
-``--exact`` adds the exact planner (docs/model.md §15): one cold query (mean of 20 random
-pairs; CPU and wall time) beside a plain heapq Dijkstra over the same states with one scalar
-ray cast per expansion (same costs: the number of equal answers is printed), and with
-``--exact-all-pairs`` the full all-pairs run. CPU time is shown because on a shared machine
-wall time is mostly waiting.
+``--exact`` adds the exact planner (docs/model.md §15): one cold query (mean and maximum of
+20 random pairs; CPU and wall time) beside a plain heapq Dijkstra over the same states with
+one scalar ray cast over every wall per expansion (same costs: the number of equal answers
+is printed), and with ``--exact-all-pairs`` the full all-pairs run beside the same
+reference's full search from ``--exact-ref-starts`` random starts (its CPU time
+extrapolated to all N starts; its rows are compared with the all-pairs weights).
+``--exact-only`` skips the step planner's rows. CPU time is shown because on a shared
+machine wall time is mostly waiting.
 """
 
 from __future__ import annotations
@@ -84,29 +88,41 @@ def ref_exact_cost(nav: ExactNavigator, s: int, g: int) -> float:
     """The exact planner's cost from s to g by a plain heapq Dijkstra (one scalar ray cast
     per settled state, poses of the first settled arrival); inf when unreachable.
     """
+    return float(ref_exact_costs(nav, s, g))
+
+
+def ref_exact_costs(nav: ExactNavigator, s: int, goal: int | None = None):
+    """A plain heapq Dijkstra over the exact planner's states from configuration ``s``: one
+    scalar ray cast over every wall per settled state (``WallCaster.cast_one``), one bin
+    lookup and one chord call per flight, poses of the first settled arrival.
+
+    With ``goal``, the cheapest cost to it (inf when unreachable), stopping once no cheaper
+    arrival is possible; without, the (N,) cheapest cost to every configuration (inf when
+    unreachable, 0 at ``s``): one row of the all-pairs weights.
+    """
     cs, bd, m, K, h = nav.cells, nav.boundary, nav.m, nav.cells.K, nav.cells.h
     steps = [cs.angle_steps(a) for a in nav.angles]
-    gp, gk = (int(v) for v in cs.pk(g))
+    best = np.full(cs.N, np.inf)
     p0, k0 = (int(v) for v in cs.pk(s))
     x0, y0 = (float(v) for v in cs.centres[p0])
     heap = [(0.0, -1, x0, y0, k0, -1)]
     settled: set = set()
-    best = math.inf
     while heap:
         c, st, x, y, k, a = heapq.heappop(heap)
         if st in settled:
             continue
-        if c >= best:
+        if goal is not None and c >= best[goal]:
             break
         settled.add(st)
         ux, uy = (float(v) for v in cs.units[k])
         t = nav.caster.cast_one(x, y, ux, uy)
         D = 0.0 if t <= BUMP_RANGE else max(t - CONTACT_GAP, 0.0)
-        if k == gk:
+        if goal is None or k == cs.pk(goal)[1]:
             _, p, tt, depth = chords(cs, [[x, y]], [[ux, uy]], [D])
             for pi, ti, di in zip(p, tt, depth):
-                if pi == gp and di >= nav.min_depth:
-                    best = min(best, c + nav.w1 * ti / h)
+                z = k * cs.P + int(pi)
+                if di >= nav.min_depth:
+                    best[z] = min(best[z], c + nav.w1 * ti / h)
         lx, ly = x + D * ux, y + D * uy
         b = int(bd.bin_of([[lx, ly]])[0])
         for bi in range(m):
@@ -115,40 +131,55 @@ def ref_exact_cost(nav: ExactNavigator, s: int, g: int) -> float:
                 (nav.w1 if a == bi else nav.w2)
             heapq.heappush(heap, (c + nav.w1 * D / h + w, (b * K + k2) * m + bi, lx, ly, k2,
                                   bi))
+    if goal is not None:
+        return best[goal]
+    best[s] = 0.0
     return best
 
 
-def exact_rows(env, angles, all_pairs: bool) -> None:
+def exact_rows(env, angles, all_pairs: bool, ref_starts: int = 3) -> None:
     """Time the exact planner against the heapq reference and print the rows."""
     cells = CellSpace(env.with_discretization())
     nav = ExactNavigator(cells, angles)
-    t0 = time.perf_counter()
-    _ = nav.boundary
-    t_build = time.perf_counter() - t0
+    c0 = time.process_time()
+    _ = nav.boundary, nav._heading_caster
+    t_build = time.process_time() - c0
     rng = np.random.default_rng(1)
     pairs = rng.integers(0, cells.N, size=(20, 2))
-    c0, t0 = time.process_time(), time.perf_counter()
-    ours = [nav.plan(s, g) for s, g in pairs]
-    cpu_q, wall_q = (time.process_time() - c0) / 20, (time.perf_counter() - t0) / 20
+    ours, cpu = [], []
+    t0 = time.perf_counter()
+    for s, g in pairs:
+        c0 = time.process_time()
+        ours.append(nav.plan(s, g))
+        cpu.append(time.process_time() - c0)
+    cpu_q, wall_q = float(np.mean(cpu)), (time.perf_counter() - t0) / 20
     c0, t0 = time.process_time(), time.perf_counter()
     ref = [ref_exact_cost(nav, int(s), int(g)) for s, g in pairs[:5]]
     cpu_r, wall_r = (time.process_time() - c0) / 5, (time.perf_counter() - t0) / 5
     same = sum((r is None and not math.isfinite(c)) or
                (r is not None and (s == g or abs(r.cost - c) < 1e-6))
                for r, c, (s, g) in zip(ours, ref, pairs))
-    print(f"exact planner: {nav.n_states} states (bins of h/4), boundary built in "
-          f"{_fmt(t_build)}")
+    print(f"exact planner: {nav.n_states} states (bins of h/4), boundary and culled casts "
+          f"built in {_fmt(t_build)} CPU")
     print(f"{'operation':<28}{'cpu':>12}{'wall':>12}{'heapq ref cpu':>15}{'target':>10}")
     print(f"{'exact: one plan query':<28}{_fmt(cpu_q):>12}{_fmt(wall_q):>12}"
           f"{_fmt(cpu_r):>15}{'0.2 s':>10}")
-    print(f"equal costs with the heapq reference: {same} of 5 "
-          f"(reference wall {_fmt(wall_r)} per query)")
+    print(f"slowest of the 20 queries: {_fmt(max(cpu))} CPU; equal costs with the heapq "
+          f"reference: {same} of 5 (reference wall {_fmt(wall_r)} per query)")
     if all_pairs:
         c0, t0 = time.process_time(), time.perf_counter()
         ap = nav.all_pairs()
         cpu_a, wall_a = time.process_time() - c0, time.perf_counter() - t0
-        print(f"{'exact: all pairs':<28}{_fmt(cpu_a):>12}{_fmt(wall_a):>12}{'':>15}"
-              f"{'60 s':>10}")
+        starts = rng.choice(cells.N, size=min(ref_starts, cells.N), replace=False)
+        c0 = time.process_time()
+        rows = [ref_exact_costs(nav, int(s)) for s in starts]
+        cpu_ref = (time.process_time() - c0) * cells.N / max(len(starts), 1)
+        equal = sum(np.allclose(np.where(ap.weights[s] < 0, np.inf, ap.weights[s]), row,
+                                rtol=0, atol=1e-6) for s, row in zip(starts, rows))
+        print(f"{'exact: all pairs':<28}{_fmt(cpu_a):>12}{_fmt(wall_a):>12}"
+              f"{_fmt(cpu_ref):>15}{'60 s':>10}")
+        print(f"exact all pairs: heapq reference extrapolated from {len(starts)} full searches; "
+              f"rows equal to it: {equal} of {len(starts)}")
         print(f"exact reachable pairs: {ap.reachable_fraction:.1%}; histogram (angles used "
               f"0..m): {ap.histogram().tolist()}")
 
@@ -166,10 +197,18 @@ def main(argv=None) -> None:
     ap.add_argument("--exact", action="store_true",
                     help="also time the exact planner (docs/model.md §15)")
     ap.add_argument("--exact-all-pairs", action="store_true",
-                    help="with --exact: also the exact all pairs (about a minute on complex)")
+                    help="with --exact: also the exact all pairs (about 20 CPU s on complex)")
+    ap.add_argument("--exact-ref-starts", type=int, default=3,
+                    help="with --exact-all-pairs: full heapq reference searches to time and "
+                    "compare (extrapolated to all starts)")
+    ap.add_argument("--exact-only", action="store_true",
+                    help="with --exact: skip the step planner's rows")
     args = ap.parse_args(argv)
     angles = [float(a) for a in args.angles.split(",")]
     env = envs.load(args.env, orientations=args.orientations)
+    if args.exact and args.exact_only:
+        exact_rows(env, angles, args.exact_all_pairs, args.exact_ref_starts)
+        return
 
     def build():
         cells = CellSpace(env.with_discretization())   # fresh caches every time
@@ -221,7 +260,7 @@ def main(argv=None) -> None:
         print(f"networkx histogram:           {nx_hist.tolist()} "
               f"(equal totals: {nx_hist.sum() == hist.sum()}; ties may split differently)")
     if args.exact:
-        exact_rows(env, angles, args.exact_all_pairs)
+        exact_rows(env, angles, args.exact_all_pairs, args.exact_ref_starts)
 
 
 def _fmt(t: float) -> str:

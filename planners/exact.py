@@ -10,8 +10,9 @@ the wall) and its heading after the turn. Flights are the exact ray casts of the
   bins are the event model's (:class:`planners.coverage.event.Boundary`, arc-length bins of
   h/4 by default). Each state keeps the exact pose of its first settled arrival. A single
   query is A* with scalar casts (a few hundred states); all pairs use Dial's buckets as wide
-  as the smallest edge weight: the lowest bucket is final as a whole, so it is expanded with
-  one vectorised ray cast over 256 starts' trees at once.
+  as the smallest edge weight: the lowest bucket is final as a whole, so it is expanded at
+  once over many starts' trees, with one vectorised ray cast for the flights not cast yet
+  (a flight depends on its pose and heading only: :mod:`planners.exact_batch`).
 - Cost: w1 per step-equivalent of travel (flight length / h) and per same-angle bump, w2 per
   change of angle; the first bump costs min(w1, w2) (any start angle, as in §6).
 - Goal: after the last turn the heading equals the goal heading and the flight passes through
@@ -51,11 +52,13 @@ from functools import cached_property
 import numpy as np
 
 from envs import UserError
-from envs.contact import advance, closes_bumper, contact_flights, front_contacts
+from envs.contact import advance, closes_bumper, front_contacts
 from envs.motion import BUMP_RANGE, ContactParams, casters, drive_distance
 
 from .cells import CellSpace
 from .coverage.event import Boundary
+from .exact_batch import FlightTable, search_many
+from .exact_cast import HeadingCaster
 from .exact_chords import _origin, chords
 from .plan import Plan
 
@@ -63,6 +66,7 @@ __all__ = ["ExactNavigator", "ExactRoute", "ExactAllPairs", "ExactSearch", "chor
            "step_flights"]
 
 _IMPROVE = 1e-9          # a new arrival replaces a state's pose when cheaper by this
+_BATCH_BYTES = 4e8       # all pairs: the search arrays of one batch of starts [bytes]
 
 
 @dataclass(frozen=True)
@@ -193,6 +197,11 @@ class ExactNavigator:
         return Boundary(self.cells.env, self.bin_length)
 
     @cached_property
+    def _heading_caster(self) -> HeadingCaster:
+        """Scalar casts along the K headings with the walls culled (bitwise the caster's)."""
+        return HeadingCaster(self.caster, self.cells.units, self.cells.h / 2)
+
+    @cached_property
     def _scalar_boundary(self) -> tuple:
         bd = self.boundary
         segs = [tuple(v) for v in np.column_stack(
@@ -280,7 +289,7 @@ class ExactNavigator:
         gx0, gy0, gx1, gy1 = float(glo[0]), float(glo[1]), float(glo[0] + h), \
             float(glo[1] + h)
         bin_of = self._bin_of_scalar
-        cast = self.caster.cast_one
+        cast = self._heading_caster.cast_one
 
         def bound(x: float, y: float) -> float:
             dx = max(gx0 - x, x - gx1, 0.0)
@@ -307,7 +316,7 @@ class ExactNavigator:
                 break
             cost[st], pred[st], pos[st], used[st] = c, pr, (x, y), mask
             ux, uy = units[k]
-            t = cast(x, y, ux, uy)
+            t = cast(x, y, k, ux, uy)
             if math.isinf(t):
                 raise UserError("a flight never meets a wall: the environment is not closed.")
             D = 0.0 if t <= BUMP_RANGE else drive_distance(t)
@@ -345,101 +354,15 @@ class ExactNavigator:
         goals = {goal: best_arrival} if math.isfinite(best) else {}
         return ExactSearch(cost, pred, pos, flight, used, goals, arrivals)
 
-    def _search(self, starts: np.ndarray) -> tuple:
+    def _search(self, starts: np.ndarray, table: FlightTable | None = None,
+                tree: bool = True) -> tuple:
         """The search from several starts at once (independent trees, one index space:
         source i owns states i·(S + 1) … i·(S + 1) + S, the last one its start). One cost
         band of all trees is settled per round (every state cheaper than the smallest
-        unsettled cost plus the smallest edge weight is final), with one ray cast.
+        unsettled cost plus the smallest edge weight is final); every distinct flight is
+        cast once, in a table shared by the trees (:func:`planners.exact_batch.search_many`).
         """
-        cs, K, m, P, N = self.cells, self.cells.K, self.m, self.cells.P, self.cells.N
-        bd = self.boundary
-        S = self.n_states
-        SS = S + 1
-        B = len(starts)
-        w1, w2, h = self.w1, self.w2, cs.h
-        wmin = min(w1, w2)
-        first_bump = w1 if m == 1 else min(w1, w2)
-        cost = np.full(B * SS, np.inf)
-        pred = np.full(B * SS, -1, dtype=np.int64)
-        pos = np.full((B * SS, 2), np.nan)
-        flight = np.full(B * SS, np.nan)
-        used = np.zeros(B * SS, dtype=np.int32)
-        done = np.zeros(B * SS, dtype=bool)
-        p0, k0 = cs.pk(starts)
-        kstate = np.append(np.tile(np.repeat(np.arange(K), m), bd.n_bins), -1)
-        astate = np.append(np.tile(np.arange(m), bd.n_bins * K), -1)
-        roots = np.arange(B) * SS + S
-        cost[roots] = 0.0
-        pos[roots] = cs.centres[p0]
-        gcost = np.full(B * N, np.inf)
-        gstate = np.full(B * N, -1, dtype=np.int64)
-        gt = np.full(B * N, np.nan)
-        # Dial's bucket queue on the cost, buckets of the smallest edge weight: the lowest
-        # non-empty bucket is final as a whole (every edge adds at least wmin)
-        buckets: dict = {0: [roots]}
-        heap = [0]
-        while heap:
-            j = heapq.heappop(heap)
-            band = np.unique(np.concatenate(buckets.pop(j)))
-            band = band[~done[band] & (np.floor(cost[band] / wmin) == j)]
-            if band.size == 0:
-                continue
-            done[band] = True
-            src_i, local = np.divmod(band, SS)
-            ks = np.where(local == S, k0[src_i], kstate[local])
-            D, u = self._flights(pos[band], ks)
-            land, clock = pos[band] + D[:, None] * u, D
-            if self.contact is not None:                  # glancing contacts slide on
-                fl = contact_flights(self.caster, pos[band], u, D, self.contact)
-                land, clock = fl.end, fl.clock
-            flight[band] = clock
-            # goal arrivals along the flights
-            fi, p, t, depth = chords(cs, pos[band], u, D)
-            ok = depth >= self.min_depth
-            fi, p, t = fi[ok], p[ok], t[ok]
-            if fi.size:
-                total = cost[band][fi] + w1 * t / h
-                gz = src_i[fi] * N + ks[fi] * P + p
-                order = np.lexsort((total, gz))
-                gz, total, fi, t = gz[order], total[order], fi[order], t[order]
-                first = np.ones(gz.size, dtype=bool)
-                first[1:] = gz[1:] != gz[:-1]
-                gz, total, fi, t = gz[first], total[first], fi[first], t[first]
-                win = total < gcost[gz] - _IMPROVE
-                gz, total, fi, t = gz[win], total[win], fi[win], t[win]
-                gcost[gz], gstate[gz], gt[gz] = total, band[fi], t
-            # landings and turns
-            lb = bd.bin_of(land)
-            row = np.repeat(np.arange(band.size), m)
-            b = np.tile(np.arange(m), band.size)
-            a = astate[local[row]]
-            k2 = (ks[row] + self._steps[b]) % K
-            tgt = src_i[row] * SS + (lb[row] * K + k2) * m + b
-            w = np.where(a < 0, first_bump, np.where(a == b, w1, w2))
-            new = (cost[band] + w1 * clock / h)[row] + w
-            order = np.lexsort((new, tgt))
-            tgt, new, row, b = tgt[order], new[order], row[order], b[order]
-            firsts = np.ones(tgt.size, dtype=bool)
-            firsts[1:] = tgt[1:] != tgt[:-1]
-            tgt, new, row, b = tgt[firsts], new[firsts], row[firsts], b[firsts]
-            better = ~done[tgt] & (new < cost[tgt] - _IMPROVE)
-            tgt, new, row, b = tgt[better], new[better], row[better], b[better]
-            cost[tgt] = new
-            pred[tgt] = band[row]
-            pos[tgt] = land[row]
-            used[tgt] = used[band[row]] | (1 << b)
-            if tgt.size:
-                bj = np.floor(cost[tgt] / wmin).astype(np.int64)
-                order = np.argsort(bj, kind="stable")
-                bj, tg = bj[order], tgt[order]
-                cut = np.flatnonzero(np.diff(bj)) + 1
-                for jj, part in zip(bj[np.r_[0, cut]].tolist(), np.split(tg, cut)):
-                    if jj not in buckets:
-                        buckets[jj] = []
-                        heapq.heappush(heap, jj)
-                    buckets[jj].append(part)
-        return (cost, pred, pos, flight, used, gcost.reshape(B, N), gstate.reshape(B, N),
-                gt.reshape(B, N), [])
+        return search_many(self, starts, table, tree)
 
     # ------------------------------------------------------------------ routes
     def _route(self, tree: ExactSearch, start: int, goal: int, c: float, state: int,
@@ -489,10 +412,12 @@ class ExactNavigator:
         return [self._route(tree, s, g, c, st, t) for c, st, t, _ in rows]
 
     def all_pairs(self, max_memory=None, progress=None) -> ExactAllPairs:
-        """Every ordered pair: one full search per start, 256 starts at a time (the analogue
-        of Algorithm 2). ``max_memory`` is accepted for the shape of
-        :meth:`planners.navigation.Navigator.all_pairs` (the search keeps about 50 bytes
-        per contact state and start of a batch, about 0.2 GB on ``complex``);
+        """Every ordered pair: one full search per start, as many starts at a time as fit in
+        about 0.4 GB (the analogue of Algorithm 2; every distinct flight is cast once for
+        all starts). ``max_memory`` is accepted for the shape of
+        :meth:`planners.navigation.Navigator.all_pairs` (the search keeps about 14 bytes per
+        contact state and start of a batch, and the flight table about 0.4 kB per distinct
+        flight: 0.6 GB peak on ``complex``, all 1464 starts in one batch);
         ``progress(done, total)`` is called after every batch.
         """
         return ExactAllPairs(self, progress=progress)
@@ -507,15 +432,20 @@ class ExactAllPairs:
     angles_used : (N, N) int8  distinct angles of the plan, −1 where unreachable or i == j
     """
 
-    def __init__(self, nav: ExactNavigator, batch: int = 256, progress=None) -> None:
+    def __init__(self, nav: ExactNavigator, batch: int | None = None, progress=None) -> None:
         self.nav = nav
         N = nav.cells.N
+        if batch is None:                        # starts per batch: about 0.4 GB, even split
+            per_start = 14 * (nav.n_states + 1) + 24 * N
+            parts = -(-N // max(1, int(_BATCH_BYTES // per_start)))
+            batch = -(-N // parts)
         W = np.full((N, N), -1.0)
         used = np.full((N, N), -1, dtype=np.int8)
         bits = np.array([bin(i).count("1") for i in range(1 << nav.m)], dtype=np.int8)
+        table = FlightTable(nav)                 # every distinct flight cast once, for all
         for lo in range(0, N, batch):
             starts = np.arange(lo, min(N, lo + batch))
-            out = nav._search(starts)
+            out = nav._search(starts, table, tree=False)
             gcost, gstate = out[5], out[6]
             ok = np.isfinite(gcost)
             W[lo:lo + len(starts)][ok] = gcost[ok]
