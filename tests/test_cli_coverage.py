@@ -169,7 +169,8 @@ def test_table1_experiment_quick(tmp_path, capsys):
 def test_contact_rule_reaches_the_event_model(tmp_path, capsys):
     """--contact pybullet gives the event model's coverage with the fitted rule (the same
     numbers as the Python API with that rule, and different from no rule); the rule is
-    refused for the other models, and the header names the noise as given."""
+    refused for the other models, and the header names the noise as given.
+    """
     import envs
     from envs.motion import PYBULLET_CONTACT
     from planners.cells import CellSpace
