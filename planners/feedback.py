@@ -219,15 +219,18 @@ class FeedbackNavigator:
         return plans[0] if plans else None
 
     def plans_from(self, x: float, y: float, heading_deg: float, slack: float,
-                   bumped: bool = False) -> list[Candidate]:
+                   bumped: bool = False, guided: bool = True) -> list[Candidate]:
         """Like :meth:`plan_from`, every goal arrival within ``slack`` of the cheapest
         (one per settled state whose flight reaches the goal, distinct angle sequences
         only), cheapest first. ``bumped``: the robot is at a contact, the first flight is 0.
+        With ``config.guided`` (and ``guided``) the search is guided by the cost to go
+        (§22) and its plans need not be the cheapest.
         """
         if self.cfg.reference:
             plans = search_reference(self, x, y, heading_deg, slack, bumped)
         else:
-            plans = search(self, x, y, heading_deg, slack, bumped, self.guide)
+            plans = search(self, x, y, heading_deg, slack, bumped,
+                           self.guide if guided else None)
         return [Candidate(*plan) for plan in plans]
 
     # ------------------------------------------------------------------ scoring
@@ -323,6 +326,13 @@ class FeedbackNavigator:
             for cand in self.plans_from(x, y, th - shift, cfg.slack, bumped)[:cfg.per_pose]:
                 if cand.angles not in plans or cand.cost < plans[cand.angles].cost:
                     plans[cand.angles] = cand
+        if not plans and not keep and self.guide is not None:
+            # the guided searches found nothing and there is no plan to go on with: the full
+            # search from the heaviest particle (rare; the start of a hard run)
+            x, y, th = float(pos[0, 0]), float(pos[0, 1]), float(head[0])
+            for cand in self.plans_from(x, y, th - shift, cfg.slack, bumped,
+                                        guided=False)[:cfg.per_pose]:
+                plans[cand.angles] = cand
         if keep and tuple(keep) not in plans:
             plans[tuple(keep)] = Candidate(tuple(keep), (), float("nan"), math.inf)
         if not plans:
