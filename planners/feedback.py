@@ -326,9 +326,10 @@ class FeedbackNavigator:
             for cand in self.plans_from(x, y, th - shift, cfg.slack, bumped)[:cfg.per_pose]:
                 if cand.angles not in plans or cand.cost < plans[cand.angles].cost:
                     plans[cand.angles] = cand
-        if not plans and not keep and self.guide is not None:
-            # the guided searches found nothing and there is no plan to go on with: the full
-            # search from the heaviest particle (rare; the start of a hard run)
+        if not plans and not bumped and self.guide is not None:
+            # at the start (before the robot moves) the guided searches found nothing: the
+            # full search from the heaviest particle (a hard start; after a bump, the rest of
+            # the plan found here stays a candidate)
             x, y, th = float(pos[0, 0]), float(pos[0, 1]), float(head[0])
             for cand in self.plans_from(x, y, th - shift, cfg.slack, bumped,
                                         guided=False)[:cfg.per_pose]:

@@ -176,7 +176,8 @@ def test_guided_plans_are_exact_plans_that_reach_the_goal():
         route = exact.plan(s, g) if s != g else None
         if route is None:
             continue
-        cand = FeedbackNavigator(cells, ANGLES, g).plan_from(*cells.pose(s))
+        cfg = FeedbackConfig(guided=True)
+        cand = FeedbackNavigator(cells, ANGLES, g, cfg).plan_from(*cells.pose(s))
         assert cand is not None
         assert cand.cost >= route.cost - 1e-6
         plan = Plan.exact(cand.angles, cand.flights, cand.final_m, cells.h)
