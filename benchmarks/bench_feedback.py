@@ -10,10 +10,9 @@ For each σ, ``--pairs`` seeded feedback runs in the kinematic twin with Gaussia
 
 - ``reference``: ``FeedbackConfig(reference=True)``, the plain search (every cast over every
   wall) and one plan scored after another: the rule and the code before the speed-up;
-- ``fast``: the default ``FeedbackConfig()``, the same rule on the fast search and the
+- ``fast``: ``FeedbackConfig(guided=False)``, the same rule on the fast search and the
   batched scoring (the same decisions as ``reference``: the table says how many runs differ);
-- ``guided``: ``FeedbackConfig(guided=True)``, the search guided by the cost to go (§22, off
-  by default).
+- ``guided``: ``FeedbackConfig(guided=True)``, the search guided by the cost to go (§22).
 
 Printed per σ and rule: decisions, runs that reached the goal, and the decision time per bump
 in CPU time of this process (filter update, planning, scoring, final drive): median, 95th
@@ -40,7 +39,7 @@ from planners.feedback import FeedbackConfig, FeedbackNavigator
 
 TARGET_MS = 50.0
 ANGLES = (45.0, 90.0, 135.0)
-RULES = {"reference": FeedbackConfig(reference=True), "fast": FeedbackConfig(),
+RULES = {"reference": FeedbackConfig(reference=True), "fast": FeedbackConfig(guided=False),
          "guided": FeedbackConfig(guided=True)}
 
 
