@@ -24,7 +24,9 @@ the loop that drives a robot is :func:`bouncesim.navigate.navigate_feedback`.
   success under the belief (the belief's particles pushed through the plan's turns and
   flights with the declared noise, then the best final drive); the best score wins and its
   first angle is turned. The final drive is the length that puts the most belief mass in the
-  goal cell (:func:`final_drive`).
+  goal cell (:func:`final_drive`). The search itself lives in :mod:`planners.feedback_search`
+  (a fast one, the plain reference it is checked against, and the guided one, off by
+  default).
 
 Examples
 --------

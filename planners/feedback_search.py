@@ -5,18 +5,22 @@ Two implementations of the same search, with the same states, the same order of
 expansion and the same floating-point arithmetic, so they return the same plans:
 
 - :func:`search`, the one the navigator uses. Per search it tabulates each heading's
-  direction terms against every wall side; per expanded state it casts the flight in one
-  pass over the walls and, in that pass, keeps the walls within ``r + 4·BUMP_RANGE`` of the
-  pose: only those can stop a flight within ``BUMP_RANGE``, so the knife-edge guard's two
-  casts (heading ± g) run over them alone. A flight at the goal's heading is cut into
-  chords (the numpy :func:`~planners.exact_chords.chords`) only when it meets the goal cell
-  shrunk by half the minimum depth (no arrival is possible otherwise).
+  direction terms against every wall side and sorts the walls into strips across each
+  heading; per expanded state it casts the flight in one pass over the walls of its strip
+  and, in that pass, keeps the walls within ``r + 4·BUMP_RANGE`` of the pose: only those
+  can stop a flight within ``BUMP_RANGE``, so the knife-edge guard's two casts (heading
+  ± g) run over them alone. What a pose and heading lead to is computed once per search. A
+  flight at the goal's heading is cut into chords (the numpy
+  :func:`~planners.exact_chords.chords`) only when it meets the goal cell shrunk by half the
+  minimum depth (no arrival is possible otherwise).
 - :func:`search_reference`, the straightforward one (every cast over every wall, chords
   whenever the flight's bounding box meets the goal cell): the tests and
   ``benchmarks/bench_feedback.py`` check :func:`search` against it.
 
 Both return ``(angles, flights, final_m, cost)`` tuples, cheapest first, which
-:class:`planners.feedback.FeedbackNavigator` turns into candidates.
+:class:`planners.feedback.FeedbackNavigator` turns into candidates. :func:`search` with a
+``guide`` (:func:`cost_to_go`) is the guided search of §22, a different rule (off by
+default): it returns plans that need not be the cheapest.
 """
 
 from __future__ import annotations
