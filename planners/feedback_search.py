@@ -33,7 +33,14 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
-from envs.motion import APPROACH_MIN, BUMP_RANGE, GRAZE_TOL, drive_distance, unit
+from envs.motion import (
+    APPROACH_MIN,
+    BUMP_RANGE,
+    GRAZE_TOL,
+    _cast_scalar,
+    drive_distance,
+    unit,
+)
 
 from .exact_chords import chords
 
@@ -159,39 +166,6 @@ class ScalarWalls:
                 best = t
         return best, ns, nv
 
-    def cast_some(self, x: float, y: float, ux: float, uy: float, sides, verts) -> float:
-        """The contact distance [m] along (ux, uy) over the given sides and corners only."""
-        r = self.r
-        best = math.inf
-        for ax, ay, ex, ey, L in sides:
-            rx = x - ax
-            ry = y - ay
-            s0 = ry * ex - rx * ey
-            un = uy * ex - ux * ey
-            a = -un if s0 >= 0 else un
-            if not a > APPROACH_MIN:
-                continue
-            t = (abs(s0) - r) / a
-            if t < 0.0:
-                t = 0.0
-            if t < best and 0.0 <= rx * ex + ry * ey + t * (ux * ex + uy * ey) <= L:
-                best = t
-        for vx0, vy0 in verts:
-            vx = x - vx0
-            vy = y - vy0
-            b = vx * ux + vy * uy
-            if not b < 0.0:
-                continue
-            disc = self.r2 - (vx * vx + vy * vy - b * b)
-            if not disc > self.graze:
-                continue
-            t = -b - math.sqrt(disc)
-            if t < 0.0:
-                t = 0.0
-            if t < best:
-                best = t
-        return best
-
 
 def _meets(px, py, ux, uy, D, x0, y0, x1, y1) -> bool:
     """Whether the segment from (px, py) along (ux, uy) for D [m] meets the box (slab test,
@@ -256,7 +230,11 @@ def search(fnav, x: float, y: float, heading_deg: float, slack: float,
     walls = fnav.walls
     dirs = walls.directions(units)
     near_walls = walls.bands(units, dirs, STRIP_M)
-    cast_near, cast_some = walls.cast_near, walls.cast_some
+    cast_near = walls.cast_near
+    r, r2, graze = walls.r, walls.r2, walls.graze
+
+    def cast_some(px, py, ux, uy, sides, verts):      # the motion layer's scalar cast
+        return _cast_scalar(sides, verts, r, r2, graze, px, py, ux, uy)
     w1, w2 = nav.w1, nav.w2
     first_bump = w1 if m == 1 else min(w1, w2)
     steps = nav._steps.tolist()
