@@ -1,14 +1,25 @@
-"""Feedback navigation's decision time per bump (docs/model.md §22), beside one cold exact
-query (the open-loop planner, §15) measured in the same run.
+"""Feedback navigation's decision time per bump under turn noise (docs/model.md §22): the
+decision rule as it was (the reference search and scoring), the same rule on the fast search,
+and the guided search, run on the same pairs and seeds in one process.
 
-    python -m benchmarks.bench_feedback [--env lab] [--sigma 2] [--pairs 10] [--seed 0]
+    python -m benchmarks.bench_feedback [--env lab] [--sigmas 0,2,5] [--pairs 10] [--seed 0]
+                                        [--rules reference,fast,guided]
 
-Runs ``--pairs`` seeded feedback runs in the kinematic twin with Gaussian turn noise σ and
-prints the decision time per bump (filter update, planning from the belief, scoring, the
-final drive) in CPU time of this process and in wall time: median, 95th percentile and
-maximum, against the 50 ms target, and one cold ``ExactNavigator.plan`` query from each
-run's start (mean CPU time). CPU time is shown because on a shared machine wall time is
-mostly waiting.
+For each σ, ``--pairs`` seeded feedback runs in the kinematic twin with Gaussian turn noise σ
+(the filter told σ) per rule:
+
+- ``reference``: ``FeedbackConfig(reference=True)``, the plain search (every cast over every
+  wall) and one plan scored after another: the rule and the code before the speed-up;
+- ``fast``: ``FeedbackConfig(guided=False)``, the same rule on the fast search and the
+  batched scoring (the same decisions as ``reference``: the table says how many runs differ);
+- ``guided``: ``FeedbackConfig(guided=True)``, the search guided by the cost to go (§22).
+
+Printed per σ and rule: decisions, runs that reached the goal, and the decision time per bump
+in CPU time of this process (filter update, planning, scoring, final drive): median, 95th
+percentile and maximum, and the share within the 50 ms target; then the one-time set-up of a
+navigator (contact bins and, for ``guided``, the cost to go) and one cold exact query
+(``ExactNavigator.plan``, the open-loop planner) for scale. CPU time, because on a shared
+machine wall time is mostly waiting; compare rules within one run.
 """
 
 from __future__ import annotations
@@ -24,19 +35,33 @@ from bouncesim.robots.kinematic import KinematicRobot
 from bouncesim.robots.noise import GaussianNoise
 from planners.cells import CellSpace
 from planners.exact import ExactNavigator
+from planners.feedback import FeedbackConfig, FeedbackNavigator
 
 TARGET_MS = 50.0
 ANGLES = (45.0, 90.0, 135.0)
+RULES = {"reference": FeedbackConfig(reference=True), "fast": FeedbackConfig(guided=False),
+         "guided": FeedbackConfig(guided=True)}
+
+
+def _floats(text: str) -> tuple:
+    return tuple(float(v) for v in text.split(",") if v.strip())
 
 
 def main(argv=None) -> None:
     """Run the benchmark and print the table."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--env", default="lab")
-    ap.add_argument("--sigma", type=float, default=2.0, help="Gaussian turn noise [deg]")
+    ap.add_argument("--sigmas", type=_floats, default=(0.0, 2.0, 5.0),
+                    help="Gaussian turn noise levels [deg], comma-separated")
     ap.add_argument("--pairs", type=int, default=10)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--rules", default=",".join(RULES),
+                    help="decision rules to time, comma-separated: " + ", ".join(RULES))
     args = ap.parse_args(argv)
+    rules = [r.strip() for r in args.rules.split(",") if r.strip()]
+    unknown = [r for r in rules if r not in RULES]
+    if unknown:
+        ap.error(f"unknown rule {unknown[0]!r}; choose from {', '.join(RULES)}")
     env = envs.load(args.env)
     cells = CellSpace(env)
     rng = np.random.default_rng(args.seed)
@@ -45,28 +70,45 @@ def main(argv=None) -> None:
         s, g = (int(v) for v in rng.integers(0, cells.N, 2))
         if s != g and ExactNavigator(cells, ANGLES).plan(s, g) is not None:
             pairs.append((s, g))
-    noise = GaussianNoise(args.sigma)
-    cpu, wall, query, ok = [], [], [], 0
-    for i, (s, g) in enumerate(pairs):
+    print(f"{args.env}, {len(pairs)} pairs, CPU time per decision [ms]")
+    print(f"{'σ':>4s} {'rule':10s}{'decisions':>10s}{'reached':>9s}{'median':>8s}{'p95':>8s}"
+          f"{'max':>8s}{'<= 50 ms':>10s}  same as reference")
+    for sigma in args.sigmas:
+        noise = GaussianNoise(sigma)
+        done = {}
+        for rule in rules:
+            cpu, ok, runs = [], 0, []
+            for i, (s, g) in enumerate(pairs):
+                run = navigate_feedback(KinematicRobot(env, noise, i), env, s, g, noise,
+                                        np.random.default_rng([args.seed, i]), angles=ANGLES,
+                                        cells=cells, config=RULES[rule])
+                cpu += list(run.decision_cpu_ms)
+                ok += bool(run.success)
+                runs.append((run.plan.exact_text(), run.final_pose))
+            done[rule] = runs
+            v = np.asarray(cpu)
+            same = ""
+            if rule != "reference" and "reference" in done:
+                diff = sum(a != b for a, b in zip(runs, done["reference"]))
+                same = f"{len(runs) - diff}/{len(runs)} runs"
+            print(f"{sigma:4g} {rule:10s}{len(v):10d}{ok:9d}{np.median(v):8.1f}"
+                  f"{np.percentile(v, 95):8.1f}{v.max():8.1f}{np.mean(v <= TARGET_MS):10.1%}"
+                  f"  {same}")
+    setup = {}
+    for rule in rules:
+        c0 = time.process_time()
+        for _, g in pairs[:3]:
+            FeedbackNavigator(cells, ANGLES, g, RULES[rule])
+        setup[rule] = 1e3 * (time.process_time() - c0) / min(3, len(pairs))
+    query = []
+    for s, g in pairs:
         c0 = time.process_time()
         ExactNavigator(cells, ANGLES).plan(s, g)          # cold: a fresh navigator
         query.append(1e3 * (time.process_time() - c0))
-        run = navigate_feedback(KinematicRobot(env, noise, i), env, s, g, noise,
-                                np.random.default_rng([args.seed, i]), angles=ANGLES,
-                                cells=cells)
-        cpu += list(run.decision_cpu_ms)
-        wall += list(run.decision_ms)
-        ok += bool(run.success)
-    cpu, wall = np.asarray(cpu), np.asarray(wall)
-    print(f"{args.env}, σ = {args.sigma:g}°, {len(pairs)} runs ({ok} reached the goal), "
-          f"{len(cpu)} decisions")
-    print(f"{'':32s}{'median':>9s}{'p95':>9s}{'max':>9s}")
-    for name, v in (("decision per bump, CPU [ms]", cpu), ("decision per bump, wall [ms]", wall)):
-        print(f"{name:32s}{np.median(v):9.1f}{np.percentile(v, 95):9.1f}{v.max():9.1f}")
-    print(f"{'one cold exact query, CPU [ms]':32s}{np.median(query):9.1f}"
-          f"{np.percentile(query, 95):9.1f}{max(query):9.1f}")
-    share = float(np.mean(cpu <= TARGET_MS))
-    print(f"decisions within the {TARGET_MS:g} ms target (CPU): {share:.1%}")
+    print("navigator set-up per goal (before the robot moves), CPU [ms]: " +
+          ", ".join(f"{r} {t:.0f}" for r, t in setup.items()))
+    print(f"one cold exact query, CPU [ms]: median {np.median(query):.1f}, "
+          f"max {max(query):.1f}")
 
 
 if __name__ == "__main__":

@@ -24,7 +24,9 @@ the loop that drives a robot is :func:`bouncesim.navigate.navigate_feedback`.
   success under the belief (the belief's particles pushed through the plan's turns and
   flights with the declared noise, then the best final drive); the best score wins and its
   first angle is turned. The final drive is the length that puts the most belief mass in the
-  goal cell (:func:`final_drive`).
+  goal cell (:func:`final_drive`). The search itself lives in :mod:`planners.feedback_search`
+  (a fast one, the plain reference it is checked against, and the guided one, off by
+  default).
 
 Examples
 --------
@@ -46,16 +48,15 @@ to the right of the heading: the right switch only):
 
 from __future__ import annotations
 
-import heapq
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from envs.motion import BUMP_RANGE, drive_distance, unit
+from envs.motion import unit
 
 from .cells import CellSpace
-from .exact import ExactNavigator, chords
+from .exact import ExactNavigator
 from .feedback_filter import (
     SIDES,
     FeedbackConfig,
@@ -64,11 +65,11 @@ from .feedback_filter import (
     flights,
     side_of,
 )
+from .feedback_search import ScalarWalls, cost_to_go, search, search_reference
 
 __all__ = ["FeedbackConfig", "FlightUpdate", "ParticleFilter", "Candidate", "FeedbackNavigator",
            "goal_intervals", "final_drive", "side_of", "SIDES"]
 
-_MAX_SETTLED = 3000      # a plan search from one pose gives up after this many states
 _MAX_FINAL_CANDIDATES = 128   # final drive lengths tried
 
 
@@ -201,6 +202,9 @@ class FeedbackNavigator:
         self.box = (float(lo[0]), float(lo[1]), float(lo[0] + cells.h), float(lo[1] + cells.h))
         self.goal_heading = self.gk * cells.delta_deg
         _ = self.nav._scalar_boundary           # build the contact bins now, not at a bump
+        self.walls = ScalarWalls(self.nav.caster)
+        self.guide = cost_to_go(self).tolist() if self.cfg.guided and not self.cfg.reference \
+            else None
 
     # ------------------------------------------------------------------ planning
     def plan_from(self, x: float, y: float, heading_deg: float) -> Candidate | None:
@@ -217,82 +221,19 @@ class FeedbackNavigator:
         return plans[0] if plans else None
 
     def plans_from(self, x: float, y: float, heading_deg: float, slack: float,
-                   bumped: bool = False) -> list[Candidate]:
+                   bumped: bool = False, guided: bool = True) -> list[Candidate]:
         """Like :meth:`plan_from`, every goal arrival within ``slack`` of the cheapest
         (one per settled state whose flight reaches the goal, distinct angle sequences
         only), cheapest first. ``bumped``: the robot is at a contact, the first flight is 0.
+        With ``config.guided`` (and ``guided``) the search is guided by the cost to go
+        (§22) and its plans need not be the cheapest.
         """
-        cs, nav = self.cells, self.nav
-        K, m, h, dlt = cs.K, nav.m, cs.h, cs.delta_deg
-        k0 = int(round(heading_deg / dlt))
-        eps = float(heading_deg) - k0 * dlt
-        k0 %= K
-        units = [tuple(float(v) for v in u) for u in unit(np.arange(K) * dlt + eps)]
-        guard = self.cfg.edge_guard * self.cfg.turn_spread_deg
-        plus = [tuple(float(v) for v in u) for u in unit(np.arange(K) * dlt + eps + guard)]
-        minus = [tuple(float(v) for v in u) for u in unit(np.arange(K) * dlt + eps - guard)]
-        w1, w2 = nav.w1, nav.w2
-        first_bump = w1 if m == 1 else min(w1, w2)
-        steps = nav._steps.tolist()
-        gx0, gy0, gx1, gy1 = self.box
-        gk, gp = self.gk, int(cs.pk(self.goal)[0])
-        cast, bin_of = nav.caster.cast_one, nav._bin_of_scalar
-
-        def bound(px: float, py: float) -> float:
-            return w1 / h * math.hypot(max(gx0 - px, px - gx1, 0.0), max(gy0 - py, py - gy1, 0.0))
-
-        # heap: (key, order, state, cost, x, y, k, angle index, node),
-        # node = (parent node, angle, flight)
-        heap = [(0.0, 0, None, 0.0, float(x), float(y), k0, -1, None)]
-        settled, order, best, arrivals = set(), 1, math.inf, []
-        while heap and len(settled) < _MAX_SETTLED:
-            key, _, st, c, px, py, k, a, node = heapq.heappop(heap)
-            if st in settled:
-                continue
-            if key > best + slack:
-                break
-            settled.add(st)
-            ux, uy = units[k]
-            t = 0.0 if (bumped and st is None) else cast(px, py, ux, uy)
-            if math.isinf(t):
-                return []
-            D = 0.0 if t <= BUMP_RANGE else drive_distance(t)
-            if guard and st is not None and D > 1e-3 and (
-                    cast(px, py, *plus[k]) <= BUMP_RANGE or
-                    cast(px, py, *minus[k]) <= BUMP_RANGE):
-                continue                       # along a wall it touches: a knife edge
-            if k == gk and min(px, px + D * ux) <= gx1 and max(px, px + D * ux) >= gx0 and \
-                    min(py, py + D * uy) <= gy1 and max(py, py + D * uy) >= gy0:
-                _, p, tt, depth = chords(cs, [[px, py]], [[ux, uy]], [D])
-                for pi, ti, di in zip(p.tolist(), tt.tolist(), depth.tolist()):
-                    if pi == gp and di >= nav.min_depth:
-                        arrivals.append((c + w1 * ti / h, len(arrivals), node, ti))
-                        best = min(best, c + w1 * ti / h)
-            lx, ly = px + D * ux, py + D * uy
-            lb = bin_of(lx, ly)
-            hb = bound(lx, ly)
-            for b in range(m):
-                k2 = (k + steps[b]) % K
-                tgt = (lb, k2, b)
-                if tgt in settled:
-                    continue
-                c2 = c + w1 * D / h + (first_bump if a < 0 else (w1 if a == b else w2))
-                heapq.heappush(heap, (c2 + hb, order, tgt, c2, lx, ly, k2, b,
-                                      (node, nav.angles[b], D)))
-                order += 1
-        out: dict = {}
-        for cost, _, node, final in sorted(arrivals):
-            if cost > best + slack:
-                break
-            angles, flights = [], []
-            while node is not None:
-                node, ang, fl = node
-                angles.append(ang)
-                flights.append(fl)
-            key = tuple(reversed(angles))
-            if key not in out:
-                out[key] = Candidate(key, tuple(reversed(flights)), float(final), cost)
-        return list(out.values())
+        if self.cfg.reference:
+            plans = search_reference(self, x, y, heading_deg, slack, bumped)
+        else:
+            plans = search(self, x, y, heading_deg, slack, bumped,
+                           self.guide if guided else None)
+        return [Candidate(*plan) for plan in plans]
 
     # ------------------------------------------------------------------ scoring
     def score(self, pos, heading, angles, rng: np.random.Generator,
@@ -310,6 +251,38 @@ class FeedbackNavigator:
                 pos = pos + D[:, None] * u
             head = head + a + (rng.normal(0.0, s, len(head)) if s > 0 else 0.0)
         return self.final(pos, head, np.full(len(head), 1.0 / len(head)))[1]
+
+    def scores(self, pos, heading, plans, rng: np.random.Generator,
+               bumped: bool = False) -> list[float]:
+        """:meth:`score` of every angle sequence of ``plans`` in turn, computed together:
+        the noise is drawn in the same order and every flight is cast for all plans at once,
+        so the numbers are the same as one :meth:`score` after another.
+        """
+        if self.cfg.reference or not plans:
+            return [self.score(pos, heading, a, rng, bumped) for a in plans]
+        pos0, head0 = np.array(pos, dtype=float), np.array(heading, dtype=float)
+        n, lens = len(head0), np.array([len(a) for a in plans])
+        s = self.cfg.turn_spread_deg
+        noise = np.zeros((len(plans), int(lens.max()), n))
+        if s > 0:
+            for c, a in enumerate(plans):
+                noise[c, :len(a)] = rng.normal(0.0, s, (len(a), n))
+        pos = np.repeat(pos0[None], len(plans), axis=0)              # (C, n, 2)
+        head = np.repeat(head0[None], len(plans), axis=0)            # (C, n)
+        caster = self.nav.caster
+        for j in range(int(lens.max())):
+            act = np.flatnonzero(lens > j)
+            if not (bumped and j == 0):
+                p, th = pos[act].reshape(-1, 2), head[act].reshape(-1)
+                D, u, _ = flights(caster, p, th, bearings=False)
+                pos[act] = (p + D[:, None] * u).reshape(len(act), n, 2)
+            turn = np.array([plans[c][j] for c in act], dtype=float)[:, None]
+            head[act] = head[act] + turn + noise[act, j] if s > 0 else head[act] + turn
+        D, _, _ = flights(caster, pos.reshape(-1, 2), head.reshape(-1), bearings=False)
+        D, w = D.reshape(len(plans), n), np.full(n, 1.0 / n)
+        return [final_drive(pos[c], head[c], D[c], w, self.box, self.goal_heading,
+                            self.cells.delta_deg, self.cfg.margin_m)[1]
+                for c in range(len(plans))]
 
     def final(self, pos, heading, w) -> tuple[float, float]:
         """(drive [m], belief mass in the goal cell) of the best final drive on the current
@@ -335,7 +308,8 @@ class FeedbackNavigator:
         from reaches the goal). Planned from the heaviest particle and ``votes`` − 1 drawn by
         weight (distinct poses only); ``keep``, the rest of the previous choice's angles, is
         a candidate too (cost +inf: it loses ties). Each distinct angle sequence is scored by
-        :meth:`score` on ``eval_particles`` drawn from the belief. Ties keep the cheaper plan.
+        :meth:`score` on ``eval_particles`` drawn from the belief (all at once,
+        :meth:`scores`). Ties keep the cheaper plan.
         ``bumped``: the robot is at a contact (plans start with a turn); ``shift`` [deg]: the
         next turn is commanded ``shift`` short of its angle (heading correction, §22), so
         plans and scores see every heading less ``shift``.
@@ -354,13 +328,22 @@ class FeedbackNavigator:
             for cand in self.plans_from(x, y, th - shift, cfg.slack, bumped)[:cfg.per_pose]:
                 if cand.angles not in plans or cand.cost < plans[cand.angles].cost:
                     plans[cand.angles] = cand
+        if not plans and not bumped and self.guide is not None:
+            # at the start (before the robot moves) the guided searches found nothing: the
+            # full search from the heaviest particle (a hard start; after a bump, the rest of
+            # the plan found here stays a candidate)
+            x, y, th = float(pos[0, 0]), float(pos[0, 1]), float(head[0])
+            for cand in self.plans_from(x, y, th - shift, cfg.slack, bumped,
+                                        guided=False)[:cfg.per_pose]:
+                plans[cand.angles] = cand
         if keep and tuple(keep) not in plans:
             plans[tuple(keep)] = Candidate(tuple(keep), (), float("nan"), math.inf)
         if not plans:
             return []
         epos, ehead = belief.sample(cfg.eval_particles)
-        scored = [Candidate(c.angles, c.flights, c.final_m, c.cost,
-                            self.score(epos, ehead - shift, c.angles, rng, bumped))
-                  for c in plans.values()]
+        cands = list(plans.values())
+        p = self.scores(epos, ehead - shift, [c.angles for c in cands], rng, bumped)
+        scored = [Candidate(c.angles, c.flights, c.final_m, c.cost, ps)
+                  for c, ps in zip(cands, p)]
         scored.sort(key=lambda c: (-round(c.p_success, 9), c.cost))
         return scored

@@ -52,6 +52,10 @@ class FeedbackConfig:
                                many turn spreads (knife edges along a touched wall; 0: off)
     correct_heading : bool     extension, off by default: command each turn as its angle
                                less the belief's mean heading offset from the Δ grid
+    guided : bool              off by default: searches from a pose are guided by the cost
+                               to go of the contact-state graph (§22), not by §15's bound
+    reference : bool           the straightforward search (unguided) and scoring instead of
+                               the fast ones (for benchmarks and tests)
     """
 
     particles: int = 300
@@ -72,6 +76,8 @@ class FeedbackConfig:
     margin_m: float = 0.02
     edge_guard: float = 2.0
     correct_heading: bool = False
+    guided: bool = False
+    reference: bool = False
 
     def __post_init__(self) -> None:
         for name in ("particles", "votes", "per_pose", "eval_particles"):

@@ -29,6 +29,7 @@ from planners.feedback import (
     final_drive,
     goal_intervals,
 )
+from planners.plan import Plan
 
 from .alarm import alarm
 
@@ -101,10 +102,87 @@ def test_plan_from_a_configuration_is_the_exact_planners_plan():
         route = exact.plan(s, g) if s != g else None
         if route is None:
             continue
-        cand = FeedbackNavigator(cells, ANGLES, g).plan_from(*cells.pose(s))
+        cfg = FeedbackConfig(guided=False)
+        cand = FeedbackNavigator(cells, ANGLES, g, cfg).plan_from(*cells.pose(s))
         assert cand is not None
         assert cand.cost == pytest.approx(route.cost, abs=1e-6)
         assert len(cand.angles) == route.plan.bumps
+        checked += 1
+
+
+def _random_poses(env, rng, n):
+    """Free poses (x, y, heading), n of them, each with whether the robot stands at a
+    contact (half of them are flown to their first contact).
+    """
+    from envs.motion import casters
+    caster = casters(env)[0]
+    x0, y0, x1, y1 = env.bounds
+    pts = rng.uniform([x0, y0], [x1, y1], (20 * n, 2))
+    pts = pts[env.points_free(pts)][:n]
+    head = rng.uniform(0, 360, len(pts))
+    at = rng.random(len(pts)) < 0.5
+    u = np.column_stack([np.cos(np.radians(head)), np.sin(np.radians(head))])
+    t = caster.cast(pts, u)
+    pts[at] += np.maximum(t[at] - 1e-9, 0)[:, None] * u[at]
+    return [(float(x), float(y), float(th), bool(b)) for (x, y), th, b in zip(pts, head, at)]
+
+
+@pytest.mark.parametrize("env,sigma", [(ROOM, 0.0), (ROOM, 3.0), ("lab", 2.0)])
+def test_fast_search_gives_the_plain_searchs_plans_on_random_poses(env, sigma):
+    # the one-pass casts over nearby walls, the guard on touching walls only and the memo of
+    # flights must not change the search: the same plans, flights and costs to the bit as
+    # the plain search (every cast over every wall) from random poses, at contacts or not
+    from planners.feedback_search import search, search_reference
+    env = envs.load(env) if isinstance(env, str) else env
+    cells = CellSpace(env)
+    rng = np.random.default_rng(21)
+    cfg = FeedbackConfig(turn_sigma_deg=sigma, guided=False)
+    found = 0
+    for goal in rng.integers(0, cells.N, 2):
+        nav = FeedbackNavigator(cells, ANGLES, int(goal), cfg)
+        for x, y, th, bumped in _random_poses(env, rng, 10):
+            fast = search(nav, x, y, th, 0.0, bumped)
+            assert fast == search_reference(nav, x, y, th, 0.0, bumped)
+            found += bool(fast)
+    assert found >= 8                        # most poses have a plan: not a vacuous check
+
+
+def test_plans_scored_together_score_as_one_by_one():
+    # the batched scoring draws the same noise in the same order and casts the same
+    # flights: equal to the one-plan-at-a-time reference, for plans of different lengths
+    cells = CellSpace(ROOM)
+    nav = FeedbackNavigator(cells, ANGLES, 100, FeedbackConfig(turn_sigma_deg=3.0))
+    rng = np.random.default_rng(4)
+    pos = np.array([cells.pose(int(z))[:2] for z in rng.integers(0, cells.N, 40)])
+    head = rng.uniform(0, 360, 40)
+    plans = [(90.0,), (45.0, 135.0, 90.0), (), (135.0, 135.0)]
+    for bumped in (False, True):
+        r = np.random.default_rng(9)
+        one = [nav.score(pos, head, p, r, bumped) for p in plans]
+        together = nav.scores(pos, head, plans, np.random.default_rng(9), bumped)
+        assert together == one
+    assert max(one) > 0                      # some plan puts particles in the goal cell
+
+
+def test_guided_plans_are_exact_plans_that_reach_the_goal():
+    # the guided search (§22) returns plans no cheaper than §15's optimum (the exact
+    # planner, an independent search) that the noise-free twin flies into the goal cell
+    cells = CellSpace(ROOM)
+    exact = ExactNavigator(cells, ANGLES)
+    rng = np.random.default_rng(8)
+    checked = 0
+    while checked < 10:
+        s, g = (int(v) for v in rng.integers(0, cells.N, 2))
+        route = exact.plan(s, g) if s != g else None
+        if route is None:
+            continue
+        cfg = FeedbackConfig(guided=True)
+        cand = FeedbackNavigator(cells, ANGLES, g, cfg).plan_from(*cells.pose(s))
+        assert cand is not None
+        assert cand.cost >= route.cost - 1e-6
+        plan = Plan.exact(cand.angles, cand.flights, cand.final_m, cells.h)
+        run = execute(plan, KinematicRobot(ROOM), start=s, goal=g, cells=cells)
+        assert run.success, run.reason
         checked += 1
 
 
