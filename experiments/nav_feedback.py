@@ -56,6 +56,8 @@ class Config:
     maps : tuple of str    catalogue names or 'randomN' (random polygon room N)
     particles : int        particles of the filter
     corrected : bool       also run feedback with heading correction (§22's extension)
+    guided : bool          the guided plan search of §22 (off by default, as in
+                           :class:`planners.feedback.FeedbackConfig`)
     quick : bool           recorded; ``main`` turns it into a small budget
     seed : int             root seed (rooms, pairs, noise, filter)
     out : Path             output folder
@@ -66,6 +68,7 @@ class Config:
     maps: tuple = ("lab", "random1")
     particles: int = FeedbackConfig.particles
     corrected: bool = True
+    guided: bool = False
     quick: bool = False
     seed: int = 0
     out: Path = Path("results") / "nav_feedback"
@@ -82,6 +85,11 @@ def _pairs(exact: ExactNavigator, n: int, rng: np.random.Generator) -> list[tupl
     return out
 
 
+def feedback_config(config: Config) -> FeedbackConfig:
+    """The feedback navigator's settings of a run."""
+    return FeedbackConfig(particles=config.particles, guided=config.guided)
+
+
 def run_map(name: str, config: Config) -> tuple[pd.DataFrame, pd.DataFrame]:
     """(runs, decisions) of one map: every pair × σ × {feedback, exact}."""
     env = map_named(name, config.seed)
@@ -89,7 +97,7 @@ def run_map(name: str, config: Config) -> tuple[pd.DataFrame, pd.DataFrame]:
     exact = ExactNavigator(cells, ANGLES, W1, W2)
     rng = np.random.default_rng(np.random.SeedSequence([config.seed, 3, len(name)]))
     pairs = _pairs(exact, config.pairs, rng)
-    fcfg = FeedbackConfig(particles=config.particles)
+    fcfg = feedback_config(config)
     planners = ("feedback", "feedback_corrected", "exact") if config.corrected else \
         ("feedback", "exact")
     rows, decisions = [], []
@@ -181,7 +189,7 @@ def run(config: Config) -> Path:
                        "quick": config.quick, "pairs_per_map": config.pairs,
                        "sigmas": list(config.sigmas), "maps": list(config.maps),
                        "angles": list(ANGLES), "w1": W1, "w2": W2,
-                       "feedback": FeedbackConfig(particles=config.particles).__dict__,
+                       "feedback": feedback_config(config).__dict__,
                        "robot": "kinematic twin, front-half bumper, Gaussian turn noise, "
                        "0.2 m/s",
                        "pair_sampling": "uniform over ordered pairs (start != goal) with an "
@@ -204,11 +212,13 @@ def main(argv=None) -> int:
     p.add_argument("--pairs", type=int, default=None,
                    help="pairs per map (default 60; 4 with --quick)")
     p.add_argument("--maps", default=",".join(Config.maps), help="maps: names or randomN")
+    p.add_argument("--guided", action="store_true",
+                   help="the guided plan search (docs/model.md section 22; off by default)")
     args = p.parse_args(argv)
     pairs = args.pairs if args.pairs is not None else (4 if args.quick else Config.pairs)
     return run_main("nav_feedback", lambda: Config(
-        pairs=pairs, maps=name_list(args.maps), quick=args.quick, seed=args.seed,
-        out=args.out), run)
+        pairs=pairs, maps=name_list(args.maps), guided=args.guided, quick=args.quick,
+        seed=args.seed, out=args.out), run)
 
 
 if __name__ == "__main__":
