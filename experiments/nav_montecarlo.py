@@ -2,7 +2,7 @@
 
     python -m experiments.nav_montecarlo [--quick] [--seed 0] [--out results/nav_montecarlo]
         [--planners step,exact] [--maps lab,fig1,...] [--pairs N] [--reps N]
-        [--pybullet-pairs N] [--workers N | --dask-local N | --dask ADDRESS]
+        [--sigmas 0,2,5] [--pybullet-pairs N] [--workers N | --dask-local N | --dask ADDRESS]
         [--restart] [--plot-only]
 
 Maps (:func:`world`): the catalogue (``lab``, ``fig1``, ``complex``, ``studio``), random
@@ -432,6 +432,9 @@ def run(config: Config) -> Path:
     for key in ("pairs", "reps"):
         if getattr(config, key) < 1:
             raise envs.UserError(f"--{key} must be at least 1, got {getattr(config, key)}.")
+    if not config.sigmas or not all(np.isfinite(v) and v >= 0 for v in config.sigmas):
+        raise envs.UserError(f"--sigmas must be non-negative numbers [deg], got "
+                             f"{', '.join(f'{v:g}' for v in config.sigmas) or '(none)'}.")
     unknown = [p for p in config.planners if p not in PLANNERS]
     if unknown or not config.planners:
         raise envs.UserError(f"unknown planner {', '.join(unknown) or '(none)'}; choose from "
@@ -508,6 +511,10 @@ def main(argv=None) -> int:
     p.add_argument("--reps", type=int, default=None,
                    help=f"noisy repetitions per pair, planner and level in the twin (default "
                    f"{FULL['reps']}; {QUICK['reps']} with --quick)")
+    p.add_argument("--sigmas", default=None,
+                   help="Gaussian turn noise levels σ [deg], comma-separated (default "
+                   f"{','.join(f'{v:g}' for v in FULL['sigmas'])}; "
+                   f"{','.join(f'{v:g}' for v in QUICK['sigmas'])} with --quick)")
     p.add_argument("--planners", default="step,exact",
                    help=f"planners to compare (registered: {', '.join(PLANNERS)})")
     p.add_argument("--maps", default=None, help=f"maps: {MAPS_HELP} (default {','.join(MAPS)}; "
@@ -527,6 +534,11 @@ def main(argv=None) -> int:
     for key in ("pairs", "pybullet_pairs", "reps"):
         if getattr(args, key) is not None:
             budget[key] = getattr(args, key)
+    if args.sigmas is not None:
+        try:
+            budget["sigmas"] = tuple(float(v) for v in _csv_list(args.sigmas))
+        except ValueError:
+            p.error(f"--sigmas takes comma-separated numbers [deg], got {args.sigmas!r}")
     maps = _csv_list(args.maps) if args.maps else (QUICK_MAPS if args.quick else MAPS)
     config = Config(**budget, planners=_csv_list(args.planners), maps=maps,
                     twin_glance=args.twin_glance,

@@ -207,3 +207,19 @@ def test_maps_are_seeded_and_of_the_declared_kinds():
         d = npl.world(f"poly{n}", 0).to_dict()
         assert len(d["boundary"]) in (5, 6) and len(d["obstacles"]) == 1
     assert len(npl.world("pentagon").to_dict()["boundary"]) == 5
+
+
+def test_sigmas_option_sets_the_noise_levels_and_refuses_bad_ones(tmp_path, capsys):
+    out = tmp_path / "nm"
+    base = ["--quick", "--out", str(out), "--workers", "1", "--no-progress", "--maps",
+            _tiny_room(tmp_path), "--planners", "step", "--pairs", "2", "--reps", "3"]
+    assert nm.main(base + ["--sigmas", "0,4"]) == 0
+    runs = pd.read_csv(out / "runs.csv")
+    # 2 pairs: the noise-free level once, σ = 4° three times
+    assert sorted(runs["noise"].value_counts().items()) == [("gauss:0", 2), ("gauss:4", 6)]
+    assert json.loads((out / "config.json").read_text())["gauss_sigmas_deg"] == [0.0, 4.0]
+    assert nm.main(base + ["--sigmas", "0,-1", "--restart"]) == 2
+    err = capsys.readouterr().err
+    assert "--sigmas must be non-negative" in err and err.count("\n") == 1
+    with pytest.raises(SystemExit):
+        nm.main(base + ["--sigmas", "zero"])
