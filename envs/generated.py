@@ -1,6 +1,7 @@
 """Generated maps that are not in the catalogue, shared by the benchmarks, experiments and
-tests: the slowly mixing two-room office, and random rectilinear rooms with blocks
-(:func:`random_rectilinear_room`).
+tests: the slowly mixing two-room office, random rectilinear rooms with blocks
+(:func:`random_rectilinear_room`), the pentagon room with a hexagonal pillar
+(:data:`PENTAGON`) and random regular-polygon rooms with a hole (:func:`random_polygon_room`).
 
 :func:`office` is the map of the issue that found the event model's performance cliff: a
 4.08 m × 2.72 m office (12 × 8 cells of 0.34 m) split by a partition with one door, and a
@@ -20,7 +21,8 @@ import shapely
 from . import load
 from .environment import Environment
 
-__all__ = ["MAPS", "load_map", "office", "random_rectilinear_room"]
+__all__ = ["MAPS", "PENTAGON", "load_map", "office", "random_polygon_room",
+           "random_rectilinear_room"]
 
 H = 0.34                     # [m] cell size = robot diameter
 R = 0.17                     # [m] robot radius
@@ -83,6 +85,33 @@ def random_rectilinear_room(rng: np.random.Generator, orientations: int = 360,
         "name": name, "boundary": [[0, 0], [W, 0], [W, Hh], [0, Hh]],
         "obstacles": [list(o) for o in obs], "robot_radius": R,
         "discretization": {"cell_size": H, "orientations": int(orientations)}})
+
+
+PENTAGON = {
+    "name": "pentagon", "description": "a pentagon room with a hexagonal pillar",
+    "boundary": [[2.0, 0.0], [3.902, 1.382], [3.176, 3.618], [0.824, 3.618], [0.098, 1.382]],
+    "obstacles": [[[2.4, 1.7], [2.2, 2.046], [1.8, 2.046], [1.6, 1.7], [1.8, 1.354],
+                   [2.2, 1.354]]],
+    "robot_radius": 0.17, "discretization": {"cell_size": 0.34, "orientations": 8}}
+"""A pentagon room with a hexagonal pillar (walls off the cell grid), K = 8."""
+
+
+def random_polygon_room(rng: np.random.Generator, name: str = "random",
+                        sides: tuple = (5, 9)) -> Environment:
+    """A regular n-gon room (n in range(*sides), default 5..8, radius 1.3-1.8 m, random
+    rotation) with a regular m-gon hole (m = 3..6, radius 0.25-0.4 m) near its centre;
+    r = 0.17 m, h = 0.34 m, K = 8.
+    """
+    n, R = int(rng.integers(*sides)), float(rng.uniform(1.3, 1.8))
+    t = rng.uniform(0, 2 * np.pi) + 2 * np.pi * np.arange(n) / n
+    outer = (R + R * np.column_stack([np.cos(t), np.sin(t)])).round(6)
+    m = int(rng.integers(3, 7))
+    ts = rng.uniform(0, 2 * np.pi) + 2 * np.pi * np.arange(m) / m
+    c = R + rng.uniform(-0.2, 0.2, size=2)
+    hole = (c + rng.uniform(0.25, 0.4) * np.column_stack([np.cos(ts), np.sin(ts)])).round(6)
+    return Environment.from_dict({
+        "name": name, "boundary": outer.tolist(), "obstacles": [hole.tolist()],
+        "robot_radius": 0.17, "discretization": {"cell_size": 0.34, "orientations": 8}})
 
 
 MAPS = {"office": lambda K: office(2 * R, K),

@@ -27,40 +27,17 @@ from bouncesim.plots import save_figure
 from bouncesim.robots import make_robot
 from bouncesim.runs.execute import execute
 from envs import Environment
+from envs.generated import PENTAGON, random_polygon_room
 from planners.cells import CellSpace
 from planners.exact import ExactNavigator
 from planners.navigation import Navigator
 
 from .common import experiment_parser, name_list, output_dir, run_main, write_config
 
-__all__ = ["Config", "PENTAGON", "map_named", "random_polygon_room", "run", "main"]
+__all__ = ["Config", "map_named", "run", "main"]
 
 ANGLES = (45.0, 90.0, 135.0)
 W1, W2 = 1.0, 100.0
-PENTAGON = {
-    "name": "pentagon", "description": "a pentagon room with a hexagonal pillar",
-    "boundary": [[2.0, 0.0], [3.902, 1.382], [3.176, 3.618], [0.824, 3.618], [0.098, 1.382]],
-    "obstacles": [[[2.4, 1.7], [2.2, 2.046], [1.8, 2.046], [1.6, 1.7], [1.8, 1.354],
-                   [2.2, 1.354]]],
-    "robot_radius": 0.17, "discretization": {"cell_size": 0.34, "orientations": 8}}
-
-
-def random_polygon_room(rng: np.random.Generator, name: str = "random",
-                        sides: tuple = (5, 9)) -> Environment:
-    """A regular n-gon room (n in range(*sides), default 5..8, radius 1.3-1.8 m, random
-    rotation) with a regular m-gon hole (m = 3..6, radius 0.25-0.4 m) near its centre;
-    r = 0.17 m, h = 0.34 m, K = 8.
-    """
-    n, R = int(rng.integers(*sides)), float(rng.uniform(1.3, 1.8))
-    t = rng.uniform(0, 2 * np.pi) + 2 * np.pi * np.arange(n) / n
-    outer = (R + R * np.column_stack([np.cos(t), np.sin(t)])).round(6)
-    m = int(rng.integers(3, 7))
-    ts = rng.uniform(0, 2 * np.pi) + 2 * np.pi * np.arange(m) / m
-    c = R + rng.uniform(-0.2, 0.2, size=2)
-    hole = (c + rng.uniform(0.25, 0.4) * np.column_stack([np.cos(ts), np.sin(ts)])).round(6)
-    return Environment.from_dict({
-        "name": name, "boundary": outer.tolist(), "obstacles": [hole.tolist()],
-        "robot_radius": 0.17, "discretization": {"cell_size": 0.34, "orientations": 8}})
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,7 @@
 Maps (:func:`world`): the catalogue (``lab``, ``fig1``, ``complex``, ``studio``), random
 rectilinear rooms with blocks (``rectN``: :func:`envs.generated.random_rectilinear_room`),
 the pentagon room with a hexagonal pillar (``pentagon``) and random pentagon or hexagon rooms
-with a polygonal hole (``polyN``: :func:`experiments.nav_exact.random_polygon_room`), all at
+with a polygonal hole (``polyN``: :func:`envs.generated.random_polygon_room`), all at
 h = 0.34 m, K = 8. Per map, ``pairs`` ordered (start, goal) pairs (start ≠ goal) are drawn
 uniformly without replacement from the pairs the step model reaches (Φ = {45°, 90°, 135°},
 w1 = 1, w2 = 100, docs/model.md §6). Every planner of
@@ -474,7 +474,7 @@ def run(config: Config) -> Path:
               "(start != goal) the step model reaches, numpy default_rng(SeedSequence([seed, "
               "1])), per map in order; PyBullet drives the first pybullet_pairs of them",
               "random_maps": "rectN: envs.generated.random_rectilinear_room, polyN: "
-              "experiments.nav_exact.random_polygon_room(sides=(5, 7)), each with "
+              "envs.generated.random_polygon_room(sides=(5, 7)), each with "
               "default_rng(SeedSequence([seed, 3, 0 or 1, N]))",
               "success": "final position in the goal cell and heading within ±Δ/2 "
               "(docs/model.md §8); a pair without a plan is a failure",

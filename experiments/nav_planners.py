@@ -18,7 +18,7 @@ Adding a planner is one line: ``PLANNERS["reliable"] = reliable_driver``, where
 Maps (:func:`world`): catalogue names, ``pentagon`` (a pentagon room with a hexagonal
 pillar), ``rectN`` (random rectilinear rooms, :func:`envs.generated.random_rectilinear_room`)
 and ``polyN`` (random pentagon or hexagon rooms with a polygonal hole,
-:func:`experiments.nav_exact.random_polygon_room`).
+:func:`envs.generated.random_polygon_room`).
 
 >>> import envs
 >>> import numpy as np
@@ -45,15 +45,13 @@ from bouncesim.navigate import navigate_feedback
 from bouncesim.robots.noise import parse_noise
 from bouncesim.runs.execute import execute
 from envs import Environment
-from envs.generated import random_rectilinear_room
+from envs.generated import PENTAGON, random_polygon_room, random_rectilinear_room
 from envs.motion import ContactParams
 from planners.cells import CellSpace
 from planners.exact import ExactNavigator
 from planners.navigation import Navigator
 from planners.plan import Plan
 from planners.reliable import ReliableNavigator
-
-from .nav_exact import PENTAGON, random_polygon_room
 
 __all__ = ["PLANNERS", "FeedbackDriver", "NavConfig", "NoPlan", "OpenLoopDriver", "cells_of",
            "exact_driver", "feedback_driver",

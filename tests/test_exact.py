@@ -20,8 +20,8 @@ from bouncesim.cli import main
 from bouncesim.robots import make_robot
 from bouncesim.runs.execute import execute
 from envs import Environment
+from envs.generated import PENTAGON
 from experiments import nav_exact
-from experiments.nav_exact import PENTAGON
 from planners.cells import CellSpace
 from planners.exact import ExactNavigator, chords
 from planners.plan import Plan, PlanParseError

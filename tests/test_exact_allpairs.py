@@ -12,7 +12,7 @@ import pytest
 
 import envs
 from benchmarks.bench_navigation import ref_exact_costs
-from experiments.nav_exact import random_polygon_room
+from envs.generated import random_polygon_room
 from planners.cells import CellSpace
 from planners.exact import ExactAllPairs, ExactNavigator
 from planners.exact_cast import HeadingCaster

@@ -13,8 +13,8 @@ from bouncesim.cli import main
 from bouncesim.robots.kinematic import KinematicRobot
 from bouncesim.runs.execute import execute
 from envs import Environment
+from envs.generated import random_polygon_room
 from envs.motion import PYBULLET_CONTACT, ContactParams
-from experiments.nav_exact import random_polygon_room
 from planners.cells import CellSpace
 from planners.exact import ExactNavigator
 from planners.plan import Plan

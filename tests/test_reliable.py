@@ -20,7 +20,7 @@ from bouncesim.robots.kinematic import KinematicRobot
 from bouncesim.robots.noise import GaussianNoise
 from bouncesim.runs.execute import execute
 from envs import Environment
-from experiments.nav_exact import random_polygon_room
+from envs.generated import random_polygon_room
 from planners.cells import CellSpace
 from planners.coverage.noise import TurnNoise
 from planners.exact import ExactNavigator
