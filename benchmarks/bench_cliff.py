@@ -8,13 +8,13 @@
 For every map at K = 360 (angles 30°, 75°, 315°, ε = 5°, r = 0.8): the event model's build
 CPU time, then per method the CPU time of the three chains (``time.process_time``) and the
 largest over the angles of the residual ‖πT − π‖₁, the L1 distance between the two
-methods' π, and the CPU time of the three angles' horizon coverage at T = 2000
-(docs/model.md §17); the load average is printed with every row. Methods (docs/model.md
-§10): the default (``--power-first`` damped power iterations, 3000 unless told, then
-aggregation–disaggregation from that iterate) and the aggregation alone from the uniform
-vector (the method before the power-first decision); with ``--power-max N`` also the plain
-power iteration capped at N iterations per class (the method before the aggregation; its
-result is then not converged: marked ``*``).
+methods' π, and the CPU time of the three angles' horizon coverage at T = 2000 (one
+:class:`~planners.coverage.Horizon`, docs/model.md §17); the load average is printed with
+every row. Methods (docs/model.md §10): the default (``--power-first`` damped power
+iterations, 3000 unless told, then aggregation–disaggregation from that iterate) and the
+aggregation alone from the uniform vector (the method before the power-first decision);
+with ``--power-max N`` also the plain power iteration capped at N iterations per class (the
+method before the aggregation; its result is then not converged: marked ``*``).
 Maps: the two-room office of :mod:`envs.generated` with a door one robot wide
 (``office``, a knife edge: the rooms are separate classes), 0.1 µm wider (``office-pinhole``:
 the rooms are joined by the few flights along the door's axis, a slowly mixing class), and
@@ -32,7 +32,7 @@ import numpy as np
 import planners.coverage.event as event
 from envs.generated import load_map
 from planners.cells import CellSpace
-from planners.coverage import TurnNoise, clear_cache, horizon_coverage, model_for
+from planners.coverage import Horizon, TurnNoise, clear_cache, model_for
 
 ANGLES = (30.0, 75.0, 315.0)
 NOISE = TurnNoise(5.0, 0.8)
@@ -99,8 +99,9 @@ def main(argv=None) -> int:
                 row += [f"{tp:.1f}{flag}", f"{max(rp):.1e}",
                         f"{max(float(np.abs(x - y).sum()) for x, y in zip(pd, pp)):.1e}"]
             c0 = time.process_time()
+            hz = Horizon(model)                     # one recursion for the three angles
             for a in ANGLES:
-                horizon_coverage(model, [a], HORIZON, noise=NOISE)
+                hz.coverage([a], HORIZON, noise=NOISE)
             row += [f"{time.process_time() - c0:.1f}", f"{os.getloadavg()[0]:.1f}"]
             print("| " + " | ".join(str(v) for v in row) + " |", flush=True)
     finally:
