@@ -46,15 +46,15 @@ from bouncesim.robots.noise import parse_noise
 from bouncesim.runs.execute import execute
 from envs import Environment
 from envs.generated import PENTAGON, random_polygon_room, random_rectilinear_room
-from envs.motion import ContactParams
+from envs.motion import PYBULLET_CONTACT, ContactParams
 from planners.cells import CellSpace
 from planners.exact import ExactNavigator
 from planners.navigation import Navigator
 from planners.plan import Plan
 from planners.reliable import ReliableNavigator
 
-__all__ = ["PLANNERS", "FeedbackDriver", "NavConfig", "NoPlan", "OpenLoopDriver", "cells_of",
-           "exact_driver", "feedback_driver",
+__all__ = ["PLANNERS", "PYBULLET_TURN_SIGMA", "FeedbackDriver", "NavConfig", "NoPlan",
+           "OpenLoopDriver", "cells_of", "declared_noise", "exact_driver", "feedback_driver",
            "heading_class", "plan_headings", "register", "reliable_driver", "step_driver",
            "world"]
 
@@ -75,8 +75,9 @@ class NavConfig:
                               planners ignore it, reliable and feedback planners use it
     speed : float             drive speed [m/s]
     contact : ContactParams or None
-        The executing robot's contact rule (docs/model.md §23): the exact planner plans its
-        flights under it (§15); the other planners ignore it. None: every contact bumps.
+        The executing robot's contact rule (docs/model.md §23): the exact and reliable
+        planners plan their flights under it (§15, §21); the other planners ignore it. None:
+        every contact bumps.
     """
 
     angles: tuple = (45.0, 90.0, 135.0)
@@ -163,23 +164,53 @@ def exact_driver(env, start, goal, config: NavConfig, rng: np.random.Generator):
     return _open_loop("exact", env, start, goal, config)
 
 
+PYBULLET_TURN_SIGMA = 0.3
+"""Gaussian turn noise σ [deg] the reliable planner declares at least for PyBullet's body
+(contact rule ``PYBULLET_CONTACT``): its turns land 0.1–0.7° off even noise-free, and the twin
+with that rule and σ = 0.3° predicts which exact plans fail there (a corner passed within
+millimetres, a run along a touched wall); at σ = 0 every candidate scores 1 and the reliable
+plan would be the exact one."""
+
+
+def declared_noise(config: NavConfig) -> str:
+    """The noise spec the reliable planner plans for: ``config.noise``, raised to Gaussian
+    σ = :data:`PYBULLET_TURN_SIGMA` for PyBullet's contact rule when it is Gaussian and smaller.
+
+    >>> declared_noise(NavConfig(noise="gauss:0", contact=PYBULLET_CONTACT))
+    'gauss:0.3'
+    >>> declared_noise(NavConfig(noise="gauss:2", contact=PYBULLET_CONTACT))
+    'gauss:2'
+    >>> declared_noise(NavConfig(noise="gauss:0"))
+    'gauss:0'
+    """
+    spec = str(config.noise)
+    if config.contact != PYBULLET_CONTACT:
+        return spec
+    m = re.fullmatch(r"gauss:([0-9.eE+-]+)", spec.strip())
+    if spec.strip() in ("none", "") or (m and float(m.group(1)) < PYBULLET_TURN_SIGMA):
+        return f"gauss:{PYBULLET_TURN_SIGMA:g}"
+    return spec
+
+
 @lru_cache(maxsize=4096)
 def _reliable_plan(env: Environment, start: int, goal: int, angles: tuple, w1: float,
-                   w2: float, noise: str):
+                   w2: float, noise: str, contact: ContactParams | None = None):
     # particles seeded by the pair: one plan per (map, pair, config), as open-loop plans are
     nav = ReliableNavigator(cells_of(env), angles, noise, w1, w2,
-                            rng=np.random.default_rng([start, goal]))
+                            rng=np.random.default_rng([start, goal]), contact=contact)
     t0 = time.perf_counter()
     route = nav.plan(start, goal)
     return (None if route is None else route.plan), time.perf_counter() - t0
 
 
 def reliable_driver(env, start, goal, config: NavConfig, rng: np.random.Generator):
-    """The most reliable near-optimal exact plan for ``config.noise`` (docs/model.md §21),
-    executed open loop by its angles.
+    """The most reliable near-optimal exact plan (docs/model.md §21) for the declared noise
+    (:func:`declared_noise`) and the body's contact rule ``config.contact``, executed open
+    loop by its angles.
     """
     plan, seconds = _reliable_plan(env, int(start), int(goal), tuple(config.angles),
-                                   float(config.w1), float(config.w2), str(config.noise))
+                                   float(config.w1), float(config.w2), declared_noise(config),
+                                   config.contact)
     return OpenLoopDriver(plan, int(start), int(goal), cells_of(env), config.speed, 1, seconds)
 
 

@@ -53,7 +53,8 @@ import numpy as np
 from scipy.stats import binomtest
 
 from envs import UserError
-from envs.motion import BUMP_RANGE, casters, drive_distance, unit
+from envs.contact import advance, contact_flights, glancing
+from envs.motion import BUMP_RANGE, ContactParams, casters, drive_distance, unit
 
 from .cells import CellSpace
 from .coverage.noise import TurnNoise
@@ -174,7 +175,8 @@ def _wrap180(d: np.ndarray) -> np.ndarray:
 
 
 def rollout(cells: CellSpace, plan: Plan, start: int, goal: int, turns: np.ndarray, *,
-            speed: float = 0.2, max_factor: float = 2.0) -> Rollout:
+            speed: float = 0.2, max_factor: float = 2.0,
+            contact: ContactParams | None = None) -> Rollout:
     """Execute ``plan`` from configuration ``start`` for every row of ``turns`` (the executed
     turns [deg], ``draw_turns``), vectorised over the rows, as docs/model.md §8 and §15 run it
     on the kinematic twin (front-half bumper, no back-off).
@@ -186,6 +188,14 @@ def rollout(cells: CellSpace, plan: Plan, start: int, goal: int, turns: np.ndarr
     failed. The final drive (exact plans: ``final_m``; step plans: the trailing run's length)
     goes by the clock and stops early at a wall. ``speed`` [m/s] only enters through the
     clock's rounding (distance = speed · (length / speed)), as in the executor.
+
+    ``contact`` (docs/model.md §23): the executing robot's contact rule. A flight whose
+    contact lies outside the bumper arc slides on to its bump
+    (:func:`envs.contact.contact_flights`, as the exact planner and the twin fly it); a slide
+    whose clock exceeds the segment's limit fails, as the twin times out mid-slide. The
+    final drive slides on a glancing wall for the rest of its clock
+    (:func:`envs.contact.advance`). None (default): every front contact bumps (bitwise the
+    computation without a rule).
     """
     turns = np.asarray(turns, dtype=float)
     n = turns.shape[0]
@@ -217,16 +227,22 @@ def rollout(cells: CellSpace, plan: Plan, start: int, goal: int, turns: np.ndarr
         t = caster.cast(pos, u)
         D = np.where(t <= BUMP_RANGE, 0.0, drive_distance(t))
         reach = speed * (limit / speed)
-        # the twin's timeout: it stops at the limit, a bump only when the wall is that close
-        alive &= (D <= reach) | (D - reach <= BUMP_RANGE)
-        pos = pos + np.minimum(D, reach)[:, None] * u
+        if contact is None:
+            # the twin's timeout: it stops at the limit, a bump only when the wall is that close
+            alive &= (D <= reach) | (D - reach <= BUMP_RANGE)
+            pos = pos + np.minimum(D, reach)[:, None] * u
+        else:
+            pos, alive = _ruled_flight(caster, pos, u, D, reach, alive, contact)
         contacts[alive, j] = pos[alive]
         head = np.mod(head + turns[:, j], 360.0)
     if final > 0:
         u = unit(head)
         t = caster.cast(pos, u)
         D = np.where(t <= BUMP_RANGE, 0.0, drive_distance(t))
-        pos = pos + np.minimum(D, speed * (final / speed))[:, None] * u
+        budget = speed * (final / speed)
+        pos = pos + np.minimum(D, budget)[:, None] * u
+        if contact is not None:
+            pos = _ruled_final(caster, pos, u, D, budget, alive, contact)
     p_goal = int(cells.pk(int(goal))[0])
     g_head = cells.pose(int(goal))[2]
     in_cell = cells.cell_of_point(pos) == p_goal
@@ -235,16 +251,49 @@ def rollout(cells: CellSpace, plan: Plan, start: int, goal: int, turns: np.ndarr
     return Rollout(poses, alive, alive & in_cell & head_ok, contacts)
 
 
+def _ruled_flight(caster, pos, u, D, reach, alive, contact):
+    """One segment's flights under the contact rule: (new positions, still alive)."""
+    hit = alive & (D <= reach)
+    near = alive & ~hit & (D - reach <= BUMP_RANGE)
+    start = pos
+    pos = pos + np.minimum(D, reach)[:, None] * u
+    out = alive & hit
+    idx = np.flatnonzero(hit)
+    if idx.size:
+        fl = contact_flights(caster, start[idx], u[idx], D[idx], contact)
+        pos[idx] = fl.end
+        out[idx] = fl.clock <= reach        # a slide past the limit: the twin times out
+    jdx = np.flatnonzero(near)              # stopped at the limit touching a wall: a bump
+    if jdx.size:                            # only when that contact closes the bumper
+        out[jdx] = ~glancing(caster, pos[jdx] + (D[jdx] - reach)[:, None] * u[jdx], u[jdx],
+                             contact)
+    return pos, out
+
+
+def _ruled_final(caster, pos, u, D, budget, alive, contact):
+    """The final drive's glancing stops slide on for the rest of the clock."""
+    idx = np.flatnonzero(alive & (D < budget))
+    if idx.size:
+        idx = idx[glancing(caster, pos[idx], u[idx], contact)]
+    for i in idx.tolist():
+        x, y, _, _, _ = advance(caster, float(pos[i, 0]), float(pos[i, 1]), float(u[i, 0]),
+                                float(u[i, 1]), contact, budget - float(D[i]))
+        pos[i] = (x, y)
+    return pos
+
+
 def estimate(cells: CellSpace, plan: Plan, start: int, goal: int, noise, particles: int,
-             rng: np.random.Generator, confidence: float = CONFIDENCE) -> Estimate:
+             rng: np.random.Generator, confidence: float = CONFIDENCE,
+             contact: ContactParams | None = None) -> Estimate:
     """Success probability of ``plan`` under ``noise`` from ``particles`` seeded particles
-    (:func:`draw_turns` then :func:`rollout`), with its Wilson interval.
+    (:func:`draw_turns` then :func:`rollout`, flown under ``contact``), with its Wilson
+    interval.
     """
     particles = int(particles)
     if particles < 1:
         raise UserError(f"--particles must be at least 1, got {particles}.")
     turns = draw_turns(noise, plan, particles, rng, cells.delta_deg)
-    ok = rollout(cells, plan, start, goal, turns).success
+    ok = rollout(cells, plan, start, goal, turns, contact=contact).success
     return Estimate(int(ok.sum()), particles, confidence)
 
 
@@ -324,15 +373,20 @@ class ReliableNavigator:
                                    weights (the exact planner's own plan always)
     rng : numpy.random.Generator   source of every particle draw
     confidence : float             of the reported Wilson interval
+    contact : ContactParams, optional
+        The executing robot's contact rule (docs/model.md §23): the candidate searches plan
+        slid flights under it (``ExactNavigator(contact=...)``, §15) and the particles fly
+        through it (:func:`rollout`). Default None: every front contact bumps.
     """
 
     def __init__(self, cells: CellSpace, angles: Iterable[float], noise, w1: float = 1.0,
                  w2: float = 100.0, slack: float = DEFAULT_SLACK,
                  w2_factors: Iterable[float] = W2_FACTORS,
                  particles: int = DEFAULT_PARTICLES, max_candidates: int = MAX_CANDIDATES,
-                 rng: np.random.Generator | None = None, confidence: float = CONFIDENCE
-                 ) -> None:
-        self.exact = ExactNavigator(cells, angles, w1, w2)
+                 rng: np.random.Generator | None = None, confidence: float = CONFIDENCE,
+                 contact: ContactParams | None = None) -> None:
+        self.contact = contact
+        self.exact = ExactNavigator(cells, angles, w1, w2, contact=contact)
         self.cells, self.w1, self.w2 = cells, self.exact.w1, self.exact.w2
         self.noise = _noise(noise)
         if not (math.isfinite(float(slack)) and float(slack) >= 0):
@@ -345,7 +399,7 @@ class ReliableNavigator:
             raise UserError("the reliable planner needs an rng (a numpy Generator).")
         weights = sorted({max(self.w2 * float(f), self.w1) for f in w2_factors} - {self.w2},
                          reverse=True)
-        self.searches = [self.exact] + [ExactNavigator(cells, angles, w1, w)
+        self.searches = [self.exact] + [ExactNavigator(cells, angles, w1, w, contact=contact)
                                         for w in weights]
         self.slack, self.particles = float(slack), int(particles)
         self.max_candidates, self.rng, self.confidence = int(max_candidates), rng, confidence
@@ -381,7 +435,8 @@ class ReliableNavigator:
         """
         seed = int(self.rng.integers(2 ** 63))
         return np.array([estimate(self.cells, r.plan, start, goal, self.noise,
-                                  self.particles, np.random.default_rng(seed)).successes
+                                  self.particles, np.random.default_rng(seed),
+                                  contact=self.contact).successes
                          for r in routes])
 
     def plan(self, start: int, goal: int) -> ReliableRoute | None:
@@ -398,7 +453,7 @@ class ReliableNavigator:
         best = int(np.argmax(wins))                       # first maximum: the cheapest
         r = routes[best]
         est = estimate(self.cells, r.plan, s, g, self.noise, self.particles, self.rng,
-                       self.confidence)
+                       self.confidence, contact=self.contact)
         return ReliableRoute(r.start, r.goal, r.plan, r.cost, r.poses, p_success=est.p,
                              p_success_ci=est.ci, candidates=len(routes), chosen=best,
                              p_exact=float(wins[0]) / self.particles,

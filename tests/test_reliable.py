@@ -21,6 +21,7 @@ from bouncesim.robots.noise import GaussianNoise
 from bouncesim.runs.execute import execute
 from envs import Environment
 from envs.generated import random_polygon_room
+from envs.motion import PYBULLET_CONTACT, ContactParams
 from planners.cells import CellSpace
 from planners.coverage.noise import TurnNoise
 from planners.exact import ExactNavigator
@@ -236,3 +237,110 @@ def test_registered_for_the_planner_comparison():
     d = PLANNERS["reliable"](env, 68, 98, NavConfig(noise="gauss:2"), np.random.default_rng(0))
     run = d(KinematicRobot(env))
     assert d.decisions == 1 and d.plan.is_exact and run.success   # noise-free twin: replays
+
+
+# ============================================================================ contact rule
+# docs/model.md §21 with §23: a body whose bumper ignores glancing contacts (PyBullet's
+# fitted rule) slides on; the candidates are planned and the particles flown under the rule.
+@pytest.fixture(scope="module")
+def glancing_room():
+    """A random heptagon room with a square hole: walls off the cell grid, glancing flights."""
+    env = random_polygon_room(np.random.default_rng(2))
+    return env, CellSpace(env)
+
+
+def test_a_rule_where_every_contact_bumps_gives_the_same_choice(glancing_room):
+    # β = 0 closes the bumper for every front contact: the rule's code path (contact_flights,
+    # slides that never start) must give the rule-free planner's candidates, choice and
+    # estimates, particle for particle (the same seeds)
+    env, cs = glancing_room
+    kw = {"particles": 200}
+    plain = ReliableNavigator(cs, ANGLES, "gauss:2", rng=np.random.default_rng(4), **kw)
+    ruled = ReliableNavigator(cs, ANGLES, "gauss:2", rng=np.random.default_rng(4),
+                              contact=ContactParams(0.0, 0.0), **kw)
+    found = 0
+    for s, g, _ in _pairs(cs, plain.exact, 2, seed=8):
+        a, b = plain.plan(s, g), ruled.plan(s, g)
+        assert b.plan == a.plan and b.chosen == a.chosen and b.candidates == a.candidates
+        assert (b.p_success, b.p_exact) == (a.p_success, a.p_exact)
+        found += 0 < a.p_success < 1
+    assert found >= 1
+
+
+def test_particles_replay_the_twin_with_the_rule_turn_for_turn(glancing_room):
+    # the executor on KinematicRobot(contact=PYBULLET_CONTACT) with the particles' executed
+    # turns (its own scalar slides, bumper arc and timeout): the same outcomes and final
+    # poses; the rule-free rollout misjudges some of them (the rule matters here)
+    env, cs = glancing_room
+    nav = ExactNavigator(cs, ANGLES, contact=PYBULLET_CONTACT)
+    outcomes, misjudged = [], 0
+    for s, g, route in _pairs(cs, nav, 4, seed=5):
+        for sigma in (0.3, 3.0):
+            turns = draw_turns(TurnNoise.gauss(sigma), route.plan, 12,
+                               np.random.default_rng(s), cs.delta_deg)
+            ro = rollout(cs, route.plan, s, g, turns, contact=PYBULLET_CONTACT)
+            free = rollout(cs, route.plan, s, g, turns)
+            for i in range(len(turns)):
+                bot = KinematicRobot(env, _Scripted(turns[i]), rng=0, contact=PYBULLET_CONTACT)
+                run = execute(route.plan, bot, start=s, goal=g, cells=cs)
+                assert run.success == bool(ro.success[i]), (s, g, sigma, i)
+                if run.completed:
+                    assert np.allclose(run.final_pose, ro.poses[i], atol=1e-6, rtol=0)
+                outcomes.append(run.success)
+                misjudged += run.success != bool(free.success[i])
+    assert 0 < np.mean(outcomes) < 1
+    assert misjudged >= 1
+
+
+def test_noise_free_p_success_is_one_for_plans_that_replay_with_the_rule(glancing_room):
+    env, cs = glancing_room
+    rel = ReliableNavigator(cs, ANGLES, "none", particles=20, rng=np.random.default_rng(0),
+                            contact=PYBULLET_CONTACT)
+    for s, g, _ in _pairs(cs, rel.exact, 4, seed=4):
+        route = rel.plan(s, g)
+        run = execute(route.plan, KinematicRobot(env, contact=PYBULLET_CONTACT), start=s,
+                      goal=g, cells=cs)
+        assert run.success                    # replays in the twin with the rule ...
+        assert route.p_success == 1.0 and route.chosen == 0   # ... and is predicted to
+
+
+@pytest.mark.slow
+def test_p_success_with_the_rule_agrees_with_twin_monte_carlo(glancing_room):
+    # the twin with the rule and its own Gaussian draws: within the two-sample bound (99.9 %)
+    env, cs = glancing_room
+    rel = ReliableNavigator(cs, ANGLES, "gauss:3", particles=1000,
+                            rng=np.random.default_rng(12), contact=PYBULLET_CONTACT)
+    z = norm.ppf(0.9995)
+    checked = 0
+    for s, g, _ in _pairs(cs, rel.exact, 2, seed=7):
+        route = rel.plan(s, g)
+        bot = KinematicRobot(env, GaussianNoise(3.0), rng=np.random.default_rng(s + 1),
+                             contact=PYBULLET_CONTACT)
+        n = 200
+        k = sum(bool(execute(route.plan, bot, start=s, goal=g, cells=cs).success)
+                for _ in range(n))
+        p = (k + route.p_success * route.particles) / (n + route.particles)
+        bound = z * math.sqrt(max(p * (1 - p), 1e-4) * (1 / n + 1 / route.particles))
+        assert abs(k / n - route.p_success) <= bound, (s, g, k / n, route.p_success)
+        checked += 0 < route.p_success < 1
+    assert checked >= 1
+
+
+def test_cli_plan_reliable_contact_pybullet(glancing_room, tmp_path, capsys):
+    # --contact pybullet reaches the reliable planner (its plan is ReliableNavigator's with
+    # the rule, seeded as the CLI seeds it); the step planner still refuses it (exit 2)
+    env, cs = glancing_room
+    path = tmp_path / "room.json"
+    path.write_text(json.dumps(env.to_dict()))
+    s, g, _ = _pairs(cs, ExactNavigator(cs, ANGLES, contact=PYBULLET_CONTACT), 1, seed=5)[0]
+    args = ["plan", str(path), "--angles", "45,90,135", "--start", str(s), "--goal", str(g)]
+    assert main([*args, "--planner", "reliable", "--noise", "gauss:0.3", "--contact",
+                 "pybullet", "--particles", "100", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    cells = CellSpace(Environment.from_dict(env.to_dict()))
+    route = ReliableNavigator(cells, ANGLES, "gauss:0.3", particles=100,
+                              rng=np.random.default_rng([0, 20]),
+                              contact=PYBULLET_CONTACT).plan(s, g)
+    assert out["planner"] == "reliable" and out["noise"] == "gauss:0.3"
+    assert tuple(out["angles"]) == route.plan.turns and out["p_success"] == route.p_success
+    assert main([*args, "--contact", "pybullet"]) == 2

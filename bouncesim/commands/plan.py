@@ -96,9 +96,6 @@ def make_navigator(args, cells: CellSpace | None = None) -> Navigator | ExactNav
     if getattr(args, "planner", "step") == "exact":
         return ExactNavigator(cells, parse_angles(args.angles), args.w1, args.w2,
                               contact=contact_rule(args) if hasattr(args, "contact") else None)
-    if getattr(args, "contact", "off") != "off":
-        raise UserError("--contact is for --planner exact (the step and reliable planners "
-                        "assume the front-half bumper).")
     if args.planner == "reliable":      # its particles: a stream of their own from --seed
         if not hasattr(args, "noise"):
             raise UserError("--planner reliable is for plan and run-plan (it needs --noise).")
@@ -106,7 +103,11 @@ def make_navigator(args, cells: CellSpace | None = None) -> Navigator | ExactNav
             cells, parse_angles(args.angles), parse_noise(args.noise, cells.delta_deg),
             args.w1, args.w2, slack=getattr(args, "slack", DEFAULT_SLACK),
             particles=getattr(args, "particles", DEFAULT_PARTICLES),
-            rng=np.random.default_rng([args.seed, 20]))
+            rng=np.random.default_rng([args.seed, 20]),
+            contact=contact_rule(args) if hasattr(args, "contact") else None)
+    if getattr(args, "contact", "off") != "off":
+        raise UserError("--contact is for --planner exact or reliable (the step planner "
+                        "assumes the front-half bumper).")
     nav = Navigator(cells, parse_angles(args.angles), args.w1, args.w2,
                     max_memory=max_memory(args))
     check_fits(args, cells, nav.angles, task="plan", searches=1)
@@ -146,7 +147,7 @@ def register(sub) -> None:
     p.add_argument("--pairs", type=Path, metavar="FILE.csv",
                    help="many queries: a CSV with columns start,goal (z or \"X,Y,DEG\")")
     p.add_argument("--json", action="store_true", help="one JSON object per query and line")
-    add_contact_arg(p, what=" the exact planner plans for")
+    add_contact_arg(p, what=" the exact and reliable planners plan for")
     p.add_argument("--noise", default="none", metavar="SPEC",
                    help="reliable: the rotation noise to plan for, gauss:SIGMA or "
                    "model:eps=E,r=R [deg] (default none)")
