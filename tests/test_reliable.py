@@ -128,21 +128,27 @@ def test_predicted_p_success_agrees_with_twin_monte_carlo(room):
     env, cs = room
     rel = ReliableNavigator(cs, ANGLES, "gauss:2", particles=2000,
                             rng=np.random.default_rng(11))
-    z = norm.ppf(0.9995)
     checked = 0
     for s, g, _ in _pairs(cs, rel.exact, 2, seed=5):
         route = rel.plan(s, g)
         lo, hi = route.p_success_ci
         assert lo <= route.p_success <= hi
         bot = KinematicRobot(env, GaussianNoise(2.0), rng=np.random.default_rng(s + 1))
-        n = 250
-        k = sum(bool(execute(route.plan, bot, start=s, goal=g, cells=cs).success)
-                for _ in range(n))
-        p = (k + route.p_success * route.particles) / (n + route.particles)
-        bound = z * math.sqrt(max(p * (1 - p), 1e-4) * (1 / n + 1 / route.particles))
-        assert abs(k / n - route.p_success) <= bound, (s, g, k / n, route.p_success)
-        checked += 0 < route.p_success < 1
+        checked += _agrees_with_twin(route, bot, cs, s, g, 250)
     assert checked >= 1                            # at least one plan was not trivial
+
+
+def _agrees_with_twin(route, bot, cs, s, g, n: int) -> bool:
+    """Assert that ``n`` runs of ``route``'s plan on ``bot`` succeed as often as its predicted
+    p_success, within the two-sample bound at 99.9 %; whether the plan was not trivial.
+    """
+    z = norm.ppf(0.9995)
+    k = sum(bool(execute(route.plan, bot, start=s, goal=g, cells=cs).success)
+            for _ in range(n))
+    p = (k + route.p_success * route.particles) / (n + route.particles)
+    bound = z * math.sqrt(max(p * (1 - p), 1e-4) * (1 / n + 1 / route.particles))
+    assert abs(k / n - route.p_success) <= bound, (s, g, k / n, route.p_success)
+    return 0 < route.p_success < 1
 
 
 # ============================================================================ selection
@@ -310,19 +316,12 @@ def test_p_success_with_the_rule_agrees_with_twin_monte_carlo(glancing_room):
     env, cs = glancing_room
     rel = ReliableNavigator(cs, ANGLES, "gauss:3", particles=1000,
                             rng=np.random.default_rng(12), contact=PYBULLET_CONTACT)
-    z = norm.ppf(0.9995)
     checked = 0
     for s, g, _ in _pairs(cs, rel.exact, 2, seed=7):
         route = rel.plan(s, g)
         bot = KinematicRobot(env, GaussianNoise(3.0), rng=np.random.default_rng(s + 1),
                              contact=PYBULLET_CONTACT)
-        n = 200
-        k = sum(bool(execute(route.plan, bot, start=s, goal=g, cells=cs).success)
-                for _ in range(n))
-        p = (k + route.p_success * route.particles) / (n + route.particles)
-        bound = z * math.sqrt(max(p * (1 - p), 1e-4) * (1 / n + 1 / route.particles))
-        assert abs(k / n - route.p_success) <= bound, (s, g, k / n, route.p_success)
-        checked += 0 < route.p_success < 1
+        checked += _agrees_with_twin(route, bot, cs, s, g, 200)
     assert checked >= 1
 
 
