@@ -94,20 +94,24 @@ def test_goal_intervals_and_final_drive_by_hand():
 def test_plan_from_a_configuration_is_the_exact_planners_plan():
     # the same states and costs searched by a second implementation (§15): equal costs
     cells = CellSpace(ROOM)
-    exact = ExactNavigator(cells, ANGLES)
-    rng = np.random.default_rng(5)
-    checked = 0
-    while checked < 12:
-        s, g = (int(v) for v in rng.integers(0, cells.N, 2))
-        route = exact.plan(s, g) if s != g else None
-        if route is None:
-            continue
+    for s, g, route in _exact_routes(cells, np.random.default_rng(5), 12):
         cfg = FeedbackConfig(guided=False)
         cand = FeedbackNavigator(cells, ANGLES, g, cfg).plan_from(*cells.pose(s))
         assert cand is not None
         assert cand.cost == pytest.approx(route.cost, abs=1e-6)
         assert len(cand.angles) == route.plan.bumps
-        checked += 1
+
+
+def _exact_routes(cells, rng, n):
+    """Random (start, goal, exact route) triples, n of them, start != goal with a plan (§15)."""
+    exact = ExactNavigator(cells, ANGLES)
+    found = 0
+    while found < n:
+        s, g = (int(v) for v in rng.integers(0, cells.N, 2))
+        route = exact.plan(s, g) if s != g else None
+        if route is not None:
+            found += 1
+            yield s, g, route
 
 
 def _random_poses(env, rng, n):
@@ -168,14 +172,7 @@ def test_guided_plans_are_exact_plans_that_reach_the_goal():
     # the guided search (§22) returns plans no cheaper than §15's optimum (the exact
     # planner, an independent search) that the noise-free twin flies into the goal cell
     cells = CellSpace(ROOM)
-    exact = ExactNavigator(cells, ANGLES)
-    rng = np.random.default_rng(8)
-    checked = 0
-    while checked < 10:
-        s, g = (int(v) for v in rng.integers(0, cells.N, 2))
-        route = exact.plan(s, g) if s != g else None
-        if route is None:
-            continue
+    for s, g, route in _exact_routes(cells, np.random.default_rng(8), 10):
         cfg = FeedbackConfig(guided=True)
         cand = FeedbackNavigator(cells, ANGLES, g, cfg).plan_from(*cells.pose(s))
         assert cand is not None
@@ -183,7 +180,6 @@ def test_guided_plans_are_exact_plans_that_reach_the_goal():
         plan = Plan.exact(cand.angles, cand.flights, cand.final_m, cells.h)
         run = execute(plan, KinematicRobot(ROOM), start=s, goal=g, cells=cells)
         assert run.success, run.reason
-        checked += 1
 
 
 # ---------------------------------------------------------------- the twin
