@@ -184,10 +184,11 @@ def declared_noise(config: NavConfig) -> str:
     'gauss:0'
     """
     spec = str(config.noise)
-    if config.contact != PYBULLET_CONTACT:
+    if config.contact != PYBULLET_CONTACT or spec.strip().lower().startswith(("model",
+                                                                             "stepped")):
         return spec
-    m = re.fullmatch(r"gauss:([0-9.eE+-]+)", spec.strip())
-    if spec.strip() in ("none", "") or (m and float(m.group(1)) < PYBULLET_TURN_SIGMA):
+    noise = parse_noise(spec)                   # none or Gaussian: their σ
+    if getattr(noise, "sigma_deg", 0.0) < PYBULLET_TURN_SIGMA:
         return f"gauss:{PYBULLET_TURN_SIGMA:g}"
     return spec
 
