@@ -54,8 +54,10 @@ to (½, ½):
 from __future__ import annotations
 
 import math
+import os
 import time
 import warnings
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -69,6 +71,24 @@ _LAZY = 0.05          # weight of the previous epoch-boundary state (damps perio
 TOL = 1e-4            # default tolerance on the estimated TV error of q
 MAX_STEPS = 200_000   # default cap on the steps run per angle (epoch iterations × E)
 MIN_EPOCHS = 200      # ... but at least this many epoch iterations
+PARALLEL_MIN = 20_000  # chains of at least this many states split each step over the cores
+
+_POOL: ThreadPoolExecutor | None = None
+
+
+def default_threads() -> int:
+    """Threads one step of a large recursion is split over: the cores this process may use
+    (at most 4). scipy's sparse products release the GIL, so the row blocks run in parallel.
+    """
+    return max(1, min(4, len(os.sched_getaffinity(0))))
+
+
+def _pool(workers: int) -> ThreadPoolExecutor:
+    """The shared pool of the recursion's extra threads (grown on demand)."""
+    global _POOL
+    if _POOL is None or _POOL._max_workers < workers:
+        _POOL = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="timeshare")
+    return _POOL
 
 
 @dataclass(frozen=True, eq=False)
@@ -169,8 +189,24 @@ class TimeShared:
         self.length = np.bincount(chain.src, weights=np.asarray(chain.weight)
                                   * np.asarray(chain.delay), minlength=n)
 
-    def _epoch(self, WT, hist: np.ndarray, steps: int, inject=None):
+    def _blocks(self, WT, threads: int | None) -> list:
+        """Row blocks (rows, H rows, Wᵀ rows) of one step, balanced by non-zeros: one block
+        below :data:`PARALLEL_MIN` states, else one per thread.
+        """
+        n = self.chain.n
+        k = default_threads() if threads is None else max(1, int(threads))
+        if k == 1 or n < PARALLEL_MIN:
+            return [(slice(0, n), self.H, WT)]
+        work = np.cumsum(np.diff(self.H.indptr) + np.diff(WT.indptr) + 1)
+        cuts = [0, *np.searchsorted(work, work[-1] * np.arange(1, k) / k).tolist(), n]
+        return [(slice(a, b), self.H[a:b], WT[a:b]) for a, b in zip(cuts, cuts[1:]) if b > a]
+
+    def _epoch(self, WT, hist: np.ndarray, steps: int, inject=None, threads=None):
         """Run ``steps`` steps of one angle from boundary state ``hist`` (D, n).
+
+        Each step's products are split into row blocks (:meth:`_blocks`) that run on the
+        shared threads; every row is computed by the same sparse kernel in the same order,
+        so the result does not depend on the split (bitwise).
 
         Returns (end state (D, n), Σ_t v_t (n,) float64).
         """
@@ -180,25 +216,43 @@ class TimeShared:
         buf[D + 1:] = hist[:D - 1]
         flat = buf.reshape(-1)
         dep = np.zeros(n)
+        x = np.zeros(n, dtype=np.float32)
+        blocks = self._blocks(WT, threads)
+        if inject is not None:
+            inject = np.asarray(inject, dtype=np.float32)
+
+        def land(block, t, p):               # x_t over the block's rows
+            r, Hb, _ = block
+            x[r] = Hb @ flat[(p + 1) * n:(p + 1 + D) * n]
+            if inject is not None and t == 0:
+                x[r] += inject[r]
+
+        def turn(block, p):                  # v_t over the block's rows, stored and summed
+            r, _, Wb = block
+            v = Wb @ x
+            buf[p, r] = v
+            buf[p + D, r] = v
+            dep[r] += v
+
+        pool = _pool(len(blocks) - 1) if len(blocks) > 1 else None
         for t in range(steps):
             p = (-t) % D
-            x = self.H @ flat[(p + 1) * n:(p + 1 + D) * n]
-            if inject is not None and t == 0:
-                x += inject
-            v = WT @ x
-            buf[p] = v
-            buf[p + D] = v
-            dep += v
+            for phase, args in ((land, (t, p)), (turn, (p,))):
+                futures = [pool.submit(phase, b, *args) for b in blocks[1:]] if pool else ()
+                phase(blocks[0], *args)
+                for f in futures:
+                    f.result()
         p = (-steps) % D
         return buf[p + 1:p + 1 + D].copy(), dep
 
-    def advance(self, WT, hist: np.ndarray, steps: int):
+    def advance(self, WT, hist: np.ndarray, steps: int, threads: int | None = None):
         """Run ``steps`` steps of one angle (``WT``: its turn matrix transposed, float32) from
         the boundary state ``hist`` (D, n) = (v_{t−1}, …, v_{t−D}); returns (end state (D, n),
         Σ v_t over the steps (n,) float64). The horizons of :mod:`planners.coverage.horizon`
-        run on this.
+        run on this. ``threads``: row blocks per step (default :func:`default_threads`; the
+        result is bitwise the same for any count).
         """
-        return self._epoch(WT, np.asarray(hist, dtype=np.float32), int(steps))
+        return self._epoch(WT, np.asarray(hist, dtype=np.float32), int(steps), threads=threads)
 
     def run(self, turns, alpha, epoch: int, *, tol: float = TOL,
             max_epochs: int | None = None, progress=None) -> TimeSharedCoverage:

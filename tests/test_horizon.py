@@ -189,11 +189,33 @@ def test_one_pass_for_the_angles_and_their_mix_gives_each_policy_its_own_answer(
     hz = Horizon(model)
     each, mix = steps_to_limit_each(hz, angles, lims, noise=noise, alpha=alpha,
                                     mix_limit=mix_lim, cap=5000)
-    refs = [steps_to_limit(hz, [a], lim, noise=noise, cap=5000) for a, lim in zip(angles, lims)]
-    refs.append(steps_to_limit(hz, angles, mix_lim, noise=noise, alpha=alpha, cap=5000))
+    refs = [steps_to_limit(Horizon(model), [a], lim, noise=noise, cap=5000)
+            for a, lim in zip(angles, lims)]
+    refs.append(steps_to_limit(Horizon(model), angles, mix_lim, noise=noise, alpha=alpha,
+                               cap=5000))
     key = ("steps", "tv", "last")
     assert [[r[k] for k in key] for r in [*each, mix]] == [[r[k] for k in key] for r in refs]
     assert len({r["steps"] for r in refs}) == 3 and refs[-1]["steps"] is None
+
+
+def test_kept_runs_answer_as_a_fresh_run_whatever_was_asked_before():
+    # a Horizon keeps each angle's run at its last grid point and resumes it (the α fit at T,
+    # then steps_to_limit): every answer equals a fresh Horizon's, to the bit, in any order
+    # of questions (on the grid, off it, behind the kept point, a mix of kept runs)
+    noise = TurnNoise(22.5, 0.8)
+    model = model_for(CellSpace(random_room(np.random.default_rng(5), K=16)), "event")
+    kept = Horizon(model)
+    asks = [([45.0], 150), ([45.0], 2000), ([45.0], 130), ([45.0], 1000), ([112.5], 700),
+            ([45.0, 112.5], 900)]
+    for angles, T in asks:
+        alpha = None if len(angles) == 1 else [0.3, 0.7]
+        got = kept.coverage(angles, T, noise=noise, alpha=alpha).q
+        ref = Horizon(model).coverage(angles, T, noise=noise, alpha=alpha).q
+        assert np.array_equal(got, ref), (angles, T)
+    lim = model.analyse(45, noise).q
+    assert (steps_to_limit(kept, [45.0], lim, noise=noise, cap=5000)
+            | {"seconds": 0}) == (steps_to_limit(Horizon(model), [45.0], lim, noise=noise,
+                                                 cap=5000) | {"seconds": 0})
 
 
 def test_steps_to_limit_reports_the_cap_honestly():

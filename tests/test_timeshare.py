@@ -18,7 +18,7 @@ from planners.cells import CellSpace
 from planners.coverage import TurnNoise, design_mix, model_for, timeshared_coverage
 from planners.metrics import tv_distance
 from planners.plan import PolicyMix
-from planners.timeshare import DelayChain, timeshared
+from planners.timeshare import PARALLEL_MIN, DelayChain, TimeShared, timeshared
 
 
 def _stochastic(rng, n, m):
@@ -113,6 +113,43 @@ def test_delay_chain_matches_step_level_expansion(seed, E):
     alpha = rng.dirichlet(np.ones(m))
     res = timeshared(chain, [sp.csr_matrix(W) for W in Ws], alpha, E, tol=1e-10)
     np.testing.assert_allclose(res.q, _brute_delay(chain, Ws, alpha, E), atol=5e-6)
+
+
+def test_a_step_split_over_threads_gives_the_same_numbers():
+    # a chain above PARALLEL_MIN states splits every step into row blocks on threads: the
+    # same float32 numbers for any split, and a plain float64 recursion agrees
+    rng = np.random.default_rng(3)
+    n, S, D, steps = PARALLEL_MIN + 5000, 2, 5, 40
+    src = np.repeat(np.arange(n), S)
+    dst = rng.integers(0, n, src.size)
+    delay = rng.integers(1, D + 1, src.size)
+    w = rng.dirichlet(np.ones(S), n).ravel()
+    chain = DelayChain(src=src, dst=dst, delay=delay, weight=w,
+                       reward=sp.identity(n, format="csr"), start=np.full(n, 1 / n))
+    cols = rng.integers(0, n, (n, 4))
+    W = sp.csr_matrix((rng.dirichlet(np.ones(4), n).ravel(), (np.repeat(np.arange(n), 4),
+                                                               cols.ravel())), shape=(n, n))
+    WT = sp.csr_matrix(W.T).astype(np.float32)
+    ts = TimeShared(chain)
+    hist = np.zeros((ts.D, n), dtype=np.float32)
+    hist[0] = rng.dirichlet(np.ones(n))
+    runs = [ts.advance(WT, hist, steps, threads=k) for k in (1, 2, 3)]
+    assert len(ts._blocks(WT, 3)) == 3
+    for end, dep in runs[1:]:
+        assert np.array_equal(end, runs[0][0]) and np.array_equal(dep, runs[0][1])
+    # plain recursion: x_t = Σ_f w_f v_{t−d_f}[src_f] e_{dst_f}, v_t = Wᵀ x_t
+    past = [hist[j].astype(float) for j in range(ts.D)]          # v_{t−1}, v_{t−2}, …
+    total = np.zeros(n)
+    for _ in range(steps):
+        x = np.zeros(n)
+        for d in range(1, ts.D + 1):
+            f = delay == d
+            np.add.at(x, dst[f], w[f] * past[d - 1][src[f]])
+        v = W.T @ x
+        past = [v, *past[:-1]]
+        total += v
+    np.testing.assert_allclose(runs[0][1], total, rtol=1e-4, atol=1e-9)
+    np.testing.assert_allclose(runs[0][0], np.array(past), rtol=1e-4, atol=1e-9)
 
 
 def test_bad_input_is_refused_in_one_sentence():

@@ -22,13 +22,13 @@ from planners.coverage import (
     SPACES,
     STATE_KINDS,
     TARGET_FORMATS,
-    Horizon,
     MixDesign,
     TurnNoise,
     check_angles,
     default_settings,
     design_mix,
     group_cells,
+    horizon_of,
     load_target,
     model_for,
     steps_to_limit,
@@ -254,7 +254,7 @@ def horizon_report(model, result: MixDesign, args, start, timeshared_q) -> dict:
     """alpha.json's "horizon": T, start, per-angle and mix TV to the limit and steps_to_limit
     (docs/model.md section 17); warns on stderr when T is far below a steps_to_limit.
     """
-    hz = Horizon(model)
+    hz = horizon_of(model)
     T, noise = int(args.horizon), result.noise
     kw = {"noise": noise, "cap": args.limit_cap, "max_seconds": args.limit_seconds}
     limits = [a.q for a in result.per_angle]

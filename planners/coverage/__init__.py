@@ -44,6 +44,7 @@ from .horizon import (
     Horizon,
     HorizonCoverage,
     horizon_coverage,
+    horizon_of,
     steps_to_limit,
     steps_to_limit_each,
 )
@@ -57,6 +58,7 @@ __all__ = ["MODELS", "AngleCoverage", "CoverageModel", "EventModel", "EventSetti
            "MixDesign", "MixFit", "SampledModel", "SampledSettings", "SPACES", "StepModel",
            "StepSettings", "TARGET_FORMATS", "TargetError", "TurnNoise", "check_angles",
            "check_model", "clear_cache", "default_settings", "design_mix", "flight_steps",
-           "group_cells", "Horizon", "HorizonCoverage", "horizon_coverage", "load_target",
+           "group_cells", "Horizon", "HorizonCoverage", "horizon_coverage", "horizon_of",
+           "load_target",
            "STATE_KINDS", "model_for", "solve_mix", "steps_to_limit", "steps_to_limit_each",
            "timeshared_coverage", "transition_matrix", "uniform_target"]

@@ -37,7 +37,7 @@ from ..plan import PolicyMix
 from ..timeshare import TimeSharedCoverage, timeshared
 from .base import CoverageModel
 from .event import EventModel
-from .horizon import Horizon, fit_horizon_mix
+from .horizon import fit_horizon_mix, horizon_of
 from .mix import MixDesign, solve_mix
 from .noise import TurnNoise
 from .sampled import SampledModel
@@ -159,7 +159,7 @@ def design_mix(model: CoverageModel, angles: Iterable[float], noise: TurnNoise =
     if space != "positions":
         raise UserError("a horizon predicts coverage over position cells only; use "
                         "--target-space positions.")
-    return fit_horizon_mix(Horizon(model), angles, noise, b, int(horizon), epoch, per,
+    return fit_horizon_mix(horizon_of(model), angles, noise, b, int(horizon), epoch, per,
                            start=start)
 
 

@@ -33,7 +33,9 @@ from __future__ import annotations
 
 import math
 import time
+import weakref
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 import scipy.sparse as sp
@@ -47,7 +49,7 @@ from .event_flights import StepTable
 from .mix import MixDesign, solve_mix
 from .noise import TurnNoise
 
-__all__ = ["Horizon", "HorizonCoverage", "horizon_coverage", "steps_to_limit",
+__all__ = ["Horizon", "HorizonCoverage", "horizon_coverage", "horizon_of", "steps_to_limit",
            "steps_to_limit_each",
            "start_distribution", "fit_horizon_mix", "CAP", "LIMIT_TV", "grid"]
 
@@ -93,6 +95,11 @@ def grid(cap: int = CAP) -> list[int]:
             out.append(t)
         k += 1
     return out
+
+
+@lru_cache(maxsize=4)
+def _grid_set(cap: int = CAP) -> frozenset:
+    return frozenset(grid(cap))
 
 
 def start_distribution(cs, start=None) -> np.ndarray:
@@ -169,6 +176,43 @@ class _Recursion:
         return cls(chain=chain, ts=ts, offset=n, tailsT=sp.csr_matrix(tails.T))
 
 
+class _Trajectory:
+    """One angle's run from one start, kept at the last point of :func:`grid` it reached.
+
+    Counts of the first T steps are computed on one canonical path, whatever was asked
+    before: from step 0 through every grid point below T, then to T. So a later, longer
+    horizon (steps_to_limit after the fit, docs/model.md §17) resumes where an earlier one
+    stopped instead of starting again, with the same arithmetic as a fresh run.
+    """
+
+    def __init__(self, rec: _Recursion, WT, p0: np.ndarray) -> None:
+        self.rec, self.WT, self.p0 = rec, WT, p0
+        self.hist = np.zeros((rec.ts.D, rec.n), dtype=np.float32)
+        self.hist[0, rec.offset:rec.offset + p0.size] = p0
+        self.dep = self.hist[0].astype(float)            # v_{−1}
+        self.t = 0
+        self.known: dict[int, np.ndarray] = {}           # T → counts per cell (P,)
+
+    def _count(self, hist: np.ndarray, dep: np.ndarray) -> np.ndarray:
+        return self.rec.ts.RT @ dep - self.rec.tailsT @ hist.reshape(-1).astype(float)
+
+    def counts(self, T: int) -> np.ndarray:
+        """Counted steps per cell (P,) of the first T steps."""
+        if T not in self.known:
+            if T < self.t:                       # behind the checkpoint: a fresh run
+                return _Trajectory(self.rec, self.WT, self.p0).counts(T)
+            on_grid = _grid_set()
+            for g in sorted(g for g in on_grid if self.t < g <= T):
+                self.hist, dd = self.rec.ts.advance(self.WT, self.hist, g - self.t)
+                self.dep += dd
+                self.t = g
+                self.known[g] = self._count(self.hist, self.dep)
+            if T not in on_grid:
+                hist, dd = self.rec.ts.advance(self.WT, self.hist, T - self.t)
+                self.known[T] = self._count(hist, self.dep + dd)
+        return self.known[T]
+
+
 class Horizon:
     """A coverage model prepared for horizons: its delay chain with per-step rewards.
 
@@ -191,6 +235,15 @@ class Horizon:
         self.model = model
         self.seconds = 0.0                   # time spent preparing the recursions [s]
         self._prepared: dict = {}
+        self._runs: dict = {}                # (angle, noise, start) → _Trajectory
+
+    def _trajectory(self, angle: float, noise: TurnNoise, p0: np.ndarray) -> _Trajectory:
+        """The kept run of one angle from start ``p0`` (:class:`_Trajectory`)."""
+        key = (float(angle), noise, p0.tobytes())
+        if key not in self._runs:
+            rec = self._prepare(noise)
+            self._runs[key] = _Trajectory(rec, self._turns([angle], noise, rec.offset)[0], p0)
+        return self._runs[key]
 
     def _prepare(self, noise: TurnNoise) -> "_Recursion":
         """The recursion of ``noise``'s flights (the event model casts Gaussian noise's
@@ -245,10 +298,15 @@ class Horizon:
         if epoch is not None and int(epoch) < 1:
             raise UserError(f"an epoch must be at least one step, got {epoch}.")
         E = int(epoch) if len(use) > 1 and epoch is not None else horizons[-1]
+        p0 = start_distribution(cs, start)
+        if E >= horizons[-1]:                    # every run keeps its angle: kept runs
+            runs = [self._trajectory(angles[i], noise, p0) for i in use]
+            for T in horizons:
+                yield T, np.column_stack([r.counts(T) for r in runs]), a
+            return
         rec = self._prepare(noise)
         WT = self._turns([angles[i] for i in use], noise, rec.offset)
         D, n, m = rec.ts.D, rec.n, len(use)
-        p0 = start_distribution(cs, start)
         hist = np.zeros((D, n, m), dtype=np.float32)
         hist[0, rec.offset:rec.offset + cs.N] = p0[:, None]
         dep = hist[0].astype(float)
@@ -314,6 +372,19 @@ class Horizon:
         return HorizonCoverage(q=counts / c, horizon=T, epoch=int(epoch or T),
                                counted_fraction=c / total,
                                seconds=time.perf_counter() - t0)
+
+
+_SHARED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def horizon_of(model) -> Horizon:
+    """The :class:`Horizon` shared by every user of ``model`` (the coverage models are
+    cached per map, :func:`~planners.coverage.base.cached_build`): the α fit for a horizon
+    and the steps_to_limit report after it run each angle once between them.
+    """
+    if model not in _SHARED:
+        _SHARED[model] = Horizon(model)
+    return _SHARED[model]
 
 
 def horizon_coverage(model, angles, horizon: int, **kw) -> HorizonCoverage:
