@@ -9,6 +9,8 @@ follow from the geometry on paper.
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 from importlib import metadata
 
 import numpy as np
@@ -272,6 +274,17 @@ def test_version(capsys):
     assert exc.value.code == 0
     out = capsys.readouterr().out
     assert out.startswith(f"bouncesim {metadata.version('bouncesim')}")
+
+
+def test_python_dash_m_runs_the_same_command_line():
+    # `python -m bouncesim` is the installed script: same version line, same exit codes
+    ok = subprocess.run([sys.executable, "-m", "bouncesim", "--version"], capture_output=True,
+                        text=True, timeout=120)
+    assert ok.returncode == 0
+    assert ok.stdout.startswith(f"bouncesim {metadata.version('bouncesim')}")
+    bad = subprocess.run([sys.executable, "-m", "bouncesim", "info", "no_such_map"],
+                         capture_output=True, text=True, timeout=120)
+    assert bad.returncode == 2 and bad.stderr.startswith("bouncesim: error: ")
 
 
 # ============================================================================ progress
