@@ -184,29 +184,40 @@ class TimeShared:
         self.H = sp.csr_matrix((np.asarray(chain.weight, dtype=np.float32),
                                 (np.asarray(chain.dst), cols)), shape=(n, D * n))
         self.H.sum_duplicates()
+        # the states mass can land in (a flight ends there, or the start puts mass there):
+        # x_t is zero elsewhere, so the products skip those rows of H and columns of Wᵀ
+        self.live = np.flatnonzero((np.diff(self.H.indptr) > 0)
+                                   | (np.asarray(chain.start) != 0))
+        self.H_live = sp.csr_matrix(self.H[self.live])
         self.RT = sp.csr_matrix(chain.reward.T)
         # expected steps (counted or dropped) of a flight leaving each state
         self.length = np.bincount(chain.src, weights=np.asarray(chain.weight)
                                   * np.asarray(chain.delay), minlength=n)
 
-    def _blocks(self, WT, threads: int | None) -> list:
-        """Row blocks (rows, H rows, Wᵀ rows) of one step, balanced by non-zeros: one block
-        below :data:`PARALLEL_MIN` states, else one per thread.
+    def turn(self, W) -> sp.csr_matrix:
+        """An angle's turn W (n × n, row-stochastic) prepared for :meth:`advance`: Wᵀ on the
+        columns of the states mass can land in (:attr:`live`), float32.
         """
-        n = self.chain.n
-        k = default_threads() if threads is None else max(1, int(threads))
-        if k == 1 or n < PARALLEL_MIN:
-            return [(slice(0, n), self.H, WT)]
-        work = np.cumsum(np.diff(self.H.indptr) + np.diff(WT.indptr) + 1)
-        cuts = [0, *np.searchsorted(work, work[-1] * np.arange(1, k) / k).tolist(), n]
-        return [(slice(a, b), self.H[a:b], WT[a:b]) for a, b in zip(cuts, cuts[1:]) if b > a]
+        return sp.csr_matrix(sp.csr_matrix(W.T)[:, self.live]).astype(np.float32)
+
+    @staticmethod
+    def _split(A, k: int) -> list:
+        """Row blocks (rows, A's rows) of A, k of them balanced by non-zeros (one for k = 1)."""
+        m = A.shape[0]
+        if k == 1:
+            return [(slice(0, m), A)]
+        work = np.cumsum(np.diff(A.indptr) + 1)
+        cuts = [0, *np.searchsorted(work, work[-1] * np.arange(1, k) / k).tolist(), m]
+        return [(slice(a, b), A[a:b]) for a, b in zip(cuts, cuts[1:]) if b > a]
 
     def _epoch(self, WT, hist: np.ndarray, steps: int, inject=None, threads=None):
-        """Run ``steps`` steps of one angle from boundary state ``hist`` (D, n).
+        """Run ``steps`` steps of one angle (``WT`` from :meth:`turn`) from boundary state
+        ``hist`` (D, n).
 
-        Each step's products are split into row blocks (:meth:`_blocks`) that run on the
-        shared threads; every row is computed by the same sparse kernel in the same order,
-        so the result does not depend on the split (bitwise).
+        Each step's two products are split into row blocks that run on the shared threads
+        (one block below :data:`PARALLEL_MIN` states); every row is computed by the same
+        sparse kernel in the same order, so the result does not depend on the split
+        (bitwise).
 
         Returns (end state (D, n), Σ_t v_t (n,) float64).
         """
@@ -216,28 +227,30 @@ class TimeShared:
         buf[D + 1:] = hist[:D - 1]
         flat = buf.reshape(-1)
         dep = np.zeros(n)
-        x = np.zeros(n, dtype=np.float32)
-        blocks = self._blocks(WT, threads)
+        x = np.zeros(self.live.size, dtype=np.float32)      # x_t on the live states
+        k = default_threads() if threads is None else max(1, int(threads))
+        k = 1 if n < PARALLEL_MIN else k
+        lands, turns = self._split(self.H_live, k), self._split(WT, k)
         if inject is not None:
-            inject = np.asarray(inject, dtype=np.float32)
+            inject = np.asarray(inject, dtype=np.float32)[self.live]
 
         def land(block, t, p):               # x_t over the block's rows
-            r, Hb, _ = block
+            r, Hb = block
             x[r] = Hb @ flat[(p + 1) * n:(p + 1 + D) * n]
             if inject is not None and t == 0:
                 x[r] += inject[r]
 
         def turn(block, p):                  # v_t over the block's rows, stored and summed
-            r, _, Wb = block
+            r, Wb = block
             v = Wb @ x
             buf[p, r] = v
             buf[p + D, r] = v
             dep[r] += v
 
-        pool = _pool(len(blocks) - 1) if len(blocks) > 1 else None
+        pool = _pool(k - 1) if k > 1 else None
         for t in range(steps):
             p = (-t) % D
-            for phase, args in ((land, (t, p)), (turn, (p,))):
+            for phase, blocks, args in ((land, lands, (t, p)), (turn, turns, (p,))):
                 futures = [pool.submit(phase, b, *args) for b in blocks[1:]] if pool else ()
                 phase(blocks[0], *args)
                 for f in futures:
@@ -246,7 +259,7 @@ class TimeShared:
         return buf[p + 1:p + 1 + D].copy(), dep
 
     def advance(self, WT, hist: np.ndarray, steps: int, threads: int | None = None):
-        """Run ``steps`` steps of one angle (``WT``: its turn matrix transposed, float32) from
+        """Run ``steps`` steps of one angle (``WT``: its turn prepared by :meth:`turn`) from
         the boundary state ``hist`` (D, n) = (v_{t−1}, …, v_{t−D}); returns (end state (D, n),
         Σ v_t over the steps (n,) float64). The horizons of :mod:`planners.coverage.horizon`
         run on this. ``threads``: row blocks per step (default :func:`default_threads`; the
@@ -279,7 +292,7 @@ class TimeShared:
             raise UserError(f"epoch must be at least one step, got {epoch}.")
         alpha = alpha / alpha.sum()
         use = [i for i in range(alpha.size) if alpha[i] > 0]
-        WT = {i: sp.csr_matrix(turns[i].T).astype(np.float32) for i in use}
+        WT = {i: self.turn(turns[i]) for i in use}
         n = self.chain.n
         hist = np.zeros((self.D, n), dtype=np.float32)
         inject = np.asarray(self.chain.start, dtype=np.float32)

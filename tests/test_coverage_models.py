@@ -29,6 +29,7 @@ from planners.coverage import (
     SampledSettings,
     StepModel,
     TurnNoise,
+    analyses,
     design_mix,
     flight_steps,
     model_for,
@@ -168,6 +169,20 @@ def test_step_model_is_bit_identical_through_the_entry_point():
     old = design_mix(StepModel(cs), [30, 75, 315], noise)
     new = design_mix(model_for(cs, "step"), [30, 75, 315], noise)
     assert np.array_equal(old.alpha, new.alpha) and np.array_equal(old.A, new.A)
+
+
+def test_angles_analysed_in_parallel_give_what_one_by_one_gives():
+    # analyses() runs the angles after the first on threads: the same numbers, in order,
+    # for each model, and with Gaussian noise, whose event flights the first angle builds
+    cs = CellSpace(envs.load("lab", orientations=16))
+    angles = [45, 112.5, 315, 180]
+    for name, noise in (("step", TurnNoise(22.5, 0.8)), ("sampled", TurnNoise(22.5, 0.8)),
+                        ("event", TurnNoise.gauss(10))):
+        got = list(analyses(MODELS[name](cs), angles, noise))
+        ref = [MODELS[name](cs).analyse(a, noise) for a in angles]
+        assert [g.angle for g in got] == angles
+        for g, r in zip(got, ref):
+            assert np.array_equal(g.q, r.q) and np.array_equal(g.pi, r.pi), (name, g.angle)
 
 
 def test_entry_point_errors_and_pipeline_wiring():

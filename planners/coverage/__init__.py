@@ -31,6 +31,7 @@ from __future__ import annotations
 
 from .api import (
     MODELS,
+    analyses,
     check_angles,
     check_model,
     default_settings,
@@ -54,7 +55,7 @@ from .sampled import SampledModel, SampledSettings
 from .step import StepModel, StepSettings, transition_matrix
 from .targets import SPACES, TARGET_FORMATS, TargetError, load_target, uniform_target
 
-__all__ = ["MODELS", "AngleCoverage", "CoverageModel", "EventModel", "EventSettings",
+__all__ = ["MODELS", "AngleCoverage", "analyses", "CoverageModel", "EventModel", "EventSettings",
            "MixDesign", "MixFit", "SampledModel", "SampledSettings", "SPACES", "StepModel",
            "StepSettings", "TARGET_FORMATS", "TargetError", "TurnNoise", "check_angles",
            "check_model", "clear_cache", "default_settings", "design_mix", "flight_steps",

@@ -24,7 +24,8 @@ True
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 import numpy as np
@@ -34,7 +35,7 @@ from envs import UserError
 
 from ..cells import CellSpace
 from ..plan import PolicyMix
-from ..timeshare import TimeSharedCoverage, timeshared
+from ..timeshare import TimeSharedCoverage, default_threads, timeshared
 from .base import CoverageModel
 from .event import EventModel
 from .horizon import fit_horizon_mix, horizon_of
@@ -44,7 +45,7 @@ from .sampled import SampledModel
 from .step import StepModel
 from .targets import check_target, space_size
 
-__all__ = ["MODELS", "check_model", "default_settings", "model_for", "check_angles",
+__all__ = ["MODELS", "analyses", "check_model", "default_settings", "model_for", "check_angles",
            "design_mix", "timeshared_coverage"]
 
 _EXACT = TurnNoise()
@@ -106,6 +107,24 @@ def check_angles(K: int, angles: Iterable[float], noise: TurnNoise) -> tuple:
     return angles
 
 
+def analyses(model: CoverageModel, angles, noise: TurnNoise = _EXACT) -> Iterator:
+    """Every angle's :meth:`analyse`, in order: the first alone (it builds what the angles
+    share, e.g. the event model's Gaussian flights), the others on
+    :func:`~planners.timeshare.default_threads` threads (scipy's products and solves release
+    the GIL); the same results as one after the other.
+    """
+    angles = list(angles)
+    if not angles:
+        return
+    yield model.analyse(angles[0], noise)
+    k = min(default_threads(), len(angles) - 1)
+    if k <= 1:
+        yield from (model.analyse(a, noise) for a in angles[1:])
+        return
+    with ThreadPoolExecutor(max_workers=k, thread_name_prefix="analyse") as pool:
+        yield from pool.map(lambda a: model.analyse(a, noise), angles[1:])
+
+
 def design_mix(model: CoverageModel, angles: Iterable[float], noise: TurnNoise = _EXACT,
                target: ArrayLike | None = None, space: str = "positions",
                progress: Callable[[Iterable], Iterable] | None = None,
@@ -123,7 +142,8 @@ def design_mix(model: CoverageModel, angles: Iterable[float], noise: TurnNoise =
     space : {"positions", "configurations"}
         Fit Aα to b over position cells (A's columns are q) or over configurations (π);
         configurations only for models whose states are the configurations (``step``).
-    progress : callable, optional   wraps the iterable of angles (e.g. ``tqdm``)
+    progress : callable, optional   wraps the iterable of the angles' analyses, in order
+                                    (e.g. ``tqdm``; they run in parallel, :func:`analyses`)
     horizon : int, optional
         Fit α to the coverage expected over the first ``horizon`` steps (docs/model.md §17)
         instead of the limit; positions only. The per-angle limits are still in
@@ -148,8 +168,8 @@ def design_mix(model: CoverageModel, angles: Iterable[float], noise: TurnNoise =
                         "cells only; use --target-space positions.")
     angles = check_angles(cs.K, angles, noise)
     b = check_target(target, cs, space)
-    it = progress(angles) if progress else angles
-    per = tuple(model.analyse(a, noise) for a in it)
+    it = analyses(model, angles, noise)
+    per = tuple(progress(it) if progress else it)
     A = np.column_stack([a.q if space == "positions" else a.pi for a in per])
     if horizon is None:
         fit = solve_mix(A, b)

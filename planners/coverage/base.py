@@ -48,7 +48,8 @@ class AngleCoverage(NoiseView):
                                 configurations z = k·P + p (step, sampled) or the contact
                                 states bin·K + k (event)
     analysis : ChainAnalysis    closed classes, absorption, π of the model's chain
-    seconds : float             CPU time [s] of this angle (the shared set-up excluded)
+    seconds : float             CPU time [s] of the thread that analysed this angle (the
+                                shared set-up excluded; angles may run in parallel)
     settings : frozen dataclass the model's settings
     steps_per_flight : float    event model: mean steps per bump-to-bump flight under π
                                 (dropped ones included); 1 for the one-step models

@@ -459,7 +459,7 @@ class EventModel:
         normalised over the P cells, R the expected counted steps per flight in every cell
         (renewal–reward): the share of a long run's steps, class by class (§10, §17).
         """
-        t0 = time.process_time()
+        t0 = time.thread_time()
         T, mu = self.chain(angle_deg, noise)
         res = analyse_contact_chain(T, mu, np.arange(self.n_states) // self.cs.K,
                                     method=self.stationary_method)
@@ -473,7 +473,7 @@ class EventModel:
             raise UserError("the event model counts no step in a free cell.")
         return AngleCoverage(model=self.name, angle=float(angle_deg), noise=noise,
                              q=q / tot, pi=res.pi, analysis=res,
-                             seconds=time.process_time() - t0, settings=self.settings,
+                             seconds=time.thread_time() - t0, settings=self.settings,
                              steps_per_flight=float(fs.length @ res.pi))
 
 

@@ -242,7 +242,7 @@ class Horizon:
         key = (float(angle), noise, p0.tobytes())
         if key not in self._runs:
             rec = self._prepare(noise)
-            self._runs[key] = _Trajectory(rec, self._turns([angle], noise, rec.offset)[0], p0)
+            self._runs[key] = _Trajectory(rec, self._turns([angle], rec, noise)[0], p0)
         return self._runs[key]
 
     def _prepare(self, noise: TurnNoise) -> "_Recursion":
@@ -256,13 +256,14 @@ class Horizon:
             self.seconds += time.perf_counter() - t0
         return self._prepared[kind]
 
-    def _turns(self, angles, noise: TurnNoise, offset: int) -> list:
+    def _turns(self, angles, rec: "_Recursion", noise: TurnNoise) -> list:
+        """The angles' turns prepared for ``rec``'s recursion (the start states do not turn)."""
         out = []
         for a in angles:
             W = self.model.turn_matrix(a, noise)
-            if offset:
+            if rec.offset:
                 W = sp.block_diag((W, sp.csr_matrix((self.model.cs.N,) * 2)), format="csr")
-            out.append(sp.csr_matrix(W.T).astype(np.float32))
+            out.append(rec.ts.turn(W))
         return out
 
     @staticmethod
@@ -305,7 +306,7 @@ class Horizon:
                 yield T, np.column_stack([r.counts(T) for r in runs]), a
             return
         rec = self._prepare(noise)
-        WT = self._turns([angles[i] for i in use], noise, rec.offset)
+        WT = self._turns([angles[i] for i in use], rec, noise)
         D, n, m = rec.ts.D, rec.n, len(use)
         hist = np.zeros((D, n, m), dtype=np.float32)
         hist[0, rec.offset:rec.offset + cs.N] = p0[:, None]

@@ -155,14 +155,14 @@ class SampledModel:
 
     def analyse(self, angle_deg: float, noise: TurnNoise = _EXACT) -> AngleCoverage:
         """Limiting distribution (uniform start over N) and coverage of one angle."""
-        t0 = time.process_time()
+        t0 = time.thread_time()
         res = analyse_chain(self.chain(angle_deg, noise))
         q = np.asarray(self.reward.T @ res.pi).ravel()
         if not q.sum() > 0:
             raise UserError("the sampled model counts no step in a free cell.")
         return AngleCoverage(model=self.name, angle=float(angle_deg), noise=noise,
                              q=q / q.sum(), pi=res.pi, analysis=res,
-                             seconds=time.process_time() - t0, settings=self.settings)
+                             seconds=time.thread_time() - t0, settings=self.settings)
 
 
 def _nearest_free(cs: CellSpace, pts: np.ndarray) -> np.ndarray:

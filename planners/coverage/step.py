@@ -139,7 +139,7 @@ class StepModel:
         configurations) and coverage of one bouncing angle.
         """
         cs = self.cs
-        t0 = time.process_time()
+        t0 = time.thread_time()
         steps, probs = noise.turns(cs.K, angle_deg, positive=True)
         if self.settings.method == "matrix":
             res = analyse_chain(transition_matrix(cs, angle_deg, noise))
@@ -147,7 +147,7 @@ class StepModel:
             res = analyse_run_chain(cs.forward, _bump_matrix(cs, steps, probs))
         q = res.pi.reshape(cs.K, cs.P).sum(axis=0)
         return AngleCoverage(model=self.name, angle=float(angle_deg), noise=noise, q=q,
-                             pi=res.pi, analysis=res, seconds=time.process_time() - t0,
+                             pi=res.pi, analysis=res, seconds=time.thread_time() - t0,
                              settings=self.settings)
 
     def turn_matrix(self, angle_deg: float, noise: TurnNoise = _EXACT) -> sp.csr_matrix:
