@@ -43,6 +43,7 @@ from planners.plan import PolicyMix
 
 from ..noise import NoiseModel, NoNoise, noise_for_mix
 from .bumper import read_bumper
+from .fastforward import Coaster, FastForward
 from .robot import _SETTLE_STEPS, PyBulletRobot
 
 __all__ = ["PyBulletBatch", "BatchRun", "BATCH_PHYSICS", "ROBOT_GROUP", "ROBOT_MASK"]
@@ -73,6 +74,7 @@ class BatchRun:
     physics_steps : int         world steps taken (5 ms each by default)
     sim_time : float            simulated time [s]
     wall_s, cpu_s : float       wall-clock and process CPU time of the run [s]
+    skipped : (n,) int array    physics steps each robot fast-forwarded (§24; 0 without)
     turns : list, optional      with ``record=True``, per robot, one
                                 (x [m], y [m], heading [deg], turn [deg], heading after
                                 [deg]) per bump: the contact pose, the executed turn (noise
@@ -88,6 +90,7 @@ class BatchRun:
     wall_s: float
     cpu_s: float
     turns: list | None = None
+    skipped: np.ndarray | None = None
 
     @property
     def total(self) -> int:
@@ -128,6 +131,10 @@ class PyBulletBatch:
     starts : sequence of int, optional
         Start configurations z (default: each robot draws one uniformly from its generator,
         as ``execute`` does).
+    fast_forward : FastForward or None
+        Skip the physics steps of steady drives far from the walls and of the steady
+        middle of turns (docs/model.md §24, e.g. ``FastForward()``); None (default)
+        simulates every step.
     **robot_kw
         Physics settings of :class:`PyBulletRobot` (``time_step``, ``turn_speed``,
         ``solver``, ``solver_iterations``, ``wheel_torque``, ``bumper_arc_deg``,
@@ -137,7 +144,8 @@ class PyBulletBatch:
 
     def __init__(self, env: Environment | str, n_robots: int, rng=None, *,
                  cells: CellSpace | None = None, noise: NoiseModel | None = None,
-                 speed: float = 0.3, rngs=None, starts=None, **robot_kw) -> None:
+                 speed: float = 0.3, rngs=None, starts=None,
+                 fast_forward: FastForward | None = None, **robot_kw) -> None:
         self.n = int(n_robots)
         if self.n < 1:
             raise UserError(f"a batch needs at least one robot, got {n_robots}.")
@@ -168,6 +176,11 @@ class PyBulletBatch:
             for link in (-1, 0, 1):
                 p.setCollisionFilterGroupMask(b, link, ROBOT_GROUP, ROBOT_MASK, **kw)
         self._steps = 0
+        self.fast_forward = fast_forward
+        self._coaster = None if fast_forward is None else Coaster(
+            p, kw, self.env, self.host.body_radius, self.host._wheel_r,
+            self.host.spec.wheel_base, fast_forward,
+            0.02 if self.host.contact_threshold is None else self.host.contact_threshold)
 
     # ------------------------------------------------------------------ one body
     def _wheels(self, body: int, v_left: float, v_right: float) -> None:
@@ -195,15 +208,50 @@ class PyBulletBatch:
     # ------------------------------------------------------------------ the program
     def _program(self, i: int, angles, alpha, steps: int, epoch: int, burn_in: int,
                  noise: NoiseModel, out: dict):
-        """Robot i's run as execute's mix loop; yields physics steps to wait."""
+        """Robot i's run as execute's mix loop; yields physics steps to wait.
+
+        The robot keeps its own step clock: the world's steps plus the steps it has
+        fast-forwarded (§24). Robots ignore each other, so their clocks need not agree.
+        """
         host, cells, rng, body = self.host, self.cells, self.rngs[i], self.bodies[i]
         dt, period, speed, h = host.time_step, host.spec.sensor_period, self.speed, cells.h
+        coast, ff = self._coaster, self.fast_forward
+        skipped = out["skipped"]
+        off = 0                               # steps fast-forwarded so far
         t_goal = self._steps * dt             # the robot's clock target (PyBulletRobot.wait)
 
         def wait_steps(duration: float) -> int:
             nonlocal t_goal
             t_goal += duration
-            return int(round(t_goal / dt)) - self._steps
+            return int(round(t_goal / dt)) - (self._steps + off)
+
+        def coast_drive(elapsed: float, T: float) -> int:
+            """Jump the polls of a steady drive that keep the margin (§24): 1 if it did,
+            0 if the motion is not steady yet, -1 if the wall is too near for one poll.
+            """
+            nonlocal t_goal, off
+            if not coast.steady(body, speed, 0.0):
+                return 0
+            x, y, yaw = self._pose(body)
+            v = speed
+            room = coast.free_travel(x, y, math.cos(math.radians(yaw)),
+                                     math.sin(math.radians(yaw)))
+            if room < 0:
+                return 0                          # near a wall now: it may drive away
+            goal, n_tot = t_goal, 0
+            while elapsed < T:
+                g = goal + min(period, max(T - elapsed, 1e-6))
+                n = int(round(g / dt)) - (self._steps + off + n_tot)
+                if (n_tot + n) * dt * v > room:
+                    break
+                goal, n_tot = g, n_tot + n
+                elapsed = (self._steps + off + n_tot) * dt - t0
+            if n_tot <= 0:
+                return -1
+            coast.advance(body, n_tot * dt, speed, 0.0)
+            t_goal, off = goal, off + n_tot
+            skipped[i] += n_tot
+            return 1
 
         z = self.starts[i] if self.starts is not None else int(rng.integers(0, cells.N))
         self._place(body, *cells.pose(z))
@@ -216,13 +264,19 @@ class PyBulletBatch:
                 angle = (float(angles[rng.choice(len(angles), p=alpha)]) if len(angles) > 1
                          else float(angles[0]))
             pose0 = self._pose(body)
-            t0 = self._steps * dt
+            t0 = (self._steps + off) * dt
             self._wheels(body, speed, speed)                      # drive_for(speed, T)
+            coasting = coast is not None
             while True:
                 bumped = any(read_bumper(p, body, wall_set, arc, kw))
-                elapsed = self._steps * dt - t0
+                elapsed = (self._steps + off) * dt - t0
                 if bumped or elapsed >= T:
                     break
+                if coasting:
+                    jumped = coast_drive(elapsed, T)
+                    coasting = jumped >= 0            # no room: simulate to the step's end
+                    if jumped > 0:
+                        continue
                 n = wait_steps(min(period, max(T - elapsed, 1e-6)))
                 if n > 0:
                     yield n
@@ -248,7 +302,22 @@ class PyBulletBatch:
             v = math.copysign(host.turn_speed, actual)
             n_turn = round(host.spec.turn_time(actual, host.turn_speed) / dt)
             self._wheels(body, -v, v)
-            n = wait_steps(n_turn * dt)
+            left = n_turn                                         # turn steps to go
+            if coast is not None and ff.turns:
+                rate = 2 * v / host.spec.wheel_base
+                while left > ff.turn_steps:
+                    n = wait_steps(ff.turn_steps * dt)            # spin up in physics
+                    left -= ff.turn_steps
+                    if n > 0:
+                        yield n
+                    if coast.steady(body, 0.0, rate):                 # the steady spin (§24)
+                        n = wait_steps(left * dt)
+                        left = 0
+                        if n > 0:
+                            coast.advance(body, n * dt, 0.0, rate)
+                            off += n
+                            skipped[i] += n
+            n = wait_steps(left * dt)
             if n > 0:
                 yield n
             self._wheels(body, 0.0, 0.0)
@@ -291,7 +360,8 @@ class PyBulletBatch:
         out = {"counts": np.zeros((self.n, P), dtype=np.int64),
                "dropped": np.zeros(self.n, dtype=np.int64),
                "bumps": np.zeros(self.n, dtype=np.int64),
-               "turns": [[] for _ in range(self.n)] if record else None}
+               "turns": [[] for _ in range(self.n)] if record else None,
+               "skipped": np.zeros(self.n, dtype=np.int64)}
         p, kw = self.host._p, self.host._kw
         stepsim = p.stepSimulation
         t_wall, t_cpu = time.perf_counter(), time.process_time()
@@ -326,7 +396,8 @@ class PyBulletBatch:
                         steps=int(steps), physics_steps=n_phys,
                         sim_time=n_phys * self.host.time_step,
                         wall_s=time.perf_counter() - t_wall,
-                        cpu_s=time.process_time() - t_cpu, turns=out["turns"])
+                        cpu_s=time.process_time() - t_cpu, turns=out["turns"],
+                        skipped=out["skipped"])
 
     def close(self) -> None:
         """Disconnect the world (idempotent)."""
