@@ -218,6 +218,7 @@ class PyBulletBatch:
         coast, ff = self._coaster, self.fast_forward
         skipped = out["skipped"]
         off = 0                               # steps fast-forwarded so far
+        track: list = []                      # the last polls' poses (slides, §24)
         t_goal = self._steps * dt             # the robot's clock target (PyBulletRobot.wait)
 
         def wait_steps(duration: float) -> int:
@@ -225,33 +226,55 @@ class PyBulletBatch:
             t_goal += duration
             return int(round(t_goal / dt)) - (self._steps + off)
 
-        def coast_drive(elapsed: float, T: float) -> int:
-            """Jump the polls of a steady drive that keep the margin (§24): 1 if it did,
-            0 if the motion is not steady yet, -1 if the wall is too near for one poll.
+        def jump(elapsed: float, T: float, t_max: float, move) -> int:
+            """Skip the polls of the rest of this drive that end within ``t_max`` [s] and
+            move the body over them with ``move(seconds)``; the steps skipped.
             """
             nonlocal t_goal, off
-            if not coast.steady(body, speed, 0.0):
-                return 0
-            x, y, yaw = self._pose(body)
-            v = speed
-            room = coast.free_travel(x, y, math.cos(math.radians(yaw)),
-                                     math.sin(math.radians(yaw)))
-            if room < 0:
-                return 0                          # near a wall now: it may drive away
             goal, n_tot = t_goal, 0
             while elapsed < T:
                 g = goal + min(period, max(T - elapsed, 1e-6))
                 n = int(round(g / dt)) - (self._steps + off + n_tot)
-                if (n_tot + n) * dt * v > room:
+                if (n_tot + n) * dt > t_max:
                     break
                 goal, n_tot = g, n_tot + n
                 elapsed = (self._steps + off + n_tot) * dt - t0
-            if n_tot <= 0:
-                return -1
-            coast.advance(body, n_tot * dt, speed, 0.0)
-            t_goal, off = goal, off + n_tot
-            skipped[i] += n_tot
-            return 1
+            if n_tot > 0:
+                move(n_tot * dt)
+                t_goal, off = goal, off + n_tot
+                skipped[i] += n_tot
+            return n_tot
+
+        def coast_drive(elapsed: float, T: float) -> int:
+            """Jump the polls of a steady drive that keep the margin, or of a steady slide
+            along one wall (§24): 1 if it did, 0 if not now, -1 if not before the step's end.
+            """
+            x, y, yaw = self._pose(body)
+            gap, side = coast.near(x, y)
+            if gap >= coast.clearance and coast.steady(body, speed, 0.0):
+                th = math.radians(yaw)
+                room = coast.free_travel(x, y, math.cos(th), math.sin(th))
+                track.clear()
+                n = jump(elapsed, T, room / speed, lambda t: coast.advance(body, t, speed, 0.0))
+                return 1 if n > 0 else -1
+            if not ff.slides:
+                return 0
+            now = (self._steps + off) * dt
+            if track and track[-1][0] >= now:
+                track.pop()                   # the same instant (a new step at once)
+            track.append((now, x, y, math.radians(yaw), side))
+            del track[:-3]
+            slide = coast.slide(track, speed, 90.0 - host.bumper_arc_deg)
+            if slide is None:
+                return 0
+            u, ux, uy, w, t_max = slide
+            n = jump(elapsed, T, t_max,
+                     lambda t: coast.advance(body, t, u, w, along=(ux, uy)))
+            if n > 0:    # the measured polls, carried along: the slide goes on measured
+                t = n * dt
+                track[:] = [(tk + t, xk + u * t * ux, yk + u * t * uy, hk + w * t, k)
+                            for tk, xk, yk, hk, k in track]
+            return 1 if n > 0 else 0
 
         z = self.starts[i] if self.starts is not None else int(rng.integers(0, cells.N))
         self._place(body, *cells.pose(z))
@@ -292,6 +315,7 @@ class PyBulletBatch:
                 out["bumps"][i] += bump_step
             if not bump_step:
                 continue
+            track.clear()
             actual = float(noise.sample(rng, angle))                # turn(angle), by clock
             if out["turns"] is not None:
                 out["turns"][i].append(pose + (actual,))
