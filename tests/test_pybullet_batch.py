@@ -70,10 +70,9 @@ def test_robots_ignore_each_other(lab72):
     with PyBulletBatch(env, 2, rngs=[np.random.default_rng(7), np.random.default_rng(7)],
                        starts=[130, 130], cells=cs, noise=_noise(cs)) as batch:
         res = batch.run(MIX, 25, record=True)
-        poses = [batch._pose(b) for b in batch.bodies]
     assert res.bumps[0] > 3
     assert np.array_equal(res.counts[0], res.counts[1])
-    assert np.allclose(poses[0], poses[1], atol=1e-9)
+    assert np.allclose(res.poses[0], res.poses[1], atol=1e-9)
 
 
 def test_batch_bumps_at_the_wall_and_turns_accurately(lab72):

@@ -75,6 +75,7 @@ class BatchRun:
     sim_time : float            simulated time [s]
     wall_s, cpu_s : float       wall-clock and process CPU time of the run [s]
     skipped : (n,) int array    physics steps each robot fast-forwarded (§24; 0 without)
+    poses : (n, 3) array        each robot's (x [m], y [m], heading [deg]) at its end
     turns : list, optional      with ``record=True``, per robot, one
                                 (x [m], y [m], heading [deg], turn [deg], heading after
                                 [deg]) per bump: the contact pose, the executed turn (noise
@@ -91,6 +92,7 @@ class BatchRun:
     cpu_s: float
     turns: list | None = None
     skipped: np.ndarray | None = None
+    poses: np.ndarray | None = None
 
     @property
     def total(self) -> int:
@@ -204,6 +206,21 @@ class PyBulletBatch:
         for j in (0, 1):
             p.resetJointState(body, j, p.getJointState(body, j, **kw)[0], 0.0, **kw)
         self._wheels(body, 0.0, 0.0)
+
+    def _new_body(self) -> int:
+        body = self.host._create_body()
+        for link in (-1, 0, 1):
+            self.host._p.setCollisionFilterGroupMask(body, link, ROBOT_GROUP, ROBOT_MASK,
+                                                     **self.host._kw)
+        return body
+
+    def _retire(self, i: int, out: dict) -> None:
+        """Robot i's program has ended: keep its pose and take its body out of the world, so
+        that it costs nothing while the others finish (:meth:`run` builds it anew).
+        """
+        out["poses"][i] = self._pose(self.bodies[i])
+        self.host._p.removeBody(self.bodies[i], **self.host._kw)
+        self.bodies[i] = -1
 
     # ------------------------------------------------------------------ the program
     def _program(self, i: int, angles, alpha, steps: int, epoch: int, burn_in: int,
@@ -385,11 +402,14 @@ class PyBulletBatch:
                "dropped": np.zeros(self.n, dtype=np.int64),
                "bumps": np.zeros(self.n, dtype=np.int64),
                "turns": [[] for _ in range(self.n)] if record else None,
-               "skipped": np.zeros(self.n, dtype=np.int64)}
+               "skipped": np.zeros(self.n, dtype=np.int64),
+               "poses": np.zeros((self.n, 3))}
         p, kw = self.host._p, self.host._kw
         stepsim = p.stepSimulation
         t_wall, t_cpu = time.perf_counter(), time.process_time()
         start_steps = self._steps
+        self.bodies = [b if b >= 0 else self._new_body() for b in self.bodies]
+        self.host._robot = self.bodies[0]
         programs = [self._program(i, angles, alpha, int(steps), int(epoch), int(burn_in),
                                   noise, out) for i in range(self.n)]
         heap: list[tuple[int, int]] = []
@@ -398,6 +418,7 @@ class PyBulletBatch:
             for n in programs[i]:
                 heapq.heappush(heap, (self._steps + n, i))
                 return
+            self._retire(i, out)                  # done: it stops costing world steps
 
         for i in range(self.n):
             resume(i)
@@ -421,11 +442,11 @@ class PyBulletBatch:
                         sim_time=n_phys * self.host.time_step,
                         wall_s=time.perf_counter() - t_wall,
                         cpu_s=time.process_time() - t_cpu, turns=out["turns"],
-                        skipped=out["skipped"])
+                        skipped=out["skipped"], poses=out["poses"])
 
     def close(self) -> None:
         """Disconnect the world (idempotent)."""
-        self.host.close()
+        self.host._disconnect()           # (no stop: retired bodies are gone)
 
     def __enter__(self) -> PyBulletBatch:
         return self
