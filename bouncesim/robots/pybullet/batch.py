@@ -17,6 +17,13 @@ configuration, epoch angles, turn noise), and keeps its own drift-free clock the
 single ``PyBulletRobot`` run by ``execute`` with the same g (the test suite checks the bump
 points and turns against that path).
 
+By default (``fast_forward=FastForward()``, docs/model.md §24) a robot skips the physics steps of
+steady motion: straight drives clear of the walls, steady slides along one wall side and the
+steady middle of turns in place are advanced in one move
+(:class:`~bouncesim.robots.pybullet.fastforward.Coaster`), and the robot's own step clock
+runs on by the steps skipped. Robots ignore each other, so their clocks need not agree; a
+robot whose program has ended leaves the world.
+
 Examples
 --------
 >>> import envs
@@ -43,7 +50,7 @@ from planners.plan import PolicyMix
 
 from ..noise import NoiseModel, NoNoise, noise_for_mix
 from .bumper import read_bumper
-from .fastforward import Coaster, FastForward
+from .fastforward import DEFAULT_FAST_FORWARD, Coaster, FastForward
 from .robot import _SETTLE_STEPS, PyBulletRobot
 
 __all__ = ["PyBulletBatch", "BatchRun", "BATCH_PHYSICS", "ROBOT_GROUP", "ROBOT_MASK"]
@@ -135,8 +142,8 @@ class PyBulletBatch:
         as ``execute`` does).
     fast_forward : FastForward or None
         Skip the physics steps of steady drives far from the walls and of the steady
-        middle of turns (docs/model.md §24, e.g. ``FastForward()``); None (default)
-        simulates every step.
+        middle of turns (docs/model.md §24; default ``FastForward()``); None simulates
+        every physics step.
     **robot_kw
         Physics settings of :class:`PyBulletRobot` (``time_step``, ``turn_speed``,
         ``solver``, ``solver_iterations``, ``wheel_torque``, ``bumper_arc_deg``,
@@ -147,7 +154,7 @@ class PyBulletBatch:
     def __init__(self, env: Environment | str, n_robots: int, rng=None, *,
                  cells: CellSpace | None = None, noise: NoiseModel | None = None,
                  speed: float = 0.3, rngs=None, starts=None,
-                 fast_forward: FastForward | None = None, **robot_kw) -> None:
+                 fast_forward: FastForward | None = DEFAULT_FAST_FORWARD, **robot_kw) -> None:
         self.n = int(n_robots)
         if self.n < 1:
             raise UserError(f"a batch needs at least one robot, got {n_robots}.")
@@ -295,7 +302,7 @@ class PyBulletBatch:
 
         z = self.starts[i] if self.starts is not None else int(rng.integers(0, cells.N))
         self._place(body, *cells.pose(z))
-        counts, wall_set, arc = out["counts"][i], host._wall_set, host.bumper_arc_deg
+        points, wall_set, arc = out["points"][i], host._wall_set, host.bumper_arc_deg
         p, kw = host._p, host._kw
         angle = float(angles[0])
         T = h / speed
@@ -324,11 +331,7 @@ class PyBulletBatch:
             _, bump_step = step_rule(speed * elapsed if bumped else math.inf, h)
             pose = self._pose(body) if bump_step else pose0
             if s >= burn_in:
-                c = int(cells.cell_of_point(pose[:2])[0])
-                if c < 0:
-                    out["dropped"][i] += 1
-                else:
-                    counts[c] += 1
+                points.append(pose[:2])              # its cell: at the end, all at once
                 out["bumps"][i] += bump_step
             if not bump_step:
                 continue
@@ -403,7 +406,8 @@ class PyBulletBatch:
                "bumps": np.zeros(self.n, dtype=np.int64),
                "turns": [[] for _ in range(self.n)] if record else None,
                "skipped": np.zeros(self.n, dtype=np.int64),
-               "poses": np.zeros((self.n, 3))}
+               "poses": np.zeros((self.n, 3)),
+               "points": [[] for _ in range(self.n)]}
         p, kw = self.host._p, self.host._kw
         stepsim = p.stepSimulation
         t_wall, t_cpu = time.perf_counter(), time.process_time()
@@ -434,9 +438,14 @@ class PyBulletBatch:
                 resume(heapq.heappop(heap)[1])
             if progress is not None and time.perf_counter() - last > 2.0:
                 last = time.perf_counter()
-                done = int(out["counts"].sum() + out["dropped"].sum())
+                done = sum(len(pts) for pts in out["points"])
                 progress(done / total)
         n_phys = self._steps - start_steps
+        for i, pts in enumerate(out["points"]):
+            if pts:
+                c = self.cells.cell_of_point(np.asarray(pts))
+                out["counts"][i] = np.bincount(c[c >= 0], minlength=P)
+                out["dropped"][i] = int(np.count_nonzero(c < 0))
         return BatchRun(counts=out["counts"], dropped=out["dropped"], bumps=out["bumps"],
                         steps=int(steps), physics_steps=n_phys,
                         sim_time=n_phys * self.host.time_step,

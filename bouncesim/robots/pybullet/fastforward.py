@@ -1,12 +1,12 @@
 """Fast-forward of steady motion in a PyBullet world (docs/model.md §24).
 
-A Create 2 that drives straight far from every wall, or turns in place at its commanded
-rate, moves with a constant twist (linear and angular velocity in its own frame) as long as
-nothing touches it: the physics steps of such a stretch only integrate that twist. A
+A Create 2 that drives straight far from every wall, slides steadily along one, or turns in
+place at its commanded rate moves with a constant twist (forward speed and yaw rate) as long
+as nothing new touches it: the physics steps of such a stretch only integrate that twist. A
 :class:`Coaster` advances the body over such a stretch in one move instead (the pose by the
-exact integral of the measured twist, the velocities and the wheel joints carried along),
-so that physics steps are spent where something happens: starts, stops, approaches to a
-wall, contacts.
+exact integral of the twist, once the measured motion has been checked to follow it; the
+velocities and the wheel joints carried along), so that physics steps are spent where
+something happens: starts, stops, approaches to a wall, contacts.
 
 The mechanism is honest only where it is safe, and :class:`FastForward` says where:
 
@@ -20,11 +20,11 @@ The mechanism is honest only where it is safe, and :class:`FastForward` says whe
 - **slides** along one straight wall side (``slides``) jump when the last two sensor
   periods measured the same speed along the side and none across it, and the incidence
   stays inside (0.5°, β − 0.5°), until ``margin`` before the side's end or another wall;
-- **turns** run their first ``turn_steps`` physics steps (the spin-up, and any push-off from
-  the wall just bumped) and jump the rest of the steady spin when the wheels and the body
-  turn at the commanded rate (within ``yaw_rate_tol``) and the centre moves slower than
-  ``speed_tol``; the stop and the settling are simulated. A disk turning about its own
-  centre sweeps no new area, so a spin never meets a wall it did not touch already.
+- **turns** run ``turn_steps`` physics steps at a time (the spin-up, and any push-off from
+  the wall just bumped) until the wheels and the body turn at the commanded rate (within
+  ``yaw_rate_tol``) and the centre moves slower than ``speed_tol``, then jump the rest of
+  the spin; the stop and the settling are simulated. A disk turning about its own centre
+  sweeps no new area, so a spin never meets a wall it did not touch already.
 
 Examples
 --------
