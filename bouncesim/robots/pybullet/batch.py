@@ -79,7 +79,8 @@ class BatchRun:
     bumps : (n,) int array      bump steps per robot
     steps : int                 counted steps per robot (after the burn-in)
     physics_steps : int         world steps taken (5 ms each by default)
-    sim_time : float            simulated time [s]
+    sim_time : float            simulated time of the world steps [s] (each robot's own
+                                clock ran on by its ``skipped`` steps besides)
     wall_s, cpu_s : float       wall-clock and process CPU time of the run [s]
     skipped : (n,) int array    physics steps each robot fast-forwarded (§24; 0 without)
     poses : (n, 3) array        each robot's (x [m], y [m], heading [deg]) at its end
@@ -374,6 +375,9 @@ class PyBulletBatch:
     def run(self, policy, steps: int, *, epoch: int = 1000, burn_in: int = 0,
             progress=None, record: bool = False) -> BatchRun:
         """Run ``burn_in + steps`` steps on every robot; count the last ``steps`` (§9).
+
+        Each robot's body leaves the world when its run ends (``BatchRun.poses`` keeps
+        where it stopped); the next call builds the bodies anew.
 
         Parameters
         ----------
