@@ -31,9 +31,17 @@ table gives the turn accuracy of the default settings by clock and by encoders.
 ``--throughput`` instead measures coverage steps (docs/model.md §9) per CPU second: today's
 single robot (``execute`` on one :class:`PyBulletRobot`, default physics) against
 :class:`~bouncesim.robots.pybullet.batch.PyBulletBatch` worlds of 1, 8, 32 and 64 robots
-(``--robots``), all at 75° with ε = 5°, r = 0.8, K = 72, 0.3 m/s, about ``--budget``
-robot-steps per row, plus the same batch in one process per core (wall-clock rate over
-``--processes`` processes) and the time 10⁶ steps would take at that rate.
+(``--robots``) simulating every physics step, and the same worlds with the fast-forward of
+steady motion (docs/model.md §24), all at 75° with ε = 5°, r = 0.8, K = 72, 0.3 m/s, about
+``--budget`` robot-steps per row, plus the fast-forward batch in one process per core
+(wall-clock rate over ``--processes`` processes) and the time 10⁶ steps would take at that
+rate.
+
+``--fidelity`` runs ``--robots`` (first entry) robots for ``--budget`` robot-steps with
+and without the fast-forward (independent seeds) and compares what §24 says it keeps: the
+gap at the bump, the turn error, the heading change over a flight (bump to bump), bumps per
+step, and the coverage histograms (TV between the two runs against the noise floor of two
+independent halves of each run, at the same budget).
 """
 
 from __future__ import annotations
@@ -138,43 +146,94 @@ def single_rate(env_name: str, steps: int, seed: int = 0) -> tuple[float, float]
     return run.steps / cpu, run.bumps / max(run.steps, 1)
 
 
-def batch_rate(env_name: str, n_robots: int, steps: int, seed: int = 0
-               ) -> tuple[float, float, int]:
-    """(robot-steps per CPU second, bumps per step, robot-steps) of one PyBulletBatch."""
+def batch_rate(env_name: str, n_robots: int, steps: int, seed: int = 0, fast_forward=None
+               ) -> tuple[float, float, int, float]:
+    """(robot-steps per CPU second, bumps per step, robot-steps, physics steps per
+    robot-step) of one PyBulletBatch.
+    """
     from bouncesim.robots.pybullet.batch import PyBulletBatch
     env, cs, mix = _mix_setup(env_name)
-    with PyBulletBatch(env, n_robots, seed, cells=cs) as batch:
+    with PyBulletBatch(env, n_robots, seed, cells=cs, fast_forward=fast_forward) as batch:
         res = batch.run(mix, steps)
-    return res.total / res.cpu_s, float(res.bumps.sum()) / res.total, res.total
+    return (res.total / res.cpu_s, float(res.bumps.sum()) / res.total, res.total,
+            res.physics_steps * n_robots / res.total)
 
 
 def throughput(env_name: str, robots, budget: int, processes: int) -> None:
     """Print the robot-steps per second table (see the module docstring)."""
+    from bouncesim.robots.pybullet.fastforward import FastForward
     print(f"env {env_name}, 75° ε 5° r 0.8, K 72, 0.3 m/s, ~{budget} robot-steps per row "
           f"(CPU seconds of this process; the machine may be shared)")
-    print(f"{'body':<34} {'robot-steps':>11} {'steps/CPU s':>11} {'bumps/step':>10} "
-          f"{'vs single':>9}")
+    print(f"{'body':<40} {'robot-steps':>11} {'steps/CPU s':>11} {'bumps/step':>10} "
+          f"{'phys/step':>9} {'vs single':>9}")
     ref, bumps = single_rate(env_name, budget)
-    print(f"{'single PyBulletRobot (today)':<34} {budget:11d} {ref:11.1f} {bumps:10.3f} "
-          f"{1.0:8.2f}x")
+    print(f"{'single PyBulletRobot (today)':<40} {budget:11d} {ref:11.1f} {bumps:10.3f} "
+          f"{'':>9} {1.0:8.2f}x")
     best = (0.0, 1)
-    for n in robots:
-        rate, bumps, total = batch_rate(env_name, n, max(2, math.ceil(budget / n)))
-        best = max(best, (rate, n))
-        print(f"{f'PyBulletBatch, {n} robots/world':<34} {total:11d} {rate:11.1f} "
-              f"{bumps:10.3f} {rate / ref:8.2f}x")
+    for ff, tag in ((None, "every step"), (FastForward(), "fast-forward")):
+        for n in robots:
+            rate, bumps, total, phys = batch_rate(env_name, n, max(2, math.ceil(budget / n)),
+                                                  fast_forward=ff)
+            if ff is not None:
+                best = max(best, (rate, n))
+            print(f"{f'PyBulletBatch, {n} robots/world, {tag}':<40} {total:11d} {rate:11.1f} "
+                  f"{bumps:10.3f} {phys:9.1f} {rate / ref:8.2f}x")
     n = best[1]
     per = max(2, math.ceil(budget / n))
     t0 = time.perf_counter()
     with ProcessPoolExecutor(processes) as ex:
         outs = list(ex.map(batch_rate, [env_name] * processes, [n] * processes,
-                           [per] * processes, range(1, processes + 1)))
+                           [per] * processes, range(1, processes + 1),
+                           [FastForward()] * processes))
     wall = time.perf_counter() - t0
     total = sum(o[2] for o in outs)
-    print(f"{f'{processes} processes x {n} robots (wall)':<34} {total:11d} "
-          f"{total / wall:11.1f} {'':>10} {total / wall / ref:8.2f}x")
+    print(f"{f'{processes} processes x {n} robots, ff (wall)':<40} {total:11d} "
+          f"{total / wall:11.1f} {'':>10} {'':>9} {total / wall / ref:8.2f}x")
     print(f"10^6 steps at that wall rate: {1e6 / (total / wall) / 60:.0f} min "
           f"(process start-up and world construction included)")
+
+
+def flight_stats(env, radius: float, turns) -> dict:
+    """Bump gap [mm], turn error [deg] and heading change per flight [deg] of a recorded
+    PyBulletBatch run (``BatchRun.turns``).
+    """
+    rows = [t for per in turns for t in per]
+    xy = np.array([(x, y) for x, y, *_ in rows])
+    gaps = (shapely.distance(shapely.points(xy), env.walls) - radius) * 1e3
+    err = np.abs([(a - b - t + 180.0) % 360.0 - 180.0 for _, _, b, t, a in rows])
+    drift = np.abs([(nxt[2] - cur[4] + 180.0) % 360.0 - 180.0
+                    for per in turns for cur, nxt in zip(per, per[1:])])
+    return {"bumps": len(rows), "gap_mean": gaps.mean(), "gap_min": gaps.min(),
+            "gap_max": gaps.max(), "turn_mean": err.mean(), "turn_max": err.max(),
+            "drift_mean": drift.mean(), "drift_p99": np.percentile(drift, 99)}
+
+
+def fidelity(env_name: str, n_robots: int, budget: int, seed: int = 0) -> None:
+    """Print what the fast-forward changes (see the module docstring)."""
+    from bouncesim.robots.pybullet.batch import PyBulletBatch
+    from bouncesim.robots.pybullet.fastforward import FastForward
+    from planners.metrics import tv_distance
+    env, cs, mix = _mix_setup(env_name)
+    steps = max(2, math.ceil(budget / n_robots))
+    runs = {}
+    for k, (tag, ff) in enumerate((("every step", None), ("fast-forward", FastForward()))):
+        with PyBulletBatch(env, n_robots, seed + k, cells=cs, fast_forward=ff) as batch:
+            res = batch.run(mix, steps, burn_in=20, record=True)
+            radius = batch.host.body_radius
+        runs[tag] = res
+        st = flight_stats(env, radius, res.turns)
+        print(f"{tag:<13} {res.total:6d} steps {res.total / res.cpu_s:7.1f}/CPU s  "
+              f"bumps/step {res.bumps.sum() / res.total:.3f}  gap mean/min/max "
+              f"{st['gap_mean']:.2f}/{st['gap_min']:.2f}/{st['gap_max']:.2f} mm  turn |err| "
+              f"mean/max {st['turn_mean']:.3f}/{st['turn_max']:.3f}°  heading change per "
+              f"flight mean/p99 {st['drift_mean']:.3f}/{st['drift_p99']:.3f}°  floor "
+              f"{res.floor():.4f}")
+    a, b = runs["every step"], runs["fast-forward"]
+    print(f"TV(every step, fast-forward) {tv_distance(a.pooled, b.pooled):.4f} at "
+          f"{a.total} steps each; halves at {a.total // 2}: TV(every step even, fast-forward "
+          f"even) {tv_distance(a.halves()[0], b.halves()[0]):.4f}, TV(every step odd, "
+          f"fast-forward odd) {tv_distance(a.halves()[1], b.halves()[1]):.4f}, floors "
+          f"{a.floor():.4f} / {b.floor():.4f}")
 
 
 def main(argv=None) -> None:
@@ -191,7 +250,13 @@ def main(argv=None) -> None:
     ap.add_argument("--budget", type=int, default=256,
                     help="robot-steps per row (--throughput)")
     ap.add_argument("--processes", type=int, default=2, help="processes (--throughput)")
+    ap.add_argument("--fidelity", action="store_true",
+                    help="what the fast-forward changes, against every physics step")
+    ap.add_argument("--seed", type=int, default=0, help="seed (--fidelity)")
     args = ap.parse_args(argv)
+    if args.fidelity:
+        fidelity(args.env, int(args.robots.split(",")[0]), args.budget, args.seed)
+        return
     if args.throughput:
         throughput(args.env, [int(n) for n in args.robots.split(",")], args.budget,
                    args.processes)

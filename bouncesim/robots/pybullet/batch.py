@@ -17,6 +17,13 @@ configuration, epoch angles, turn noise), and keeps its own drift-free clock the
 single ``PyBulletRobot`` run by ``execute`` with the same g (the test suite checks the bump
 points and turns against that path).
 
+By default (``fast_forward=FastForward()``, docs/model.md §24) a robot skips the physics steps of
+steady motion: straight drives clear of the walls, steady slides along one wall side and the
+steady middle of turns in place are advanced in one move
+(:class:`~bouncesim.robots.pybullet.fastforward.Coaster`), and the robot's own step clock
+runs on by the steps skipped. Robots ignore each other, so their clocks need not agree; a
+robot whose program has ended leaves the world.
+
 Examples
 --------
 >>> import envs
@@ -43,6 +50,7 @@ from planners.plan import PolicyMix
 
 from ..noise import NoiseModel, NoNoise, noise_for_mix
 from .bumper import read_bumper
+from .fastforward import DEFAULT_FAST_FORWARD, Coaster, FastForward
 from .robot import _SETTLE_STEPS, PyBulletRobot
 
 __all__ = ["PyBulletBatch", "BatchRun", "BATCH_PHYSICS", "ROBOT_GROUP", "ROBOT_MASK"]
@@ -71,8 +79,11 @@ class BatchRun:
     bumps : (n,) int array      bump steps per robot
     steps : int                 counted steps per robot (after the burn-in)
     physics_steps : int         world steps taken (5 ms each by default)
-    sim_time : float            simulated time [s]
+    sim_time : float            simulated time of the world steps [s] (each robot's own
+                                clock ran on by its ``skipped`` steps besides)
     wall_s, cpu_s : float       wall-clock and process CPU time of the run [s]
+    skipped : (n,) int array    physics steps each robot fast-forwarded (§24; 0 without)
+    poses : (n, 3) array        each robot's (x [m], y [m], heading [deg]) at its end
     turns : list, optional      with ``record=True``, per robot, one
                                 (x [m], y [m], heading [deg], turn [deg], heading after
                                 [deg]) per bump: the contact pose, the executed turn (noise
@@ -88,6 +99,8 @@ class BatchRun:
     wall_s: float
     cpu_s: float
     turns: list | None = None
+    skipped: np.ndarray | None = None
+    poses: np.ndarray | None = None
 
     @property
     def total(self) -> int:
@@ -128,6 +141,10 @@ class PyBulletBatch:
     starts : sequence of int, optional
         Start configurations z (default: each robot draws one uniformly from its generator,
         as ``execute`` does).
+    fast_forward : FastForward or None
+        Skip the physics steps of steady drives far from the walls and of the steady
+        middle of turns (docs/model.md §24; default ``FastForward()``); None simulates
+        every physics step.
     **robot_kw
         Physics settings of :class:`PyBulletRobot` (``time_step``, ``turn_speed``,
         ``solver``, ``solver_iterations``, ``wheel_torque``, ``bumper_arc_deg``,
@@ -137,7 +154,8 @@ class PyBulletBatch:
 
     def __init__(self, env: Environment | str, n_robots: int, rng=None, *,
                  cells: CellSpace | None = None, noise: NoiseModel | None = None,
-                 speed: float = 0.3, rngs=None, starts=None, **robot_kw) -> None:
+                 speed: float = 0.3, rngs=None, starts=None,
+                 fast_forward: FastForward | None = DEFAULT_FAST_FORWARD, **robot_kw) -> None:
         self.n = int(n_robots)
         if self.n < 1:
             raise UserError(f"a batch needs at least one robot, got {n_robots}.")
@@ -168,6 +186,11 @@ class PyBulletBatch:
             for link in (-1, 0, 1):
                 p.setCollisionFilterGroupMask(b, link, ROBOT_GROUP, ROBOT_MASK, **kw)
         self._steps = 0
+        self.fast_forward = fast_forward
+        self._coaster = None if fast_forward is None else Coaster(
+            p, kw, self.env, self.host.body_radius, self.host._wheel_r,
+            self.host.spec.wheel_base, fast_forward,
+            0.02 if self.host.contact_threshold is None else self.host.contact_threshold)
 
     # ------------------------------------------------------------------ one body
     def _wheels(self, body: int, v_left: float, v_right: float) -> None:
@@ -192,22 +215,95 @@ class PyBulletBatch:
             p.resetJointState(body, j, p.getJointState(body, j, **kw)[0], 0.0, **kw)
         self._wheels(body, 0.0, 0.0)
 
+    def _new_body(self) -> int:
+        body = self.host._create_body()
+        for link in (-1, 0, 1):
+            self.host._p.setCollisionFilterGroupMask(body, link, ROBOT_GROUP, ROBOT_MASK,
+                                                     **self.host._kw)
+        return body
+
+    def _retire(self, i: int, out: dict) -> None:
+        """Robot i's program has ended: keep its pose and take its body out of the world, so
+        that it costs nothing while the others finish (:meth:`run` builds it anew).
+        """
+        out["poses"][i] = self._pose(self.bodies[i])
+        self.host._p.removeBody(self.bodies[i], **self.host._kw)
+        self.bodies[i] = -1
+
     # ------------------------------------------------------------------ the program
     def _program(self, i: int, angles, alpha, steps: int, epoch: int, burn_in: int,
                  noise: NoiseModel, out: dict):
-        """Robot i's run as execute's mix loop; yields physics steps to wait."""
+        """Robot i's run as execute's mix loop; yields physics steps to wait.
+
+        The robot keeps its own step clock: the world's steps plus the steps it has
+        fast-forwarded (§24). Robots ignore each other, so their clocks need not agree.
+        """
         host, cells, rng, body = self.host, self.cells, self.rngs[i], self.bodies[i]
         dt, period, speed, h = host.time_step, host.spec.sensor_period, self.speed, cells.h
+        coast, ff = self._coaster, self.fast_forward
+        skipped = out["skipped"]
+        off = 0                               # steps fast-forwarded so far
+        track: list = []                      # the last polls' poses (slides, §24)
         t_goal = self._steps * dt             # the robot's clock target (PyBulletRobot.wait)
 
         def wait_steps(duration: float) -> int:
             nonlocal t_goal
             t_goal += duration
-            return int(round(t_goal / dt)) - self._steps
+            return int(round(t_goal / dt)) - (self._steps + off)
+
+        def jump(elapsed: float, T: float, t_max: float, move) -> int:
+            """Skip the polls of the rest of this drive that end within ``t_max`` [s] and
+            move the body over them with ``move(seconds)``; the steps skipped.
+            """
+            nonlocal t_goal, off
+            goal, n_tot = t_goal, 0
+            while elapsed < T:
+                g = goal + min(period, max(T - elapsed, 1e-6))
+                n = int(round(g / dt)) - (self._steps + off + n_tot)
+                if (n_tot + n) * dt > t_max:
+                    break
+                goal, n_tot = g, n_tot + n
+                elapsed = (self._steps + off + n_tot) * dt - t0
+            if n_tot > 0:
+                move(n_tot * dt)
+                t_goal, off = goal, off + n_tot
+                skipped[i] += n_tot
+            return n_tot
+
+        def coast_drive(elapsed: float, T: float) -> int:
+            """Jump the polls of a steady drive that keep the margin, or of a steady slide
+            along one wall (§24): 1 if it did, 0 if not now, -1 if not before the step's end.
+            """
+            x, y, yaw = self._pose(body)
+            gap, side = coast.near(x, y)
+            if gap >= coast.clearance and coast.steady(body, speed, 0.0):
+                th = math.radians(yaw)
+                room = coast.free_travel(x, y, math.cos(th), math.sin(th))
+                track.clear()
+                n = jump(elapsed, T, room / speed, lambda t: coast.advance(body, t, speed, 0.0))
+                return 1 if n > 0 else -1
+            if not ff.slides:
+                return 0
+            now = (self._steps + off) * dt
+            if track and track[-1][0] >= now:
+                track.pop()                   # the same instant (a new step at once)
+            track.append((now, x, y, math.radians(yaw), side))
+            del track[:-3]
+            slide = coast.slide(track, speed, 90.0 - host.bumper_arc_deg)
+            if slide is None:
+                return 0
+            u, ux, uy, w, t_max = slide
+            n = jump(elapsed, T, t_max,
+                     lambda t: coast.advance(body, t, u, w, along=(ux, uy)))
+            if n > 0:    # the measured polls, carried along: the slide goes on measured
+                t = n * dt
+                track[:] = [(tk + t, xk + u * t * ux, yk + u * t * uy, hk + w * t, k)
+                            for tk, xk, yk, hk, k in track]
+            return 1 if n > 0 else 0
 
         z = self.starts[i] if self.starts is not None else int(rng.integers(0, cells.N))
         self._place(body, *cells.pose(z))
-        counts, wall_set, arc = out["counts"][i], host._wall_set, host.bumper_arc_deg
+        points, wall_set, arc = out["points"][i], host._wall_set, host.bumper_arc_deg
         p, kw = host._p, host._kw
         angle = float(angles[0])
         T = h / speed
@@ -216,13 +312,19 @@ class PyBulletBatch:
                 angle = (float(angles[rng.choice(len(angles), p=alpha)]) if len(angles) > 1
                          else float(angles[0]))
             pose0 = self._pose(body)
-            t0 = self._steps * dt
+            t0 = (self._steps + off) * dt
             self._wheels(body, speed, speed)                      # drive_for(speed, T)
+            coasting = coast is not None
             while True:
                 bumped = any(read_bumper(p, body, wall_set, arc, kw))
-                elapsed = self._steps * dt - t0
+                elapsed = (self._steps + off) * dt - t0
                 if bumped or elapsed >= T:
                     break
+                if coasting:
+                    jumped = coast_drive(elapsed, T)
+                    coasting = jumped >= 0            # no room: simulate to the step's end
+                    if jumped > 0:
+                        continue
                 n = wait_steps(min(period, max(T - elapsed, 1e-6)))
                 if n > 0:
                     yield n
@@ -230,14 +332,11 @@ class PyBulletBatch:
             _, bump_step = step_rule(speed * elapsed if bumped else math.inf, h)
             pose = self._pose(body) if bump_step else pose0
             if s >= burn_in:
-                c = int(cells.cell_of_point(pose[:2])[0])
-                if c < 0:
-                    out["dropped"][i] += 1
-                else:
-                    counts[c] += 1
+                points.append(pose[:2])              # its cell: at the end, all at once
                 out["bumps"][i] += bump_step
             if not bump_step:
                 continue
+            track.clear()
             actual = float(noise.sample(rng, angle))                # turn(angle), by clock
             if out["turns"] is not None:
                 out["turns"][i].append(pose + (actual,))
@@ -248,7 +347,22 @@ class PyBulletBatch:
             v = math.copysign(host.turn_speed, actual)
             n_turn = round(host.spec.turn_time(actual, host.turn_speed) / dt)
             self._wheels(body, -v, v)
-            n = wait_steps(n_turn * dt)
+            left = n_turn                                         # turn steps to go
+            if coast is not None and ff.turns:
+                rate = 2 * v / host.spec.wheel_base
+                while left > ff.turn_steps:
+                    n = wait_steps(ff.turn_steps * dt)            # spin up in physics
+                    left -= ff.turn_steps
+                    if n > 0:
+                        yield n
+                    if coast.steady(body, 0.0, rate):                 # the steady spin (§24)
+                        n = wait_steps(left * dt)
+                        left = 0
+                        if n > 0:
+                            coast.advance(body, n * dt, 0.0, rate)
+                            off += n
+                            skipped[i] += n
+            n = wait_steps(left * dt)
             if n > 0:
                 yield n
             self._wheels(body, 0.0, 0.0)
@@ -261,6 +375,9 @@ class PyBulletBatch:
     def run(self, policy, steps: int, *, epoch: int = 1000, burn_in: int = 0,
             progress=None, record: bool = False) -> BatchRun:
         """Run ``burn_in + steps`` steps on every robot; count the last ``steps`` (§9).
+
+        Each robot's body leaves the world when its run ends (``BatchRun.poses`` keeps
+        where it stopped); the next call builds the bodies anew.
 
         Parameters
         ----------
@@ -291,11 +408,16 @@ class PyBulletBatch:
         out = {"counts": np.zeros((self.n, P), dtype=np.int64),
                "dropped": np.zeros(self.n, dtype=np.int64),
                "bumps": np.zeros(self.n, dtype=np.int64),
-               "turns": [[] for _ in range(self.n)] if record else None}
+               "turns": [[] for _ in range(self.n)] if record else None,
+               "skipped": np.zeros(self.n, dtype=np.int64),
+               "poses": np.zeros((self.n, 3)),
+               "points": [[] for _ in range(self.n)]}
         p, kw = self.host._p, self.host._kw
         stepsim = p.stepSimulation
         t_wall, t_cpu = time.perf_counter(), time.process_time()
         start_steps = self._steps
+        self.bodies = [b if b >= 0 else self._new_body() for b in self.bodies]
+        self.host._robot = self.bodies[0]
         programs = [self._program(i, angles, alpha, int(steps), int(epoch), int(burn_in),
                                   noise, out) for i in range(self.n)]
         heap: list[tuple[int, int]] = []
@@ -304,6 +426,7 @@ class PyBulletBatch:
             for n in programs[i]:
                 heapq.heappush(heap, (self._steps + n, i))
                 return
+            self._retire(i, out)                  # done: it stops costing world steps
 
         for i in range(self.n):
             resume(i)
@@ -319,18 +442,24 @@ class PyBulletBatch:
                 resume(heapq.heappop(heap)[1])
             if progress is not None and time.perf_counter() - last > 2.0:
                 last = time.perf_counter()
-                done = int(out["counts"].sum() + out["dropped"].sum())
+                done = sum(len(pts) for pts in out["points"])
                 progress(done / total)
         n_phys = self._steps - start_steps
+        for i, pts in enumerate(out["points"]):
+            if pts:
+                c = self.cells.cell_of_point(np.asarray(pts))
+                out["counts"][i] = np.bincount(c[c >= 0], minlength=P)
+                out["dropped"][i] = int(np.count_nonzero(c < 0))
         return BatchRun(counts=out["counts"], dropped=out["dropped"], bumps=out["bumps"],
                         steps=int(steps), physics_steps=n_phys,
                         sim_time=n_phys * self.host.time_step,
                         wall_s=time.perf_counter() - t_wall,
-                        cpu_s=time.process_time() - t_cpu, turns=out["turns"])
+                        cpu_s=time.process_time() - t_cpu, turns=out["turns"],
+                        skipped=out["skipped"], poses=out["poses"])
 
     def close(self) -> None:
         """Disconnect the world (idempotent)."""
-        self.host.close()
+        self.host._disconnect()           # (no stop: retired bodies are gone)
 
     def __enter__(self) -> PyBulletBatch:
         return self
