@@ -121,6 +121,7 @@ def pipeline_row(name: str, K: int, T: int) -> str:
             out[way] = (t_fit, _since(t), fit.alpha, [r["steps"] for r in [*each, mix]])
         finally:
             timeshare.default_threads = threads
+    k = timeshare.default_threads()          # what "now" used (it follows the load)
     fb, rb, ab, sb = out["before"]
     fn, rn, an, sn = out["now"]
     # a policy the time budget stopped on one side has no steps there: compare the others
@@ -131,7 +132,7 @@ def pipeline_row(name: str, K: int, T: int) -> str:
     return (f"| {name} | {model.n_states} | {build[0]:.1f} | {limits[0]:.1f} / {limits[1]:.1f} "
             f"| {fb[0]:.1f} / {fb[1]:.1f} | {fn[0]:.1f} / {fn[1]:.1f} "
             f"| {build[0] + limits[0] + fn[0]:.1f} | {rb[0]:.1f} | {rn[0]:.1f} | {same} "
-            f"| {stl} | {load:.1f} |")
+            f"| {stl} | {k} | {load:.1f} |")
 
 
 def main(argv=None) -> int:
@@ -146,12 +147,12 @@ def main(argv=None) -> int:
     ap.add_argument("--horizon", type=int, default=2000, help="--pipeline's T [steps]")
     args = ap.parse_args(argv)
     if args.pipeline:
-        print(f"K = {args.orientations}, angles 30/75/315, eps 5°, r 0.8, T = {args.horizon}, "
-              f"{timeshare.default_threads()} threads now; wall / CPU seconds")
+        print(f"K = {args.orientations}, angles 30/75/315, eps 5°, r 0.8, T = {args.horizon}; "
+              "wall / CPU seconds")
         print("| map | states | build | limits | q_T before | q_T now | build + limits + q_T "
               "now, wall | steps_to_limit before | steps_to_limit now | identical "
-              "| steps_to_limit (30° / 75° / 315° / mix) | load |")
-        print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+              "| steps_to_limit (30° / 75° / 315° / mix) | threads now | load |")
+        print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
         for name in args.maps.split(","):
             print(pipeline_row(name, args.orientations, args.horizon), flush=True)
         return 0

@@ -78,9 +78,14 @@ _POOL: ThreadPoolExecutor | None = None
 
 def default_threads() -> int:
     """Threads one step of a large recursion is split over: the cores this process may use
-    (at most 4). scipy's sparse products release the GIL, so the row blocks run in parallel.
+    (at most 4) that other work does not keep busy (by the 1-minute load average, this
+    process counted as one), at least 1. scipy's sparse products release the GIL, so the
+    row blocks run in parallel; on a machine already busy, more threads only wait for
+    each other (``benchmarks/bench_horizon.py --pipeline``). The numbers do not depend on it.
     """
-    return max(1, min(4, len(os.sched_getaffinity(0))))
+    cores = min(4, len(os.sched_getaffinity(0)))
+    busy = max(0.0, os.getloadavg()[0] - 1.0)
+    return max(1, min(cores, int(cores - busy + 0.5)))
 
 
 def _pool(workers: int) -> ThreadPoolExecutor:
