@@ -3,7 +3,7 @@ decision rule as it was (the reference search and scoring), the same rule on the
 and the guided search, run on the same pairs and seeds in one process.
 
     python -m benchmarks.bench_feedback [--env lab] [--sigmas 0,2,5] [--pairs 10] [--seed 0]
-                                        [--rules reference,fast,guided]
+                                        [--rules reference,fast,guided,before]
 
 For each σ, ``--pairs`` seeded feedback runs in the kinematic twin with Gaussian turn noise σ
 (the filter told σ) per rule:
@@ -12,7 +12,9 @@ For each σ, ``--pairs`` seeded feedback runs in the kinematic twin with Gaussia
   wall) and one plan scored after another: the rule and the code before the speed-up;
 - ``fast``: ``FeedbackConfig(guided=False)``, the same rule on the fast search and the
   batched scoring (the same decisions as ``reference``: the table says how many runs differ);
-- ``guided``: ``FeedbackConfig(guided=True)``, the search guided by the cost to go (§22).
+- ``guided``: ``FeedbackConfig(guided=True)``, the search guided by the cost to go (§22);
+- ``before``: ``FeedbackConfig(final_min=0.0)``, the default before the final drive needed
+  half the belief's mass in the goal cell (§22): it stopped whenever any mass did.
 
 Printed per σ and rule: decisions, runs that reached the goal, and the decision time per bump
 in CPU time of this process (filter update, planning, scoring, final drive): median, 95th
@@ -40,7 +42,8 @@ from planners.feedback import FeedbackConfig, FeedbackNavigator
 TARGET_MS = 50.0
 ANGLES = (45.0, 90.0, 135.0)
 RULES = {"reference": FeedbackConfig(reference=True), "fast": FeedbackConfig(guided=False),
-         "guided": FeedbackConfig(guided=True)}
+         "guided": FeedbackConfig(guided=True),
+         "before": FeedbackConfig(final_min=0.0)}
 
 
 def _floats(text: str) -> tuple:

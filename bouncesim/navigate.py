@@ -6,8 +6,10 @@ the kinematic twin, PyBullet, the Create 2 and its emulator, and on a user's own
 every bump the filter (:class:`planners.feedback.ParticleFilter`) takes the flight's
 distance (speed × elapsed time) and bumper side, and the navigator
 (:class:`planners.feedback.FeedbackNavigator`) picks the next bouncing angle; after the last
-turn it picks the final drive that puts the most belief mass in the goal cell. Simulators are
-placed at the start and their true pose is logged and used for the success check only.
+turn it picks the final drive that puts the most belief mass in the goal cell, and makes it
+when enough of the belief ends there (``FeedbackConfig.final_min``; else it flies on).
+Simulators are placed at the start and their true pose is logged and used for the success
+check only.
 
 Examples
 --------
@@ -204,7 +206,8 @@ def navigate_feedback(robot: Robot, env: Environment | None, start, goal: int, n
             rest = tuple(todo)
             if not todo and best is not None:  # the last turn: the final drive
                 final, mass = fnav.final(belief.pos, belief.heading, belief.weights)
-                if mass > 0:                   # else no particle can stop in the cell: fly on
+                if fnav.stops(mass, last=len(flights) >= max_bumps - 1):
+                    # else (too little belief mass stops in the cell, §22): fly on
                     note_decision()
                     ev = robot.drive_for(speed, final / speed) if final > 0 else None
                     if ev is not None and ev.bumped and speed * ev.elapsed < final - STEP_TOL:

@@ -24,7 +24,9 @@ the loop that drives a robot is :func:`bouncesim.navigate.navigate_feedback`.
   success under the belief (the belief's particles pushed through the plan's turns and
   flights with the declared noise, then the best final drive); the best score wins and its
   first angle is turned. The final drive is the length that puts the most belief mass in the
-  goal cell (:func:`final_drive`). The search itself lives in :mod:`planners.feedback_search`
+  goal cell (:func:`final_drive`); it is made when at least ``final_min`` of the belief ends
+  there (:meth:`FeedbackNavigator.stops`), else the robot flies on to the next bump.
+  The search itself lives in :mod:`planners.feedback_search`
   (a fast one, the plain reference it is checked against, and the guided one, off by
   default).
 
@@ -292,6 +294,14 @@ class FeedbackNavigator:
         D, _, _ = flights(self.nav.caster, pos, heading, bearings=False)
         return final_drive(pos, heading, D, w, self.box, self.goal_heading,
                            self.cells.delta_deg, self.cfg.margin_m)
+
+    def stops(self, mass: float, last: bool = False) -> bool:
+        """Whether, after the plan's last turn, the robot makes the final drive (the belief
+        puts ``mass`` in the goal cell, :meth:`final`) or flies on to the next bump and
+        decides again: it stops when ``mass`` > 0 and ``mass`` >= ``final_min``, or when
+        ``last`` (the bump budget allows no other try) and ``mass`` > 0 (§22).
+        """
+        return mass > 0 and (mass >= self.cfg.final_min or last)
 
     def heading_offset(self, belief: ParticleFilter) -> float:
         """[deg] the belief's mean heading offset ε̄ from the Δ grid (the weighted circular

@@ -50,6 +50,10 @@ class FeedbackConfig:
     margin_m : float           [m] the final stop prefers points this deep in the goal cell
     edge_guard : float         plans avoid flights that bump at once when turned by ± this
                                many turn spreads (knife edges along a touched wall; 0: off)
+    final_min : float          after the last turn the robot stops in the goal cell only
+                               when the belief's mass there is at least this; else it flies
+                               on to the next bump and decides again (0: whenever any mass
+                               does, the rule before)
     correct_heading : bool     extension, off by default: command each turn as its angle
                                less the belief's mean heading offset from the Δ grid
     guided : bool              off by default: searches from a pose are guided by the cost
@@ -75,6 +79,7 @@ class FeedbackConfig:
     eval_particles: int = 64
     margin_m: float = 0.02
     edge_guard: float = 2.0
+    final_min: float = 0.5
     correct_heading: bool = False
     guided: bool = False
     reference: bool = False
@@ -92,6 +97,8 @@ class FeedbackConfig:
                 raise UserError(f"feedback {name} must be a non-negative number, got {v}.")
         if self.dist_sigma_m <= 0:
             raise UserError("feedback dist_sigma_m must be positive.")
+        if not 0 <= self.final_min <= 1:
+            raise UserError("feedback final_min must lie in [0, 1].")
         if not 0 < self.resample_ess <= 1:
             raise UserError("feedback resample_ess must lie in (0, 1].")
 

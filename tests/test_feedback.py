@@ -90,6 +90,21 @@ def test_goal_intervals_and_final_drive_by_hand():
     assert d == pytest.approx(1.4) and mass == pytest.approx(0.6)
 
 
+def test_final_drive_stops_only_with_enough_belief_mass_in_the_goal_cell():
+    # RECT's goal cell [1.25, 1.5] × [1, 1.25] facing 0°; half the belief at (0.5, 1.1)
+    # facing 0° crosses it (0.75 to 1 m of drive, deepest at 0.875 m), the other half facing
+    # 30° passes above it (y = 1.53 at x = 1.25): mass 1/2, so the robot stops there for
+    # final_min 0.4 and flies on for 0.6, unless the bump budget is spent (§22)
+    cells = CellSpace(RECT)
+    goal = int(cells.cell_of_point([[1.375, 1.125]])[0])       # k = 0: z = p
+    for final_min, stops in ((0.0, True), (0.4, True), (0.6, False)):
+        nav = FeedbackNavigator(cells, ANGLES, goal, FeedbackConfig(final_min=final_min))
+        d, mass = nav.final([[0.5, 1.1]] * 4, [0.0, 0.0, 30.0, 30.0], [0.25] * 4)
+        assert d == pytest.approx(0.875) and mass == pytest.approx(0.5)
+        assert nav.stops(mass) is stops
+        assert nav.stops(mass, last=True) and not nav.stops(0.0, last=True)
+
+
 # ---------------------------------------------------------------- planning from a pose
 def test_plan_from_a_configuration_is_the_exact_planners_plan():
     # the same states and costs searched by a second implementation (§15): equal costs
