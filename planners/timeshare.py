@@ -73,7 +73,8 @@ MAX_STEPS = 200_000   # default cap on the steps run per angle (epoch iterations
 MIN_EPOCHS = 200      # ... but at least this many epoch iterations
 PARALLEL_MIN = 20_000  # chains of at least this many states split each step over the cores
 
-_POOL: ThreadPoolExecutor | None = None
+_POOL: list = [None, 0]   # the shared ThreadPoolExecutor and its number of workers
+_SPLITS_KEPT = 8           # row-block splits of turns a TimeShared keeps (one per angle)
 
 
 def default_threads() -> int:
@@ -89,11 +90,13 @@ def default_threads() -> int:
 
 
 def _pool(workers: int) -> ThreadPoolExecutor:
-    """The shared pool of the recursion's extra threads (grown on demand)."""
-    global _POOL
-    if _POOL is None or _POOL._max_workers < workers:
-        _POOL = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="timeshare")
-    return _POOL
+    """The shared pool of the recursion's extra threads (replaced by a larger one on demand)."""
+    if _POOL[0] is None or _POOL[1] < workers:
+        if _POOL[0] is not None:
+            _POOL[0].shutdown(wait=False)
+        _POOL[:] = [ThreadPoolExecutor(max_workers=workers, thread_name_prefix="timeshare"),
+                    workers]
+    return _POOL[0]
 
 
 @dataclass(frozen=True, eq=False)
@@ -194,6 +197,7 @@ class TimeShared:
         self.live = np.flatnonzero((np.diff(self.H.indptr) > 0)
                                    | (np.asarray(chain.start) != 0))
         self.H_live = sp.csr_matrix(self.H[self.live])
+        self._splits: dict = {}          # id(matrix) → (matrix, k, its k row blocks)
         self.RT = sp.csr_matrix(chain.reward.T)
         # expected steps (counted or dropped) of a flight leaving each state
         self.length = np.bincount(chain.src, weights=np.asarray(chain.weight)
@@ -205,15 +209,23 @@ class TimeShared:
         """
         return sp.csr_matrix(sp.csr_matrix(W.T)[:, self.live]).astype(np.float32)
 
-    @staticmethod
-    def _split(A, k: int) -> list:
-        """Row blocks (rows, A's rows) of A, k of them balanced by non-zeros (one for k = 1)."""
+    def _split(self, A, k: int) -> list:
+        """Row blocks (rows, A's rows) of A, k of them balanced by non-zeros (one for k = 1);
+        the last few splits are kept (a run advances in many short calls).
+        """
         m = A.shape[0]
         if k == 1:
             return [(slice(0, m), A)]
+        kept = self._splits.get(id(A))
+        if kept is not None and kept[0] is A and kept[1] == k:
+            return kept[2]
         work = np.cumsum(np.diff(A.indptr) + 1)
         cuts = [0, *np.searchsorted(work, work[-1] * np.arange(1, k) / k).tolist(), m]
-        return [(slice(a, b), A[a:b]) for a, b in zip(cuts, cuts[1:]) if b > a]
+        blocks = [(slice(a, b), A[a:b]) for a, b in zip(cuts, cuts[1:]) if b > a]
+        if len(self._splits) >= _SPLITS_KEPT:
+            self._splits.pop(next(iter(self._splits)))
+        self._splits[id(A)] = (A, k, blocks)            # A kept alive: its id stays its own
+        return blocks
 
     def _epoch(self, WT, hist: np.ndarray, steps: int, inject=None, threads=None):
         """Run ``steps`` steps of one angle (``WT`` from :meth:`turn`) from boundary state
