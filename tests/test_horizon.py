@@ -27,6 +27,7 @@ from planners.coverage import (
     steps_to_limit,
     steps_to_limit_each,
 )
+from planners.coverage.horizon import KEPT_RUNS
 from planners.coverage.step import transition_matrix
 from planners.metrics import tv_distance
 
@@ -212,6 +213,12 @@ def test_kept_runs_answer_as_a_fresh_run_whatever_was_asked_before():
         got = kept.coverage(angles, T, noise=noise, alpha=alpha).q
         ref = Horizon(model).coverage(angles, T, noise=noise, alpha=alpha).q
         assert np.array_equal(got, ref), (angles, T)
+    # past KEPT_RUNS (angle, start) runs the oldest is forgotten, and asked again is fresh
+    for z in range(KEPT_RUNS + 1):
+        kept.coverage([45.0], 300, noise=noise, start=z)
+    assert len(kept._runs) == KEPT_RUNS
+    assert np.array_equal(kept.coverage([45.0], 2000, noise=noise).q,
+                          Horizon(model).coverage([45.0], 2000, noise=noise).q)
     lim = model.analyse(45, noise).q
     assert (steps_to_limit(kept, [45.0], lim, noise=noise, cap=5000)
             | {"seconds": 0}) == (steps_to_limit(Horizon(model), [45.0], lim, noise=noise,

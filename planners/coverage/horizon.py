@@ -56,6 +56,7 @@ __all__ = ["Horizon", "HorizonCoverage", "horizon_coverage", "horizon_of", "step
 CAP = 10_000_000        # default cap [steps] of steps_to_limit
 LIMIT_TV = 0.05         # default TV at which q_T counts as at the limit
 _GRID0 = 100            # first horizon of the steps_to_limit grid [steps]
+KEPT_RUNS = 8           # runs a Horizon keeps (angle, noise, start); the oldest goes first
 _GRID_RATIO = 2 ** (1 / 8)
 _EXACT = TurnNoise()
 
@@ -241,6 +242,8 @@ class Horizon:
         """The kept run of one angle from start ``p0`` (:class:`_Trajectory`)."""
         key = (float(angle), noise, p0.tobytes())
         if key not in self._runs:
+            if len(self._runs) >= KEPT_RUNS:            # each holds D·n floats: forget the
+                self._runs.pop(next(iter(self._runs)))  # oldest (a fresh run replaces it)
             rec = self._prepare(noise)
             self._runs[key] = _Trajectory(rec, self._turns([angle], rec, noise)[0], p0)
         return self._runs[key]
