@@ -43,12 +43,14 @@ the same ``finally`` blocks). A background thread watches the link while the por
 
 Examples
 --------
-Against the emulator (a real robot: ``Create2Robot("/dev/ttyUSB0")``, placed by hand):
+Against the emulator (a real robot: ``Create2Robot("/dev/ttyUSB0")``, placed by hand), in
+lockstep so that the emulated clock moves only when the adapter reads (a busy host cannot
+starve the reader; by the wall clock use ``time_scale``):
 
 >>> import envs
 >>> from bouncesim.robots.create2 import OIEmulator
->>> emu = OIEmulator(envs.load("lab"), time_scale=4.0).start()
->>> with Create2Robot(emu.url, emulator=emu, time_scale=4.0) as bot:
+>>> emu = OIEmulator(envs.load("lab"), lockstep=True).start()
+>>> with Create2Robot(emu.url, emulator=emu) as bot:
 ...     bot.place(0.51, 0.51, 90.0)
 ...     ev = bot.drive_until_bump(0.5, 10.0)
 ...     x, y, h = bot.true_pose()
