@@ -74,18 +74,20 @@ MIN_EPOCHS = 200      # ... but at least this many epoch iterations
 PARALLEL_MIN = 20_000  # chains of at least this many states split each step over the cores
 
 _POOL: list = [None, 0]   # the shared ThreadPoolExecutor and its number of workers
+_OWN = [1]                 # threads of this process's last step (its share of the load)
 _SPLITS_KEPT = 8           # row-block splits of turns a TimeShared keeps (one per angle)
 
 
 def default_threads() -> int:
     """Threads one step of a large recursion is split over: the cores this process may use
-    (at most 4) that other work does not keep busy (by the 1-minute load average, this
-    process counted as one), at least 1. scipy's sparse products release the GIL, so the
-    row blocks run in parallel; on a machine already busy, more threads only wait for
-    each other (``benchmarks/bench_horizon.py --pipeline``). The numbers do not depend on it.
+    (at most 4) that other work does not keep busy (by the 1-minute load average, less the
+    threads of this process's last split step), at least 1. scipy's sparse products release
+    the GIL, so the row blocks run in parallel; on a machine already busy, more threads only
+    wait for each other (``benchmarks/bench_horizon.py --pipeline``). The numbers do not
+    depend on it.
     """
     cores = min(4, len(os.sched_getaffinity(0)))
-    busy = max(0.0, os.getloadavg()[0] - 1.0)
+    busy = max(0.0, os.getloadavg()[0] - _OWN[0])
     return max(1, min(cores, int(cores - busy + 0.5)))
 
 
@@ -247,6 +249,8 @@ class TimeShared:
         x = np.zeros(self.live.size, dtype=np.float32)      # x_t on the live states
         k = default_threads() if threads is None else max(1, int(threads))
         k = 1 if n < PARALLEL_MIN else k
+        if n >= PARALLEL_MIN:
+            _OWN[0] = k
         lands, turns = self._split(self.H_live, k), self._split(WT, k)
         if inject is not None:
             inject = np.asarray(inject, dtype=np.float32)[self.live]
