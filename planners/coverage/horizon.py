@@ -317,7 +317,7 @@ class Horizon:
         RT = rec.ts.RT
         t, todo = 0, list(horizons)
         while todo:
-            end = todo[0] if m == 1 else t + min(E - t % E, todo[-1] - t)
+            end = t + min(E - t % E, todo[-1] - t)          # m > 1 runs, in epochs here
             hs, ds = hist, dep.copy()
             stops = [T for T in todo if t < T <= end]
             if not stops or stops[-1] != end:
