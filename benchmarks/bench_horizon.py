@@ -1,9 +1,10 @@
 """steps_to_limit of three angles and their mix: one pass against a pass per policy; and the
-CLI's whole ``--horizon`` pipeline before and after kept runs and split steps.
+CLI's whole ``--horizon`` pipeline: one thread, split steps, and runs beside the analyses.
 
     python -m benchmarks.bench_horizon                     # the two-room office, K = 72, cap 2000
     python -m benchmarks.bench_horizon --maps office,lab --orientations 360 --cap 500
-    python -m benchmarks.bench_horizon --pipeline --maps lab,fig1,office,complex --orientations 360
+    python -m benchmarks.bench_horizon --pipeline --maps lab,complex,fig1,office \
+        --orientations 360 --threads 2
 
 For every map (event model; angles 30°, 75°, 315°, ε = 5°, r = 0.8, the mix α = (0.2, 0.3,
 0.5) whose runs each keep one angle; docs/model.md §17): the wall time of the four
@@ -16,14 +17,16 @@ products over every state against over the states mass can land in (CPU time). M
 the block costs as much per vector as one product, so the passes keep one vector per run.
 
 ``--pipeline`` times what ``bouncesim coverage MAP --model event --horizon 2000`` computes
-(angles 30°, 75°, 315°, ε = 5°, r = 0.8, uniform target): the model's build, the three
-angles' limits, then the horizon part (α fitted to the angles' q_T, docs/model.md §17, and
-the ``steps_to_limit`` report of the angles and the mix) two ways in the same run: *before*,
-as the CLI did it (one :class:`~planners.coverage.Horizon` for the fit and a fresh one for
-the report, every step on one thread), and *now* (the model's shared Horizon, whose kept runs
-the report resumes, every step split over the cores, :func:`planners.timeshare.default_threads`),
-with the CLI's defaults (cap 10⁷ steps, 60 s per policy). Wall and CPU seconds, the load
-average, and whether α and the steps_to_limit found both ways agree.
+(angles 30°, 75°, 315°, ε = 5°, r = 0.8, uniform target): the model's build, then the three
+angles' limits and α fitted to their q_T (docs/model.md §17) three ways in the same run:
+*one thread* for everything; the limits on threads and *then* the runs, each step split into
+row blocks over the cores (the CLI before runs went beside the analyses); and *now*,
+:func:`~planners.coverage.design_mix` with the horizon, whose runs go on the analyses'
+threads from the start. Then the ``steps_to_limit`` report of the angles and the mix, which
+resumes the kept runs, with the CLI's defaults (cap 10⁷ steps, 60 s per policy). Wall and
+CPU seconds, the load average, and whether α and the q_T columns agree bitwise all three
+ways. ``--threads N`` fixes the thread count of the ways that use threads (default: the idle
+cores by the load average, :func:`planners.timeshare.default_threads`).
 """
 
 from __future__ import annotations
@@ -35,6 +38,7 @@ import time
 import numpy as np
 import scipy.sparse as sp
 
+import planners.coverage.api as api
 import planners.timeshare as timeshare
 from envs.generated import load_map
 from planners.cells import CellSpace
@@ -43,12 +47,14 @@ from planners.coverage import (
     TurnNoise,
     analyses,
     clear_cache,
+    design_mix,
     horizon_of,
     model_for,
     steps_to_limit,
     steps_to_limit_each,
 )
 from planners.coverage.horizon import fit_horizon_mix
+from planners.coverage.targets import check_target
 
 ANGLES = (30.0, 75.0, 315.0)
 ALPHA = np.array([0.2, 0.3, 0.5])
@@ -92,47 +98,57 @@ def _since(t: tuple[float, float]) -> tuple[float, float]:
     return time.perf_counter() - t[0], time.process_time() - t[1]
 
 
-def pipeline_row(name: str, K: int, T: int) -> str:
-    """One ``--pipeline`` row (see the module docstring)."""
+def _limits_and_horizon(model, way: str, T: int, target):
+    """The angles' limits and α fitted to their q_T, one of three ways (see ``--pipeline``);
+    returns (MixDesign or its fit, the Horizon that holds the runs).
+    """
+    if way == "now":                          # the CLI's call
+        hz = horizon_of(model)
+        return design_mix(model, ANGLES, NOISE, target=target, horizon=T), hz
+    hz = Horizon(model)
+    per = tuple(analyses(model, ANGLES, NOISE))
+    b = check_target(target, model.cs, "positions")          # as design_mix normalises it
+    return fit_horizon_mix(hz, ANGLES, NOISE, b, T, None, per), hz
+
+
+def pipeline_row(name: str, K: int, T: int, threads: int | None = None) -> str:
+    """One ``--pipeline`` row (see the module docstring); ``threads`` fixes the thread count
+    of the ways that split (default: :func:`planners.timeshare.default_threads`).
+    """
     clear_cache()
     t = _clock()
     model = model_for(CellSpace(load_map(name, K)), "event")
     build = _since(t)
-    t = _clock()
-    per = tuple(analyses(model, ANGLES, NOISE))
-    limits = _since(t)
-    lims = [a.q for a in per]
     target = np.full(model.cs.P, 1.0 / model.cs.P)
     out = {}
-    for way in ("before", "now"):
-        threads = timeshare.default_threads
-        if way == "before":
-            timeshare.default_threads = lambda: 1
+    for way in ("one thread", "split steps", "now"):
+        saved = timeshare.default_threads, api.default_threads
+        if way == "one thread" or threads:
+            timeshare.default_threads = api.default_threads = (
+                lambda n=1 if way == "one thread" else threads: n)
         try:
             t = _clock()
-            hz = Horizon(model) if way == "before" else horizon_of(model)
-            fit = fit_horizon_mix(hz, ANGLES, NOISE, target, T, None, per)
-            t_fit = _since(t)
-            t = _clock()
-            hz = Horizon(model) if way == "before" else hz
-            each, mix = steps_to_limit_each(hz, ANGLES, lims, noise=NOISE, alpha=fit.alpha,
-                                            mix_limit=np.column_stack(lims) @ fit.alpha,
-                                            max_seconds=LIMIT_SECONDS)
-            out[way] = (t_fit, _since(t), fit.alpha, [r["steps"] for r in [*each, mix]])
+            fit, hz = _limits_and_horizon(model, way, T, target)
+            out[way] = (_since(t), fit)
         finally:
-            timeshare.default_threads = threads
-    k = timeshare.default_threads()          # what "now" used (it follows the load)
-    fb, rb, ab, sb = out["before"]
-    fn, rn, an, sn = out["now"]
-    # a policy the time budget stopped on one side has no steps there: compare the others
-    same = bool(np.array_equal(ab, an)
-                and all(b == n for b, n in zip(sb, sn) if b is not None and n is not None))
+            timeshare.default_threads, api.default_threads = saved
+    k = threads or timeshare.default_threads()    # what "now" used (it follows the load)
+    fit = out["now"][1]
+    lims = [a.q for a in fit.per_angle]
+    t = _clock()
+    each, mix = steps_to_limit_each(hz, ANGLES, lims, noise=NOISE, alpha=fit.alpha,
+                                    mix_limit=np.column_stack(lims) @ fit.alpha,
+                                    max_seconds=LIMIT_SECONDS)
+    stl_s = _since(t)
+    same = all(np.array_equal(o[1].alpha, fit.alpha) and np.array_equal(o[1].columns, fit.columns)
+               for o in out.values())
     load = os.getloadavg()[0]
-    stl = " / ".join("—" if s is None else str(s) for s in sn)
-    return (f"| {name} | {model.n_states} | {build[0]:.1f} | {limits[0]:.1f} / {limits[1]:.1f} "
-            f"| {fb[0]:.1f} / {fb[1]:.1f} | {fn[0]:.1f} / {fn[1]:.1f} "
-            f"| {build[0] + limits[0] + fn[0]:.1f} | {rb[0]:.1f} | {rn[0]:.1f} | {same} "
-            f"| {stl} | {k} | {load:.1f} |")
+    stl = " / ".join("—" if r["steps"] is None else str(r["steps"]) for r in [*each, mix])
+    w = {way: v[0] for way, v in out.items()}
+    return (f"| {name} | {model.n_states} | {build[0]:.1f} | "
+            + " | ".join(f"{w[x][0]:.1f} / {w[x][1]:.1f}" for x in out)
+            + f" | **{build[0] + w['now'][0]:.1f}** | {same} | {stl_s[0]:.1f} | {stl} | {k} "
+            f"| {load:.1f} |")
 
 
 def main(argv=None) -> int:
@@ -145,16 +161,20 @@ def main(argv=None) -> int:
     ap.add_argument("--pipeline", action="store_true",
                     help="time the CLI's --horizon pipeline before and now (see above)")
     ap.add_argument("--horizon", type=int, default=2000, help="--pipeline's T [steps]")
+    ap.add_argument("--threads", type=int, default=None,
+                    help="--pipeline's thread count (default: the idle cores by the load)")
     args = ap.parse_args(argv)
     if args.pipeline:
         print(f"K = {args.orientations}, angles 30/75/315, eps 5°, r 0.8, T = {args.horizon}; "
               "wall / CPU seconds")
-        print("| map | states | build | limits | q_T before | q_T now | build + limits + q_T "
-              "now, wall | steps_to_limit before | steps_to_limit now | identical "
-              "| steps_to_limit (30° / 75° / 315° / mix) | threads now | load |")
-        print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+        print("| map | states | build | limits + q_T, one thread | limits, then q_T split "
+              "| limits and q_T side by side (now) | build + limits + q_T now, wall "
+              "| identical | steps_to_limit now | steps_to_limit (30° / 75° / 315° / mix) "
+              "| threads now | load |")
+        print("|---|---|---|---|---|---|---|---|---|---|---|---|")
         for name in args.maps.split(","):
-            print(pipeline_row(name, args.orientations, args.horizon), flush=True)
+            print(pipeline_row(name, args.orientations, args.horizon, args.threads),
+                  flush=True)
         return 0
     print(f"K = {args.orientations}, angles 30/75/315 and their mix, eps 5°, r 0.8; "
           f"cap {args.cap} steps")

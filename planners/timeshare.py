@@ -65,7 +65,8 @@ import scipy.sparse as sp
 
 from envs import UserError
 
-__all__ = ["DelayChain", "TimeShared", "TimeSharedCoverage", "timeshared"]
+__all__ = ["DelayChain", "TimeShared", "TimeSharedCoverage", "default_threads",
+           "note_threads", "timeshared"]
 
 _LAZY = 0.05          # weight of the previous epoch-boundary state (damps periodic modes)
 TOL = 1e-4            # default tolerance on the estimated TV error of q
@@ -89,6 +90,13 @@ def default_threads() -> int:
     cores = min(4, len(os.sched_getaffinity(0)))
     busy = max(0.0, os.getloadavg()[0] - _OWN[0])
     return max(1, min(cores, int(cores - busy + 0.5)))
+
+
+def note_threads(k: int) -> None:
+    """Record that this process just kept ``k`` threads busy (its share of the load average
+    that :func:`default_threads` discounts), e.g. after work split over threads elsewhere.
+    """
+    _OWN[0] = max(1, int(k))
 
 
 def _pool(workers: int) -> ThreadPoolExecutor:

@@ -251,6 +251,28 @@ def test_alpha_for_a_horizon():
     assert conv["projected_gradient_norm"] < 1e-3
 
 
+def test_horizon_runs_beside_the_analyses_give_what_one_by_one_gives(monkeypatch):
+    # design_mix with a horizon runs the angles' horizon runs on the analyses' threads (one
+    # row block each): the same limits, q_T columns and α as analysing and running the
+    # angles one after the other on a fresh Horizon, for the event model (start states and
+    # delays) and the step model
+    import planners.coverage.api as api
+    from planners.coverage.horizon import fit_horizon_mix
+
+    monkeypatch.setattr(api, "default_threads", lambda: 2)
+    cs = CellSpace(envs.load("lab", orientations=16))
+    angles, noise = (45, 112.5, 315), TurnNoise(22.5, 0.8)
+    for name in ("event", "step"):
+        model = model_for(cs, name)
+        got = design_mix(model, angles, noise, horizon=300)
+        per = tuple(model.analyse(a, noise) for a in angles)
+        ref = fit_horizon_mix(Horizon(model), angles, noise, got.target, 300, None, per)
+        for g, r in zip(got.per_angle, per):
+            assert np.array_equal(g.q, r.q), (name, g.angle)
+        assert np.array_equal(got.columns, ref.columns), name
+        assert np.array_equal(got.alpha, ref.alpha), name
+
+
 def test_two_sealed_rooms_share_the_steps_as_the_start_does():
     # two rooms with no door: a robot never changes room, so at every T the left room's
     # share of the steps is its share of the start configurations, P_left / P (by hand); the

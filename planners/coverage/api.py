@@ -35,7 +35,7 @@ from envs import UserError
 
 from ..cells import CellSpace
 from ..plan import PolicyMix
-from ..timeshare import TimeSharedCoverage, default_threads, timeshared
+from ..timeshare import TimeSharedCoverage, default_threads, note_threads, timeshared
 from .base import CoverageModel
 from .event import EventModel
 from .horizon import fit_horizon_mix, horizon_of
@@ -107,22 +107,38 @@ def check_angles(K: int, angles: Iterable[float], noise: TurnNoise) -> tuple:
     return angles
 
 
-def analyses(model: CoverageModel, angles, noise: TurnNoise = _EXACT) -> Iterator:
+def analyses(model: CoverageModel, angles, noise: TurnNoise = _EXACT,
+             also: Iterable[Callable[[], Any]] = ()) -> Iterator:
     """Every angle's :meth:`analyse`, in order: the first alone (it builds what the angles
     share, e.g. the event model's Gaussian flights), the others on
     :func:`~planners.timeshare.default_threads` threads (scipy's products and solves release
     the GIL); the same results as one after the other.
+
+    ``also``: more work (calls without arguments, e.g. the horizon runs of
+    :meth:`~planners.coverage.horizon.Horizon.tasks`) done on the same threads, from the
+    start, so that a core the analyses leave idle takes it (design_mix with a horizon); all
+    of it is done when the last analysis has been yielded.
     """
-    angles = list(angles)
+    angles, also = list(angles), list(also)
     if not angles:
         return
-    yield model.analyse(angles[0], noise)
-    k = min(default_threads(), len(angles) - 1)
-    if k <= 1:
+    k = default_threads()
+    if k <= 1 or (len(angles) == 1 and not also):
+        yield model.analyse(angles[0], noise)
         yield from (model.analyse(a, noise) for a in angles[1:])
+        for call in also:
+            call()
         return
     with ThreadPoolExecutor(max_workers=k, thread_name_prefix="analyse") as pool:
-        yield from pool.map(lambda a: model.analyse(a, noise), angles[1:])
+        first = pool.submit(model.analyse, angles[0], noise)
+        side = [pool.submit(call) for call in also]
+        yield first.result()
+        rest = [pool.submit(model.analyse, a, noise) for a in angles[1:]]
+        for f in rest:
+            yield f.result()
+        for f in side:
+            f.result()
+    note_threads(k)
 
 
 def design_mix(model: CoverageModel, angles: Iterable[float], noise: TurnNoise = _EXACT,
@@ -168,7 +184,13 @@ def design_mix(model: CoverageModel, angles: Iterable[float], noise: TurnNoise =
                         "cells only; use --target-space positions.")
     angles = check_angles(cs.K, angles, noise)
     b = check_target(target, cs, space)
-    it = analyses(model, angles, noise)
+    if horizon is not None and space == "positions":
+        # the angles' runs over the horizon go on the analyses' threads from the start (the
+        # fit below finds them done); a mix in epochs runs its own recursion in the fit
+        also = horizon_of(model).tasks(angles, int(horizon), noise=noise, start=start)
+    else:
+        also = ()
+    it = analyses(model, angles, noise, also)
     per = tuple(progress(it) if progress else it)
     A = np.column_stack([a.q if space == "positions" else a.pi for a in per])
     if horizon is None:

@@ -35,7 +35,7 @@ import math
 import time
 import weakref
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import lru_cache, partial
 
 import numpy as np
 import scipy.sparse as sp
@@ -197,19 +197,22 @@ class _Trajectory:
     def _count(self, hist: np.ndarray, dep: np.ndarray) -> np.ndarray:
         return self.rec.ts.RT @ dep - self.rec.tailsT @ hist.reshape(-1).astype(float)
 
-    def counts(self, T: int) -> np.ndarray:
-        """Counted steps per cell (P,) of the first T steps."""
+    def counts(self, T: int, threads: int | None = None) -> np.ndarray:
+        """Counted steps per cell (P,) of the first T steps. ``threads``: row blocks per step
+        (:meth:`~planners.timeshare.TimeShared.advance`; 1 when runs go on threads of their
+        own, :func:`planners.coverage.api.analyses`); the counts do not depend on it.
+        """
         if T not in self.known:
             if T < self.t:                       # behind the checkpoint: a fresh run
-                return _Trajectory(self.rec, self.WT, self.p0).counts(T)
+                return _Trajectory(self.rec, self.WT, self.p0).counts(T, threads)
             on_grid = _grid_set()
             for g in sorted(g for g in on_grid if self.t < g <= T):
-                self.hist, dd = self.rec.ts.advance(self.WT, self.hist, g - self.t)
+                self.hist, dd = self.rec.ts.advance(self.WT, self.hist, g - self.t, threads)
                 self.dep += dd
                 self.t = g
                 self.known[g] = self._count(self.hist, self.dep)
             if T not in on_grid:
-                hist, dd = self.rec.ts.advance(self.WT, self.hist, T - self.t)
+                hist, dd = self.rec.ts.advance(self.WT, self.hist, T - self.t, threads)
                 self.known[T] = self._count(hist, self.dep + dd)
         return self.known[T]
 
@@ -247,6 +250,20 @@ class Horizon:
             rec = self._prepare(noise)
             self._runs[key] = _Trajectory(rec, self._turns([angle], rec, noise)[0], p0)
         return self._runs[key]
+
+    def tasks(self, angles, horizon: int, *, noise: TurnNoise = _EXACT, start=None) -> list:
+        """The angles' runs over the first ``horizon`` steps as calls without arguments, for
+        threads of their own (:func:`~planners.coverage.api.analyses`): the recursion and the
+        runs are prepared here; each call advances one run on its calling thread (one row
+        block per step) and keeps its counts, which a later :meth:`coverage` of that angle
+        and horizon (and any longer one) finds.
+        """
+        T = int(horizon)
+        if T < 1:
+            raise UserError("a horizon must be at least one step.")
+        p0 = start_distribution(self.model.cs, start)
+        runs = {float(a): self._trajectory(float(a), noise, p0) for a in angles}
+        return [partial(run.counts, T, 1) for run in runs.values()]
 
     def _prepare(self, noise: TurnNoise) -> "_Recursion":
         """The recursion of ``noise``'s flights (the event model casts Gaussian noise's
