@@ -132,12 +132,14 @@ class ScalarWalls:
         return lookup
 
     def cast_near(self, x: float, y: float, ux: float, uy: float, dsides, verts, near: bool):
-        """(contact distance [m], near sides, near corners): the cast along (ux, uy) over
-        the sides ``dsides`` (with their :meth:`directions` terms for this heading) and the
-        corners ``verts``; with ``near``, those within r + NEAR_M of (x, y) (else empty).
+        """(contact distance [m], near sides, near corners, cos b): the cast along (ux, uy)
+        over the sides ``dsides`` (with their :meth:`directions` terms for this heading) and
+        the corners ``verts``; with ``near``, those within r + NEAR_M of (x, y) (else empty);
+        cos b of the contact's bearing b on the first feature met (1 when none): a contact
+        with cos b >= sin β lies inside the bumper arc of a contact rule (§23).
         """
         r, lim = self.r, self.r + NEAR_M
-        best, ns, nv = math.inf, [], []
+        best, ns, nv, cos_b = math.inf, [], [], 1.0
         for ax, ay, ex, ey, L, un, ue in dsides:
             rx = x - ax
             ry = y - ay
@@ -151,7 +153,7 @@ class ScalarWalls:
             if t < 0.0:
                 t = 0.0
             if t < best and 0.0 <= rx * ex + ry * ey + t * ue <= L:
-                best = t
+                best, cos_b = t, a
         r2, graze, lim2 = self.r2, self.graze, lim * lim
         for vx0, vy0 in verts:
             vx = x - vx0
@@ -165,12 +167,13 @@ class ScalarWalls:
             disc = r2 - (q - b * b)
             if not disc > graze:
                 continue
-            t = -b - math.sqrt(disc)
+            root = math.sqrt(disc)
+            t = -b - root
             if t < 0.0:
                 t = 0.0
             if t < best:
-                best = t
-        return best, ns, nv
+                best, cos_b = t, root / r
+        return best, ns, nv, cos_b
 
 
 def slide_on(caster, contact, lx: float, ly: float, ux: float, uy: float):
@@ -264,16 +267,19 @@ def search(fnav, x: float, y: float, heading_deg: float, slack: float,
     bin_of, angles, min_depth = nav._bin_of_scalar, nav.angles, nav.min_depth
     hyp, k_h = math.hypot, w1 / h
     contact, caster = fnav.cfg.contact, nav.caster
+    # a first contact with cos b above this closes the bumper: no slide (the margin keeps
+    # the test conservative, so the slides are those of the reference search)
+    sin_beta = -1.0 if contact is None else math.sin(math.radians(contact.beta_deg)) + 1e-6
     memo: dict = {}
 
     def expand(px: float, py: float, k: int, first: bool):
         """(D, blocked, lx, ly, landing bin, bound there, goal arrivals' t) of a flight."""
         ux, uy = units[k]
         if first and bumped:
-            t, ns, nv = 0.0, (), ()
+            t, ns, nv, cos_b = 0.0, (), (), 1.0
         else:
-            t, ns, nv = cast_near(px, py, ux, uy, *near_walls(k, px, py),
-                                  bool(guard) and not first)
+            t, ns, nv, cos_b = cast_near(px, py, ux, uy, *near_walls(k, px, py),
+                                         bool(guard) and not first)
         if math.isinf(t):
             return None
         D = 0.0 if t <= BUMP_RANGE else drive_distance(t)
@@ -289,7 +295,7 @@ def search(fnav, x: float, y: float, heading_deg: float, slack: float,
             _, p, tt, depth = chords(cs, [[px, py]], [[ux, uy]], [D])
             goal_t = tuple(ti for pi, ti, di in zip(p.tolist(), tt.tolist(), depth.tolist())
                            if pi == gp and di >= min_depth)
-        if contact is not None and not (first and bumped):     # a glancing contact slides on
+        if cos_b < sin_beta and not (first and bumped):     # a glancing contact slides on
             lx, ly, extra = slide_on(caster, contact, lx, ly, ux, uy)
             D += extra
         hb = k_h * hyp(max(gx0 - lx, lx - gx1, 0.0), max(gy0 - ly, ly - gy1, 0.0))

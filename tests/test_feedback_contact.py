@@ -101,6 +101,26 @@ def test_plan_from_a_configuration_with_the_rule_is_the_exact_planners_plan():
         assert ref == cand                        # the fast search is the plain one
 
 
+@pytest.mark.parametrize("sigma", [0.0, 3.0])
+def test_fast_search_with_the_rule_gives_the_plain_searchs_plans(sigma):
+    # the fast search calls the contact rule only where its first contact may lie outside
+    # the arc; the plain one on every flight: the same plans to the bit from random poses
+    from planners.feedback_search import search, search_reference
+
+    from .test_feedback import _random_poses
+    cells = CellSpace(SLOPE)
+    rng = np.random.default_rng(22)
+    cfg = FeedbackConfig(turn_sigma_deg=sigma, guided=False, contact=PYBULLET_CONTACT)
+    found = 0
+    for goal in rng.integers(0, cells.N, 2):
+        nav = FeedbackNavigator(cells, ANGLES, int(goal), cfg)
+        for x, y, th, bumped in _random_poses(SLOPE, rng, 10):
+            fast = search(nav, x, y, th, 0.0, bumped)
+            assert fast == search_reference(nav, x, y, th, 0.0, bumped)
+            found += bool(fast)
+    assert found >= 8
+
+
 # ---------------------------------------------------------------- runs
 @pytest.mark.parametrize("sigma", [0.0, 2.0])
 def test_rule_with_beta_zero_is_the_rule_off_bitwise(sigma):
