@@ -3,7 +3,8 @@ decision rule as it was (the reference search and scoring), the same rule on the
 and the guided search, run on the same pairs and seeds in one process.
 
     python -m benchmarks.bench_feedback [--env lab] [--sigmas 0,2,5] [--pairs 10] [--seed 0]
-                                        [--rules reference,fast,guided,before]
+                                        [--rules reference,fast,guided,before,contact]
+                                        [--contact off|pybullet]
 
 For each σ, ``--pairs`` seeded feedback runs in the kinematic twin with Gaussian turn noise σ
 (the filter told σ) per rule:
@@ -14,7 +15,13 @@ For each σ, ``--pairs`` seeded feedback runs in the kinematic twin with Gaussia
   batched scoring (the same decisions as ``reference``: the table says how many runs differ);
 - ``guided``: ``FeedbackConfig(guided=True)``, the search guided by the cost to go (§22);
 - ``before``: ``FeedbackConfig(final_min=0.0)``, the default before the final drive needed
-  half the belief's mass in the goal cell (§22): it stopped whenever any mass did.
+  half the belief's mass in the goal cell (§22): it stopped whenever any mass did;
+- ``contact``: ``FeedbackConfig(contact=PYBULLET_CONTACT)``, the filter, search and scores
+  under PyBullet's contact rule (§22, §23).
+
+``--contact pybullet`` gives the twin PyBullet's contact rule (glancing contacts slide); every
+rule but ``contact`` keeps the front-half bumper model whatever the body (so ``fast`` is the
+default before the navigator learned the body's rule).
 
 Printed per σ and rule: decisions, runs that reached the goal, and the decision time per bump
 in CPU time of this process (filter update, planning, scoring, final drive): median, 95th
@@ -35,6 +42,7 @@ import envs
 from bouncesim.navigate import navigate_feedback
 from bouncesim.robots.kinematic import KinematicRobot
 from bouncesim.robots.noise import GaussianNoise
+from envs.motion import PYBULLET_CONTACT
 from planners.cells import CellSpace
 from planners.exact import ExactNavigator
 from planners.feedback import FeedbackConfig, FeedbackNavigator
@@ -43,7 +51,8 @@ TARGET_MS = 50.0
 ANGLES = (45.0, 90.0, 135.0)
 RULES = {"reference": FeedbackConfig(reference=True), "fast": FeedbackConfig(guided=False),
          "guided": FeedbackConfig(guided=True),
-         "before": FeedbackConfig(final_min=0.0)}
+         "before": FeedbackConfig(final_min=0.0),
+         "contact": FeedbackConfig(guided=False, contact=PYBULLET_CONTACT)}
 
 
 def _floats(text: str) -> tuple:
@@ -60,6 +69,8 @@ def main(argv=None) -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--rules", default=",".join(RULES),
                     help="decision rules to time, comma-separated: " + ", ".join(RULES))
+    ap.add_argument("--contact", choices=("off", "pybullet"), default="off",
+                    help="the twin's contact rule (default off: the front-half bumper)")
     args = ap.parse_args(argv)
     rules = [r.strip() for r in args.rules.split(",") if r.strip()]
     unknown = [r for r in rules if r not in RULES]
@@ -67,13 +78,15 @@ def main(argv=None) -> None:
         ap.error(f"unknown rule {unknown[0]!r}; choose from {', '.join(RULES)}")
     env = envs.load(args.env)
     cells = CellSpace(env)
+    body = PYBULLET_CONTACT if args.contact == "pybullet" else None
     rng = np.random.default_rng(args.seed)
     pairs = []
     while len(pairs) < args.pairs:
         s, g = (int(v) for v in rng.integers(0, cells.N, 2))
-        if s != g and ExactNavigator(cells, ANGLES).plan(s, g) is not None:
+        if s != g and ExactNavigator(cells, ANGLES, contact=body).plan(s, g) is not None:
             pairs.append((s, g))
-    print(f"{args.env}, {len(pairs)} pairs, CPU time per decision [ms]")
+    print(f"{args.env}, {len(pairs)} pairs, twin contact rule {args.contact}, "
+          f"CPU time per decision [ms]")
     print(f"{'σ':>4s} {'rule':10s}{'decisions':>10s}{'reached':>9s}{'median':>8s}{'p95':>8s}"
           f"{'max':>8s}{'<= 50 ms':>10s}  same as reference")
     for sigma in args.sigmas:
@@ -82,9 +95,10 @@ def main(argv=None) -> None:
         for rule in rules:
             cpu, ok, runs = [], 0, []
             for i, (s, g) in enumerate(pairs):
-                run = navigate_feedback(KinematicRobot(env, noise, i), env, s, g, noise,
-                                        np.random.default_rng([args.seed, i]), angles=ANGLES,
-                                        cells=cells, config=RULES[rule])
+                run = navigate_feedback(KinematicRobot(env, noise, i, contact=body), env, s, g,
+                                        noise, np.random.default_rng([args.seed, i]),
+                                        angles=ANGLES, cells=cells, config=RULES[rule],
+                                        contact=RULES[rule].contact)
                 cpu += list(run.decision_cpu_ms)
                 ok += bool(run.success)
                 runs.append((run.plan.exact_text(), run.final_pose))

@@ -32,7 +32,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from envs import Environment, UserError
-from envs.motion import STEP_TOL
+from envs.motion import PYBULLET_CONTACT, STEP_TOL, ContactParams
 from planners.cells import CellSpace
 from planners.feedback import FeedbackConfig, FeedbackNavigator, ParticleFilter
 from planners.plan import Plan
@@ -42,7 +42,7 @@ from .runs.execute import check_speed, place_if_simulated
 from .runs.results import PlanRun
 from .runs.trace import Trace
 
-__all__ = ["FeedbackRun", "declared_sigma", "navigate_feedback"]
+__all__ = ["FeedbackRun", "body_contact", "declared_sigma", "navigate_feedback"]
 
 
 @dataclass(frozen=True)
@@ -105,6 +105,19 @@ def declared_sigma(noise) -> float:
     raise UserError(f"the feedback planner cannot read a turn noise σ from {noise!r}.")
 
 
+def body_contact(robot) -> ContactParams | None:
+    """The contact rule (docs/model.md §23) a body declares, as ``validate --contact auto``
+    takes it: a PyBullet body has ``envs.motion.PYBULLET_CONTACT``; a body with a
+    ``contact`` attribute that is a :class:`~envs.motion.ContactParams` (the twin made with
+    ``contact=`` or ``glance_deg=``) has that one; any other body (the twin by default, the
+    Create 2 and its emulator, a user's own) the front-half bumper (None).
+    """
+    if type(robot).__module__.startswith("bouncesim.robots.pybullet"):
+        return PYBULLET_CONTACT
+    rule = getattr(robot, "contact", None)
+    return rule if isinstance(rule, ContactParams) else None
+
+
 def _side(ev) -> str:
     return "+".join(s for s, on in (("left", ev.left), ("right", ev.right)) if on) or "none"
 
@@ -114,7 +127,7 @@ def navigate_feedback(robot: Robot, env: Environment | None, start, goal: int, n
                       cells: CellSpace | None = None, config: FeedbackConfig | None = None,
                       speed: float = 0.2, back_off: float = 0.0, w1: float = 1.0,
                       w2: float = 100.0, max_bumps: int = 40, max_time: float | None = None,
-                      on_belief=None) -> FeedbackRun:
+                      on_belief=None, contact="auto") -> FeedbackRun:
     """Drive ``robot`` from ``start`` to the goal configuration by feedback (§22).
 
     Parameters
@@ -136,6 +149,11 @@ def navigate_feedback(robot: Robot, env: Environment | None, start, goal: int, n
     on_belief : callable, optional
         Called as ``on_belief(event, belief)`` after every filter step (``"flight"``,
         ``"turn"``): for tests and plots.
+    contact : "auto", ContactParams or None
+        The contact rule of the filter's motion model and the plan search (§22, §23).
+        "auto" (default): ``config.contact`` when set, else the body's
+        (:func:`body_contact`: PyBullet's fitted rule for a PyBullet body, the twin's own
+        opt-in rule, else the front-half bumper); None: the front-half bumper.
 
     Returns
     -------
@@ -149,8 +167,12 @@ def navigate_feedback(robot: Robot, env: Environment | None, start, goal: int, n
     back_off = float(back_off)
     if not (math.isfinite(back_off) and back_off >= 0):
         raise UserError(f"back-off must be a non-negative distance in metres, got {back_off:g}.")
-    cfg = replace(config if config is not None else FeedbackConfig(),
-                  turn_sigma_deg=declared_sigma(noise))
+    cfg = config if config is not None else FeedbackConfig()
+    if isinstance(contact, str):
+        if contact != "auto":
+            raise UserError(f"contact must be 'auto', a ContactParams or None, got {contact!r}.")
+        contact = cfg.contact if cfg.contact is not None else body_contact(robot)
+    cfg = replace(cfg, turn_sigma_deg=declared_sigma(noise), contact=contact)
     fnav = FeedbackNavigator(cells, angles, goal, cfg, w1, w2)
     if isinstance(start, (int, np.integer)):
         start_pose = cells.pose(fnav.nav._check(start, "start"))

@@ -7,8 +7,14 @@ by feedback (:func:`bouncesim.navigate.navigate_feedback`, the filter told σ), 
 with heading correction (§22's extension, off by default elsewhere) and, with the same robot
 noise seed, by the open-loop exact plan (:func:`bouncesim.runs.execute.execute`).
 Maps: ``lab`` and one random polygon room with a hole (``experiments.nav_exact``).
+With ``--contact pybullet`` the twin has PyBullet's contact rule (§23: glancing contacts
+slide), the exact plans are planned for it and the feedback navigator learns it from the
+body (§22); ``--filter-contact off`` keeps the navigator's front-half bumper model on that
+body (the rule before).
 
-    python -m experiments.nav_feedback [--quick] [--seed S] [--pairs N] [--out DIR]
+    python -m experiments.nav_feedback [--quick] [--seed S] [--pairs N] [--sigmas 0,2,5]
+                                       [--contact off|pybullet] [--filter-contact auto|off]
+                                       [--out DIR]
 
 Writes ``runs.csv`` (one row per run), ``decisions.csv`` (one row per feedback decision, its
 wall time [ms]), ``summary.csv`` (success with 95 % Wilson intervals, decision times),
@@ -31,6 +37,7 @@ from bouncesim.plots import save_figure
 from bouncesim.robots import make_robot
 from bouncesim.robots.noise import GaussianNoise
 from bouncesim.runs.execute import execute
+from envs.motion import PYBULLET_CONTACT
 from planners.cells import CellSpace
 from planners.exact import ExactNavigator
 from planners.feedback import FeedbackConfig
@@ -58,6 +65,10 @@ class Config:
     corrected : bool       also run feedback with heading correction (§22's extension)
     guided : bool          the guided plan search of §22 (off by default, as in
                            :class:`planners.feedback.FeedbackConfig`)
+    contact : str          the twin's contact rule: 'off' (front-half bumper) or 'pybullet'
+                           (§23's PYBULLET_CONTACT; exact plans are planned for it)
+    filter_contact : str   'auto': the feedback navigator takes the body's rule (§22);
+                           'off': it keeps the front-half bumper model
     quick : bool           recorded; ``main`` turns it into a small budget
     seed : int             root seed (rooms, pairs, noise, filter)
     out : Path             output folder
@@ -69,6 +80,8 @@ class Config:
     particles: int = FeedbackConfig.particles
     corrected: bool = True
     guided: bool = False
+    contact: str = "off"
+    filter_contact: str = "auto"
     quick: bool = False
     seed: int = 0
     out: Path = Path("results") / "nav_feedback"
@@ -94,7 +107,9 @@ def run_map(name: str, config: Config) -> tuple[pd.DataFrame, pd.DataFrame]:
     """(runs, decisions) of one map: every pair × σ × {feedback, exact}."""
     env = map_named(name, config.seed)
     cells = CellSpace(env)
-    exact = ExactNavigator(cells, ANGLES, W1, W2)
+    contact = PYBULLET_CONTACT if config.contact == "pybullet" else None
+    body = {} if contact is None else {"contact": contact}
+    exact = ExactNavigator(cells, ANGLES, W1, W2, contact=contact)
     rng = np.random.default_rng(np.random.SeedSequence([config.seed, 3, len(name)]))
     pairs = _pairs(exact, config.pairs, rng)
     fcfg = feedback_config(config)
@@ -107,13 +122,15 @@ def run_map(name: str, config: Config) -> tuple[pd.DataFrame, pd.DataFrame]:
             key = [config.seed, 4, len(name), i, int(round(sigma * 1000))]
             for planner in planners:
                 bot_rng = np.random.default_rng(np.random.SeedSequence(key + [0]))
-                bot = make_robot("kinematic", env, noise=noise, rng=bot_rng)
+                bot = make_robot("kinematic", env, noise=noise, rng=bot_rng, **body)
                 t0 = time.perf_counter()
                 if planner.startswith("feedback"):
                     frng = np.random.default_rng(np.random.SeedSequence(key + [1]))
                     cfg = replace(fcfg, correct_heading=planner == "feedback_corrected")
                     run = navigate_feedback(bot, env, s, g, noise, frng, angles=ANGLES,
-                                            cells=cells, config=cfg, w1=W1, w2=W2)
+                                            cells=cells, config=cfg, w1=W1, w2=W2,
+                                            contact="auto" if config.filter_contact == "auto"
+                                            else None)
                     ms = np.asarray(run.decision_ms)
                     decisions += [{"map": name, "sigma": sigma, "pair": i,
                                    "planner": planner, "ms": v,
@@ -184,14 +201,20 @@ def run(config: Config) -> Path:
     """Run every map; write runs.csv, decisions.csv, summary.csv, config.json, success.png."""
     if config.pairs < 1:
         raise envs.UserError(f"--pairs must be at least 1, got {config.pairs}.")
+    if config.contact not in ("off", "pybullet") or config.filter_contact not in ("auto", "off"):
+        raise envs.UserError("--contact must be off or pybullet and --filter-contact auto or "
+                             "off.")
     out = output_dir(config.out)
     write_config(out, {"experiment": "nav_feedback", "seed": config.seed,
                        "quick": config.quick, "pairs_per_map": config.pairs,
                        "sigmas": list(config.sigmas), "maps": list(config.maps),
                        "angles": list(ANGLES), "w1": W1, "w2": W2,
                        "feedback": feedback_config(config).__dict__,
-                       "robot": "kinematic twin, front-half bumper, Gaussian turn noise, "
-                       "0.2 m/s",
+                       "robot": "kinematic twin, " + ("front-half bumper" if config.contact
+                                                      == "off" else "PyBullet's contact rule "
+                                                      "(docs/model.md section 23)") +
+                       ", Gaussian turn noise, 0.2 m/s",
+                       "contact": config.contact, "filter_contact": config.filter_contact,
                        "pair_sampling": "uniform over ordered pairs (start != goal) with an "
                        "exact plan, by rejection"})
     parts = [run_map(m, config) for m in config.maps]
@@ -206,6 +229,19 @@ def run(config: Config) -> Path:
     return out
 
 
+def _sigmas(text: str | None) -> tuple:
+    """--sigmas as a tuple of non-negative floats [deg] (None: the default)."""
+    if text is None:
+        return Config.sigmas
+    try:
+        out = tuple(float(v) for v in name_list(text))
+    except ValueError:
+        out = ()
+    if not out or not all(np.isfinite(v) and v >= 0 for v in out):
+        raise envs.UserError(f"--sigmas must be non-negative numbers [deg], got {text!r}.")
+    return out
+
+
 def main(argv=None) -> int:
     """Parse the command line into a :class:`Config` and :func:`run` it (exit status)."""
     p = experiment_parser("nav_feedback", __doc__.splitlines()[0])
@@ -214,10 +250,18 @@ def main(argv=None) -> int:
     p.add_argument("--maps", default=",".join(Config.maps), help="maps: names or randomN")
     p.add_argument("--guided", action="store_true",
                    help="the guided plan search (docs/model.md section 22; off by default)")
+    p.add_argument("--sigmas", default=None,
+                   help="Gaussian turn noise levels [deg], comma-separated (default 0,2,5)")
+    p.add_argument("--contact", choices=("off", "pybullet"), default="off",
+                   help="the twin's contact rule (docs/model.md section 23; default off)")
+    p.add_argument("--filter-contact", choices=("auto", "off"), default="auto",
+                   help="auto (default): the feedback navigator takes the body's contact "
+                   "rule; off: it keeps the front-half bumper model")
     args = p.parse_args(argv)
     pairs = args.pairs if args.pairs is not None else (4 if args.quick else Config.pairs)
     return run_main("nav_feedback", lambda: Config(
-        pairs=pairs, maps=name_list(args.maps), guided=args.guided, quick=args.quick,
+        pairs=pairs, sigmas=_sigmas(args.sigmas), maps=name_list(args.maps), guided=args.guided,
+        contact=args.contact, filter_contact=args.filter_contact, quick=args.quick,
         seed=args.seed, out=args.out), run)
 
 

@@ -64,7 +64,7 @@ from .feedback_filter import (
     FeedbackConfig,
     FlightUpdate,
     ParticleFilter,
-    flights,
+    landings,
     side_of,
 )
 from .feedback_search import ScalarWalls, cost_to_go, search, search_reference
@@ -76,7 +76,8 @@ _MAX_FINAL_CANDIDATES = 128   # final drive lengths tried
 
 
 # ============================================================================ the final drive
-def goal_intervals(pos, heading_deg, D, cell_box, goal_heading_deg: float, delta_deg: float):
+def goal_intervals(pos, heading_deg, D, cell_box, goal_heading_deg: float, delta_deg: float,
+                   slides=None):
     """The drive lengths that end each particle's flight in the goal cell.
 
     Parameters
@@ -85,6 +86,9 @@ def goal_intervals(pos, heading_deg, D, cell_box, goal_heading_deg: float, delta
     cell_box : (x0, y0, x1, y1) the goal cell's square [m]
     goal_heading_deg, delta_deg : a particle whose heading is more than Δ/2 from the goal
                                   heading gets no interval
+    slides : (n,) bool, optional   flights that slide on from their first contact (§23): the
+                                  robot does not stop there, so the flight never lands in the
+                                  cell (b <= D)
 
     Returns
     -------
@@ -107,13 +111,15 @@ def goal_intervals(pos, heading_deg, D, cell_box, goal_heading_deg: float, delta
     dh = (np.asarray(heading_deg, dtype=float) - goal_heading_deg + 180.0) % 360.0 - 180.0
     ok = (lo <= hi) & (np.abs(dh) <= delta_deg / 2)
     lands = ok & (hi >= np.asarray(D) - 1e-9)
+    if slides is not None:
+        lands &= ~np.asarray(slides, dtype=bool)
     a = np.where(ok, lo, np.inf)
     b = np.where(lands, np.inf, np.where(ok, hi, -np.inf))
     return a, b
 
 
 def final_drive(pos, heading_deg, D, w, cell_box, goal_heading_deg: float, delta_deg: float,
-                margin: float) -> tuple[float, float]:
+                margin: float, slides=None) -> tuple[float, float]:
     """The final drive d [m] that puts the most weight in the goal cell.
 
     A particle (pos, heading, flight D to its bump, weight w) ends at pos + min(d, D)·u. It
@@ -122,7 +128,8 @@ def final_drive(pos, heading_deg, D, w, cell_box, goal_heading_deg: float, delta
     to the cell's border), in proportion to its depth when shallower. The best d maximises
     that weight, then the weighted depth. Candidates: the ends of every particle's interval
     in the cell (:func:`goal_intervals`), their midpoints, and every flight's point nearest
-    the cell's centre.
+    the cell's centre. ``slides`` (n,) bool: flights that slide on from their first contact
+    (§23); such a particle counts only for drives up to its D (it does not stop at D).
 
     Returns (d, mass): mass is the weight whose end point lies in the cell at all; nothing
     in the cell gives (0, 0).
@@ -133,7 +140,7 @@ def final_drive(pos, heading_deg, D, w, cell_box, goal_heading_deg: float, delta
     """
     pos = np.asarray(pos, dtype=float).reshape(-1, 2)
     head, D, w = (np.asarray(v, dtype=float).reshape(-1) for v in (heading_deg, D, w))
-    a, b = goal_intervals(pos, head, D, cell_box, goal_heading_deg, delta_deg)
+    a, b = goal_intervals(pos, head, D, cell_box, goal_heading_deg, delta_deg, slides)
     ok = np.isfinite(a)
     if not ok.any():
         return 0.0, 0.0
@@ -152,6 +159,8 @@ def final_drive(pos, heading_deg, D, w, cell_box, goal_heading_deg: float, delta
     depth = half - np.abs(end - centre).max(axis=2)
     good = (np.abs((head - goal_heading_deg + 180.0) % 360.0 - 180.0) <= delta_deg / 2)[None]
     inside = good & (depth >= 0)
+    if slides is not None:
+        inside &= ~(np.asarray(slides, dtype=bool)[None] & (cand[:, None] > D[None]))
     soft = (w[None] * np.where(inside, np.clip(depth / max(margin, 1e-12), 0, 1), 0)).sum(1)
     deep = (w[None] * np.where(inside, depth, 0)).sum(1)
     best = np.lexsort((-deep, -np.round(soft, 9)))[0]
@@ -197,7 +206,7 @@ class FeedbackNavigator:
     def __init__(self, cells: CellSpace, angles, goal: int, config: FeedbackConfig | None = None,
                  w1: float = 1.0, w2: float = 100.0) -> None:
         self.cells, self.cfg = cells, config if config is not None else FeedbackConfig()
-        self.nav = ExactNavigator(cells, angles, w1, w2)
+        self.nav = ExactNavigator(cells, angles, w1, w2, contact=self.cfg.contact)
         self.goal = self.nav._check(goal, "goal")
         gp, self.gk = (int(v) for v in cells.pk(self.goal))
         lo = np.asarray(cells.env.origin, dtype=float) + cells.cells_ij[gp] * cells.h
@@ -244,13 +253,12 @@ class FeedbackNavigator:
         each angle and flying, then the best final drive, for equally weighted particles
         (pos (n, 2), heading (n,) [deg]) under the declared noise.
         """
-        caster = self.nav.caster
+        caster, contact = self.nav.caster, self.cfg.contact
         pos, head = np.array(pos, dtype=float), np.array(heading, dtype=float)
         s = self.cfg.turn_spread_deg
         for j, a in enumerate(angles):
             if not (bumped and j == 0):
-                D, u, _ = flights(caster, pos, head, bearings=False)
-                pos = pos + D[:, None] * u
+                pos = landings(caster, pos, head, contact, bearings=False)[1]
             head = head + a + (rng.normal(0.0, s, len(head)) if s > 0 else 0.0)
         return self.final(pos, head, np.full(len(head), 1.0 / len(head)))[1]
 
@@ -276,14 +284,17 @@ class FeedbackNavigator:
             act = np.flatnonzero(lens > j)
             if not (bumped and j == 0):
                 p, th = pos[act].reshape(-1, 2), head[act].reshape(-1)
-                D, u, _ = flights(caster, p, th, bearings=False)
-                pos[act] = (p + D[:, None] * u).reshape(len(act), n, 2)
+                pos[act] = landings(caster, p, th, self.cfg.contact,
+                                    bearings=False)[1].reshape(len(act), n, 2)
             turn = np.array([plans[c][j] for c in act], dtype=float)[:, None]
             head[act] = head[act] + turn + noise[act, j] if s > 0 else head[act] + turn
-        D, _, _ = flights(caster, pos.reshape(-1, 2), head.reshape(-1), bearings=False)
+        _, _, _, sl, D = landings(caster, pos.reshape(-1, 2), head.reshape(-1),
+                                  self.cfg.contact, bearings=False)
         D, w = D.reshape(len(plans), n), np.full(n, 1.0 / n)
+        sl = None if sl is None else sl.reshape(len(plans), n)
         return [final_drive(pos[c], head[c], D[c], w, self.box, self.goal_heading,
-                            self.cells.delta_deg, self.cfg.margin_m)[1]
+                            self.cells.delta_deg, self.cfg.margin_m,
+                            None if sl is None else sl[c])[1]
                 for c in range(len(plans))]
 
     def final(self, pos, heading, w) -> tuple[float, float]:
@@ -291,9 +302,10 @@ class FeedbackNavigator:
         flight of weighted particles.
         """
         pos, heading = np.asarray(pos, dtype=float), np.asarray(heading, dtype=float)
-        D, _, _ = flights(self.nav.caster, pos, heading, bearings=False)
+        _, _, _, slides, D = landings(self.nav.caster, pos, heading, self.cfg.contact,
+                                      bearings=False)
         return final_drive(pos, heading, D, w, self.box, self.goal_heading,
-                           self.cells.delta_deg, self.cfg.margin_m)
+                           self.cells.delta_deg, self.cfg.margin_m, slides)
 
     def stops(self, mass: float, last: bool = False) -> bool:
         """Whether, after the plan's last turn, the robot makes the final drive (the belief

@@ -15,9 +15,11 @@ import numpy as np
 from scipy.special import ndtr
 
 from envs import Environment, UserError
-from envs.motion import BUMP_RANGE, casters, drive_distance, unit
+from envs.contact import contact_flights
+from envs.motion import BUMP_RANGE, ContactParams, casters, drive_distance, unit
 
-__all__ = ["FeedbackConfig", "FlightUpdate", "ParticleFilter", "side_of", "flights", "SIDES"]
+__all__ = ["FeedbackConfig", "FlightUpdate", "ParticleFilter", "side_of", "flights", "landings",
+           "SIDES"]
 
 SIDES = ("both", "left", "right")
 """Bumper readings: both switches, the left one only, the right one only."""
@@ -60,6 +62,11 @@ class FeedbackConfig:
                                to go of the contact-state graph (§22), not by §15's bound
     reference : bool           the straightforward search (unguided) and scoring instead of
                                the fast ones (for benchmarks and tests)
+    contact : ContactParams or None
+        the body's contact rule (docs/model.md §23) in the filter's motion model, the plan
+        search's flights and the scores: a flight whose contact lies outside the bumper arc
+        slides on to its bump, and only contacts inside the arc press the bumper. None
+        (default): the front-half bumper (§22 as before, bitwise)
     """
 
     particles: int = 300
@@ -83,6 +90,7 @@ class FeedbackConfig:
     correct_heading: bool = False
     guided: bool = False
     reference: bool = False
+    contact: ContactParams | None = None
 
     def __post_init__(self) -> None:
         for name in ("particles", "votes", "per_pose", "eval_particles"):
@@ -101,6 +109,9 @@ class FeedbackConfig:
             raise UserError("feedback final_min must lie in [0, 1].")
         if not 0 < self.resample_ess <= 1:
             raise UserError("feedback resample_ess must lie in (0, 1].")
+        if self.contact is not None and not isinstance(self.contact, ContactParams):
+            raise UserError(f"feedback contact must be a ContactParams or None, got "
+                            f"{self.contact!r}.")
 
     @property
     def turn_spread_deg(self) -> float:
@@ -148,6 +159,40 @@ def flights(caster, pos, heading_deg, bearings: bool = True):
                                  u[:, None, 0] * w[..., 0] + u[:, None, 1] * w[..., 1]))
     near = (fd <= t[:, None] + BUMP_RANGE) & (np.abs(beta) < 90.0)
     return D, u, np.where(near, beta, np.nan)
+
+
+def landings(caster, pos, heading_deg, contact: ContactParams | None, bearings: bool = True):
+    """Flights of poses to their bump under a contact rule (docs/model.md §22, §23).
+
+    Returns (clock [m], end (n, 2) [m], bearings (n, F) [deg] or None, slid (n,) bool or
+    None, straight [m]): ``straight`` is :func:`flights`' drive to the first contact and
+    ``clock`` the clock length to the bump, where the robot ends (``end``). With a contact
+    rule, a flight whose first contact lies outside the bumper arc ±(90° − β) slides on
+    (:func:`envs.contact.contact_flights`, ``slid``), and its bearings are those at the
+    bump; bearings outside the arc are NaN (they press no switch). ``contact`` None: the
+    front-half bumper, bitwise :func:`flights` (clock = straight, slid None).
+    """
+    pos = np.asarray(pos, dtype=float).reshape(-1, 2)
+    D, u, beta = flights(caster, pos, heading_deg, bearings)
+    if contact is None:
+        return D, pos + D[:, None] * u, beta, None, D
+    head = np.broadcast_to(np.asarray(heading_deg, dtype=float).reshape(-1), (len(pos),))
+    # resampled copies share a pose: slide each distinct (x, y, heading) once
+    _, first, inv = np.unique(np.column_stack([pos, head]), axis=0, return_index=True,
+                              return_inverse=True)
+    inv = inv.reshape(-1)
+    fl = contact_flights(caster, pos[first], u[first], D[first], contact)
+    slid = np.zeros(len(first), dtype=bool)
+    slid[np.fromiter(fl.legs, np.int64, len(fl.legs))] = True
+    clock, end, slid = fl.clock[inv], fl.end[inv], slid[inv]
+    if beta is not None:
+        arc = 90.0 - contact.beta_deg
+        if slid.any():
+            beta = beta.copy()
+            beta[slid] = flights(caster, end[slid], head[slid])[2]
+        with np.errstate(invalid="ignore"):
+            beta = np.where(np.abs(beta) <= arc, beta, np.nan)
+    return clock, end, beta, slid, D
 
 
 def _side_probs(beta, cfg: FeedbackConfig) -> np.ndarray:
@@ -257,14 +302,14 @@ class ParticleFilter:
         bumper reading (left, right): every particle flies to its exact contact.
         """
         d, side = float(distance), side_of(left, right)
-        D, u, beta = flights(self.caster, self.pos, self.heading)
+        D, end, beta, _, _ = landings(self.caster, self.pos, self.heading, self.cfg.contact)
         ll, ok = self._loglik(d, side, D, beta)
         ok &= self.w > 0
         consistent, stage = int(ok.sum()), 0
         if consistent:
             with np.errstate(divide="ignore"):
                 logw = np.log(self.w) + ll
-            pos, head = self.pos + D[:, None] * u, self.heading
+            pos, head = end, self.heading
             logw = np.where(ok, logw, -np.inf)
         else:
             stage, pos, head, logw = self._reinit(d, side)
@@ -285,10 +330,10 @@ class ParticleFilter:
         idx = self.rng.choice(self.n, size=4 * n, p=self.w)
         pos0 = self.pos[idx]
         head0 = (self.heading[idx] + self.rng.normal(0.0, self.cfg.reinit_sigma_deg, 4 * n))
-        D, u, beta = flights(self.caster, pos0, head0)
+        D, end, beta, _, _ = landings(self.caster, pos0, head0, self.cfg.contact)
         ll, ok = self._loglik(d, side, D, beta)
         if ok.any():
-            return 1, pos0 + D[:, None] * u, head0 % 360.0, np.where(ok, ll, -np.inf)
+            return 1, end, head0 % 360.0, np.where(ok, ll, -np.inf)
         x0, y0, x1, y1 = self.env.bounds
         pts = np.empty((0, 2))
         for _ in range(50):
@@ -299,9 +344,9 @@ class ParticleFilter:
         if len(pts) == 0:
             raise UserError(f"{self.env.name} has no free space for the robot.")
         head = self.rng.uniform(0.0, 360.0, len(pts))
-        D, u, beta = flights(self.caster, pts, head)
+        D, end, beta, _, _ = landings(self.caster, pts, head, self.cfg.contact)
         ll, ok = self._loglik(d, side, D, beta)
-        return 2, pts + D[:, None] * u, head, np.where(ok, ll, -np.inf) if ok.any() else ll
+        return 2, end, head, np.where(ok, ll, -np.inf) if ok.any() else ll
 
     def resample(self, n: int | None = None) -> None:
         """Systematic resampling to ``n`` equally weighted particles (default: as many)."""

@@ -17,6 +17,11 @@ expansion and the same floating-point arithmetic, so they return the same plans:
   whenever the flight's bounding box meets the goal cell): the tests and
   ``benchmarks/bench_feedback.py`` check :func:`search` against it.
 
+With a contact rule (``FeedbackConfig.contact``, docs/model.md §23) both continue a flight
+whose contact lies outside the bumper arc along its slide to the bump, as §15's planner does
+(:func:`slide_on`): the flight costs and expects its clock length and lands at the bump; goal
+arrivals stay on the straight part.
+
 Both return ``(angles, flights, final_m, cost)`` tuples, cheapest first, which
 :class:`planners.feedback.FeedbackNavigator` turns into candidates. :func:`search` with a
 ``guide`` (:func:`cost_to_go`) is the guided search of §22, a different rule (off by
@@ -33,6 +38,7 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
+from envs.contact import advance, closes_bumper, front_contacts
 from envs.motion import (
     APPROACH_MIN,
     BUMP_RANGE,
@@ -45,7 +51,7 @@ from envs.motion import (
 from .exact_chords import chords
 
 __all__ = ["MAX_SETTLED", "MAX_SETTLED_GUIDED", "NEAR_M", "BAND_PAD_M", "STRIP_M", "UNGUIDED",
-           "ScalarWalls", "cost_to_go", "search", "search_reference"]
+           "ScalarWalls", "cost_to_go", "search", "search_reference", "slide_on"]
 
 MAX_SETTLED = 3000
 """A search from one pose gives up after this many settled states."""
@@ -126,12 +132,14 @@ class ScalarWalls:
         return lookup
 
     def cast_near(self, x: float, y: float, ux: float, uy: float, dsides, verts, near: bool):
-        """(contact distance [m], near sides, near corners): the cast along (ux, uy) over
-        the sides ``dsides`` (with their :meth:`directions` terms for this heading) and the
-        corners ``verts``; with ``near``, those within r + NEAR_M of (x, y) (else empty).
+        """(contact distance [m], near sides, near corners, cos b): the cast along (ux, uy)
+        over the sides ``dsides`` (with their :meth:`directions` terms for this heading) and
+        the corners ``verts``; with ``near``, those within r + NEAR_M of (x, y) (else empty);
+        cos b of the contact's bearing b on the first feature met (1 when none): a contact
+        with cos b >= sin β lies inside the bumper arc of a contact rule (§23).
         """
         r, lim = self.r, self.r + NEAR_M
-        best, ns, nv = math.inf, [], []
+        best, ns, nv, cos_b = math.inf, [], [], 1.0
         for ax, ay, ex, ey, L, un, ue in dsides:
             rx = x - ax
             ry = y - ay
@@ -145,7 +153,7 @@ class ScalarWalls:
             if t < 0.0:
                 t = 0.0
             if t < best and 0.0 <= rx * ex + ry * ey + t * ue <= L:
-                best = t
+                best, cos_b = t, a
         r2, graze, lim2 = self.r2, self.graze, lim * lim
         for vx0, vy0 in verts:
             vx = x - vx0
@@ -159,12 +167,26 @@ class ScalarWalls:
             disc = r2 - (q - b * b)
             if not disc > graze:
                 continue
-            t = -b - math.sqrt(disc)
+            root = math.sqrt(disc)
+            t = -b - root
             if t < 0.0:
                 t = 0.0
             if t < best:
-                best = t
-        return best, ns, nv
+                best, cos_b = t, root / r
+        return best, ns, nv, cos_b
+
+
+def slide_on(caster, contact, lx: float, ly: float, ux: float, uy: float):
+    """(x, y, extra clock [m]) of a flight's end under the contact rule ``contact``: where a
+    straight flight's contact at (lx, ly) lies outside the bumper arc the robot slides on
+    (:func:`envs.contact.advance`) to its bump; else (lx, ly, 0). As §15's planner
+    (:class:`planners.exact.ExactNavigator` with ``contact``).
+    """
+    if contact is None or any(closes_bumper(b, contact)
+                              for b, *_ in front_contacts(caster, lx, ly, ux, uy)):
+        return lx, ly, 0.0
+    sx, sy, extra, _, _ = advance(caster, lx, ly, ux, uy, contact)
+    return (sx, sy, extra) if extra > 0 else (lx, ly, 0.0)
 
 
 def _meets(px, py, ux, uy, D, x0, y0, x1, y1) -> bool:
@@ -244,16 +266,20 @@ def search(fnav, x: float, y: float, heading_deg: float, slack: float,
     gk, gp = fnav.gk, int(cs.pk(fnav.goal)[0])
     bin_of, angles, min_depth = nav._bin_of_scalar, nav.angles, nav.min_depth
     hyp, k_h = math.hypot, w1 / h
+    contact, caster = fnav.cfg.contact, nav.caster
+    # a first contact with cos b above this closes the bumper: no slide (the margin keeps
+    # the test conservative, so the slides are those of the reference search)
+    sin_beta = -1.0 if contact is None else math.sin(math.radians(contact.beta_deg)) + 1e-6
     memo: dict = {}
 
     def expand(px: float, py: float, k: int, first: bool):
         """(D, blocked, lx, ly, landing bin, bound there, goal arrivals' t) of a flight."""
         ux, uy = units[k]
         if first and bumped:
-            t, ns, nv = 0.0, (), ()
+            t, ns, nv, cos_b = 0.0, (), (), 1.0
         else:
-            t, ns, nv = cast_near(px, py, ux, uy, *near_walls(k, px, py),
-                                  bool(guard) and not first)
+            t, ns, nv, cos_b = cast_near(px, py, ux, uy, *near_walls(k, px, py),
+                                         bool(guard) and not first)
         if math.isinf(t):
             return None
         D = 0.0 if t <= BUMP_RANGE else drive_distance(t)
@@ -269,6 +295,9 @@ def search(fnav, x: float, y: float, heading_deg: float, slack: float,
             _, p, tt, depth = chords(cs, [[px, py]], [[ux, uy]], [D])
             goal_t = tuple(ti for pi, ti, di in zip(p.tolist(), tt.tolist(), depth.tolist())
                            if pi == gp and di >= min_depth)
+        if cos_b < sin_beta and not (first and bumped):     # a glancing contact slides on
+            lx, ly, extra = slide_on(caster, contact, lx, ly, ux, uy)
+            D += extra
         hb = k_h * hyp(max(gx0 - lx, lx - gx1, 0.0), max(gy0 - ly, ly - gy1, 0.0))
         return D, False, lx, ly, bin_of(lx, ly), hb, goal_t
 
@@ -359,6 +388,9 @@ def search_reference(fnav, x: float, y: float, heading_deg: float, slack: float,
                     arrivals.append((c + w1 * ti / h, len(arrivals), node, ti))
                     best = min(best, c + w1 * ti / h)
         lx, ly = px + D * ux, py + D * uy
+        if nav.contact is not None and not (bumped and st is None):
+            lx, ly, extra = slide_on(nav.caster, nav.contact, lx, ly, ux, uy)
+            D += extra
         lb = bin_of(lx, ly)
         hb = bound(lx, ly)
         for b in range(m):
