@@ -11,6 +11,7 @@ import importlib.util
 import json
 import math
 
+import numpy as np
 import pytest
 
 from bouncesim.cli import main
@@ -88,3 +89,49 @@ def test_pybullet_backend_few_steps(capsys):
     assert r["backend"] == "pybullet" and r["steps"] == 128
     assert 0 <= r["bumps_per_step_sim"] <= 1 and 0 < r["tv"] <= 1
     assert math.isfinite(r["floor"])
+
+
+def test_floors_halves_are_whole_trials_and_splits_average():
+    """Hand-made trials over two cells, t0 = t1 = (1, 0) and t2 = t3 = (0, 1), halves 0 1 0 1:
+    the floor compares t0 + t2 = (1, 1) with t1 + t3 = (1, 1), TV 0; of the three equally
+    likely balanced splits only {t0, t1} | {t2, t3} differs (TV 1), so floor_splits → 1/3
+    (2 000 splits: standard error 0.011).
+    """
+    from bouncesim.commands.validate import floors
+    counts = np.array([[1, 0], [1, 0], [0, 1], [0, 1]])
+    floor, mean = floors(counts, np.array([0, 1, 0, 1]), np.random.default_rng(0), 2000)
+    assert floor == 0.0
+    assert abs(mean - 1 / 3) < 0.04
+
+
+def test_more_trials_stopping_rule():
+    """Floor ∝ 1/√steps: 0.04 at 40 000 steps needs 4x the steps for 0.02, +10 % = 136 000
+    more, 14 trials of 10 000; met targets and the cap add none; the cap limits the rest.
+    """
+    from bouncesim.commands.validate import more_trials
+    assert more_trials(0.04, 40_000, 10_000, 0.02, 1_000_000) == 14
+    assert more_trials(0.021, 40_000, 10_000, 0.02, 1_000_000) == 2     # at least one pair
+    assert more_trials(0.02, 40_000, 10_000, 0.02, 1_000_000) == 0
+    assert more_trials(0.5, 1_000_000, 10_000, 0.02, 1_000_000) == 0
+    assert more_trials(0.5, 960_000, 10_000, 0.02, 1_000_000) == 4
+
+
+def test_floor_target_adds_independent_trials(capsys, tmp_path):
+    """Twin on lab, 75°, first round 20 000 steps (2 trials of 200 robots x 50 steps), target
+    floor 0.03: trials are added in rounds until floor and floor_splits are both ≤ 0.03; every
+    round is a sweep of its own root seed (new robots), and the halves alternate over the
+    policy's trials across rounds, so each half is a set of whole, independent trials.
+    """
+    import pandas as pd
+    assert main(LAB + ["--angles", "75", "--model", "event", "--steps", "20000", "--floor",
+                       "0.03", "--out", str(tmp_path), "--json"]) == 0
+    (r,) = _rows(capsys)
+    assert r["floor"] <= 0.03 and r["floor_splits"] <= 0.03
+    assert r["steps"] > 20000 and r["steps"] == 10_000 * r["trials"]
+    folders = [tmp_path] + sorted(tmp_path.glob("round*"))
+    assert len(folders) >= 2
+    seeds = [json.loads((f / "config.json").read_text())["sweep"]["root_seed"] for f in folders]
+    assert len(set(seeds)) == len(seeds)
+    halves = pd.concat([pd.read_csv(f / "runs.csv") for f in folders]).half.tolist()
+    assert halves == [j % 2 for j in range(r["trials"])]
+    assert r["tv"] <= 1.5 * r["floor"] + 0.01, r

@@ -13,6 +13,7 @@ bumps per step of the model and of the simulation.
 from __future__ import annotations
 
 import argparse
+import itertools
 import math
 import sys
 import tempfile
@@ -20,6 +21,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 
 import envs
 from envs import UserError
@@ -50,10 +52,19 @@ from .common import (
     writable_path,
 )
 
-__all__ = ["register", "run", "simulate_trial", "model_bump_rate", "BACKENDS"]
+__all__ = ["register", "run", "simulate_trial", "model_bump_rate", "more_trials", "floors",
+           "BACKENDS"]
 
 BACKENDS = ("kinematic", "pybullet")
-DEFAULT_STEPS = {"kinematic": 1_000_000, "pybullet": 20_000}
+DEFAULT_STEPS = {"kinematic": 1_000_000, "pybullet": 40_000}
+"""Steps per angle: all of them (kinematic), or the first round's (pybullet, which then adds
+trials until the floor target is met)."""
+DEFAULT_FLOOR = {"kinematic": None, "pybullet": 0.02}
+"""The floor target of a run without --steps (None: the steps are fixed)."""
+MAX_STEPS = 1_000_000
+"""Default cap on the steps per angle of a run with a floor target."""
+SPLITS = 200
+"""Random balanced splits of the trials behind ``floor_splits``."""
 ROBOTS = {"kinematic": 200, "pybullet": 16}
 """Robots per simulated batch (one sweep trial)."""
 PER_ROBOT = {"kinematic": 2500, "pybullet": 625}
@@ -71,6 +82,15 @@ the bumps per step of the model and of the simulation. With --alpha also the pol
 executed in epochs of --epoch steps and predicted by the model's time-shared coverage
 (docs/model.md section 12). --contact sets the contact rule of the event model and the
 kinematic twin (docs/model.md section 23); the default follows the simulated body.
+
+Halves are groups of whole trials (batches of independent robots with their own seeds), never
+stretches of one robot's run, so they are independent. floor_splits (JSON) is the mean floor
+over 200 random splits of the trials into two equal groups: the same quantity, less noisy.
+Steps: the kinematic default is 1e6 per angle. PyBullet without --steps runs until every
+floor and floor_splits is <= 0.02: a first round of 40 000 steps per angle (4 trials of 16
+robots x 625 steps), then more trials for the angles still above, sized by floor ~ 1/sqrt(steps),
+up to 1e6 steps per angle (--max-steps; an angle that stops at the cap is reported on stderr).
+--steps N fixes the count; --floor F with --steps N makes N the first round.
 """
 
 EXAMPLES = """\
@@ -95,7 +115,13 @@ def register(sub) -> None:
                    help="simulator (default kinematic)")
     p.add_argument("--steps", type=int, default=None, metavar="N",
                    help="simulated steps per angle, after the burn-in (default 1e6 "
-                   "kinematic, 2e4 pybullet)")
+                   "kinematic; pybullet: until the floor target, see --floor)")
+    p.add_argument("--floor", type=float, default=None, metavar="F",
+                   help="add trials until every angle's floor (and floor_splits) is <= F "
+                   "(default 0.02 for pybullet without --steps; with --steps N, N is the "
+                   "first round)")
+    p.add_argument("--max-steps", type=int, default=MAX_STEPS, metavar="N",
+                   help="cap on the steps per angle with a floor target (default 1e6)")
     p.add_argument("--burn-in", type=int, default=None, metavar="N",
                    help="steps per robot run first and not counted (default 200 kinematic, "
                    "50 pybullet)")
@@ -165,6 +191,61 @@ def model_bump_rate(model, ac) -> float:
     return float(np.asarray(ac.pi, dtype=float) @ np.asarray(frac, dtype=float))
 
 
+def floors(counts: np.ndarray, half: np.ndarray, rng: np.random.Generator,
+           splits: int = SPLITS) -> tuple[float, float]:
+    """The noise floor of one policy's trials and its mean over random splits.
+
+    Parameters
+    ----------
+    counts : (T, P) array       per trial, the steps counted in each position cell
+    half : (T,) int array        the half (0 or 1) of each trial: trials alternate
+    rng : numpy.random.Generator draws the random splits
+    splits : int                 random balanced splits averaged in the second number
+
+    Returns
+    -------
+    (floor, floor_splits)
+        TV between the sums of the trials of half 0 and of half 1 (docs/model.md §9: two
+        independent halves, since every trial is a batch of independent robots with its own
+        seed), and the mean of the same TV over ``splits`` random splits of the trials into
+        two groups of ⌊T/2⌋ and ⌈T/2⌉ (each split is again two independent halves; the mean
+        has less of the single split's luck).
+    """
+    counts = np.asarray(counts, dtype=float)
+    half = np.asarray(half)
+    floor = float(tv_distance(counts[half == 0].sum(axis=0), counts[half == 1].sum(axis=0)))
+    T = len(counts)
+    vals = []
+    for _ in range(splits):
+        perm = rng.permutation(T)
+        vals.append(tv_distance(counts[perm[:T // 2]].sum(axis=0),
+                                counts[perm[T // 2:]].sum(axis=0)))
+    return floor, float(np.mean(vals))
+
+
+def more_trials(floor: float, steps: int, trial_steps: int, target: float,
+                cap: int) -> int:
+    """Trials to add to a policy whose floor is ``floor`` after ``steps`` steps.
+
+    0 when ``floor`` ≤ ``target`` or ``steps`` has reached ``cap``. Otherwise the floor of
+    independent trials falls as 1/√steps, so the policy needs about steps·(floor/target)²;
+    this asks for 10 % more, at least two trials (one per half) and an even number (the
+    halves stay equal), and no more than the cap allows.
+
+    >>> more_trials(0.04, 40_000, 10_000, 0.02, 1_000_000)   # 4x the steps, +10 %: 136 000
+    14
+    >>> more_trials(0.019, 40_000, 10_000, 0.02, 1_000_000)
+    0
+    >>> more_trials(0.5, 990_000, 10_000, 0.02, 1_000_000)   # the cap: one more trial only
+    1
+    """
+    if floor <= target or steps >= cap:
+        return 0
+    need = steps * (floor / target) ** 2 * 1.1 - steps
+    n = max(2, 2 * math.ceil(need / (2 * trial_steps)))
+    return int(min(n, math.ceil((cap - steps) / trial_steps)))
+
+
 def _label(a: float) -> str:
     return f"{int(round(a))}" if abs(a - round(a)) < 1e-9 else f"{a:g}"
 
@@ -191,6 +272,12 @@ def _parse_alpha(text: str | None, model, angles, noise) -> tuple | None:
 def _check(args) -> None:
     if args.steps is not None and args.steps < 2:
         raise UserError(f"--steps must be at least 2, got {args.steps}.")
+    if args.floor is None and args.steps is None:
+        args.floor = DEFAULT_FLOOR[args.backend]
+    if args.floor is not None and not (math.isfinite(args.floor) and 0 < args.floor < 1):
+        raise UserError(f"--floor must lie in (0, 1), got {args.floor:g}.")
+    if args.max_steps < 2:
+        raise UserError(f"--max-steps must be at least 2, got {args.max_steps}.")
     if args.burn_in is None:
         args.burn_in = BURN_IN[args.backend]
     if args.burn_in < 0:
@@ -235,34 +322,63 @@ def run(args) -> int:
                                        for x, a in zip(angles, alpha)))
         policies.append(("mix", tuple(angles), alpha))
     predict_s = time.perf_counter() - t0
-    trials = []
-    for lab, angs, al in policies:
-        for j in range(trials_per):
-            trials.append({"policy": lab, "half": j % 2, "env": args.env,
-                           "cell_size": args.cell_size, "orientations": cs.K,
-                           "angles": " ".join(repr(float(a)) for a in angs),
-                           "alpha": " ".join(repr(float(a)) for a in al),
-                           "eps": float(args.eps), "r": float(args.r), "backend": backend,
-                           "robots": robots, "steps": per_robot, "burn_in": args.burn_in,
-                           "epoch": args.epoch, "speed": float(args.speed),
-                           "contact": "off" if contact is None else
-                           f"{contact.beta_deg!r} {contact.slide_friction!r}"})
+    contact_text = ("off" if contact is None else
+                    f"{contact.beta_deg!r} {contact.slide_friction!r}")
+
+    def trial(lab, angs, al, j) -> dict:
+        return {"policy": lab, "half": j % 2, "env": args.env, "cell_size": args.cell_size,
+                "orientations": cs.K, "angles": " ".join(repr(float(a)) for a in angs),
+                "alpha": " ".join(repr(float(a)) for a in al), "eps": float(args.eps),
+                "r": float(args.r), "backend": backend, "robots": robots,
+                "steps": per_robot, "burn_in": args.burn_in, "epoch": args.epoch,
+                "speed": float(args.speed), "contact": contact_text}
+
     record = {"command": "validate", "model": args.model, "predict_s": round(predict_s, 3)}
     progress = not args.no_progress and sys.stderr.isatty()
+    trial_steps = robots * per_robot
+    cap = max(args.max_steps, trials_per * trial_steps)
+    todo = {lab: trials_per for lab, _, _ in policies}      # trials to add, per policy
+    done = {lab: 0 for lab, _, _ in policies}
+    tables, stats = [], {}
     with tempfile.TemporaryDirectory() as tmp:
-        table = run_sweep(simulate_trial, trials, args.seed, out or Path(tmp), record,
-                          make_executor(args), progress=progress, name="runs")
+        base = out or Path(tmp)
+        for rnd in itertools.count():
+            trials = [trial(lab, angs, al, done[lab] + j) for lab, angs, al in policies
+                      for j in range(todo[lab])]
+            if not trials:
+                break
+            # round 0 is the fixed-steps sweep (its seed and folder); later rounds have their
+            # own folder and a root seed drawn from (seed, round): new, independent trials
+            seed = args.seed if rnd == 0 else int(
+                np.random.SeedSequence([args.seed, rnd]).generate_state(1, np.uint64)[0] >> 1)
+            tables.append(run_sweep(simulate_trial, trials, seed,
+                                    base if rnd == 0 else base / f"round{rnd}",
+                                    {**record, "round": rnd}, make_executor(args),
+                                    progress=progress, name="runs"))
+            for lab in done:
+                done[lab] += todo[lab]
+            table = pd.concat(tables, ignore_index=True)
+            for lab, _, _ in policies:
+                sub = table[table.policy == lab]
+                counts = np.array([np.array(c.split(), dtype=float) for c in sub.counts])
+                # "half" alternates along each policy's trials over all rounds
+                fl = floors(counts, sub.half.to_numpy(), np.random.default_rng([args.seed, 7]))
+                stats[lab] = (sub, counts, fl)
+                steps = int(sub.counted.sum() + sub.dropped.sum())
+                todo[lab] = (0 if args.floor is None else
+                             more_trials(max(fl), steps, trial_steps, args.floor, cap))
     rows = []
     for lab, angs, al in policies:
-        sub = table[table.policy == lab]
-        halves = [sum(np.array(c.split(), dtype=float) for c in sub[sub.half == h].counts)
-                  for h in (0, 1)]
-        pooled = halves[0] + halves[1]
+        sub, counts, (floor, floor_splits) = stats[lab]
+        pooled = counts.sum(axis=0)
         steps = int(sub.counted.sum() + sub.dropped.sum())
+        if args.floor is not None and max(floor, floor_splits) > args.floor:
+            print(f"validate: {lab}: floor {max(floor, floor_splits):.4f} > {args.floor:g} "
+                  f"at the cap of {steps} steps (--max-steps).", file=sys.stderr)
         rows.append({"angle": lab if lab == "mix" else float(angs[0]),
                      "tv": float(tv_distance(q[lab], pooled)),
-                     "floor": float(tv_distance(halves[0], halves[1])),
-                     "steps": steps, "dropped": int(sub.dropped.sum()),
+                     "floor": floor, "floor_splits": floor_splits,
+                     "steps": steps, "trials": len(sub), "dropped": int(sub.dropped.sum()),
                      "bumps_per_step_model": bumps_model[lab],
                      "bumps_per_step_sim": float(sub.bumps.sum()) / steps if steps else math.nan,
                      "model": args.model, "backend": backend, "env": env.name,
