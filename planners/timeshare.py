@@ -188,10 +188,15 @@ class TimeShared:
 
     Notes
     -----
-    The last D departures are kept in a buffer of 2D rows, each written twice (rows p and
-    p + D, with p = −t mod D), so that rows p+1 … p+D are always v_{t−1} … v_{t−D} in delay
-    order and one sparse product H x (H: n × D·n, column (d−1)·n + src) gives x_t. Vectors and
-    matrices are float32 (the products are memory bound), sums float64.
+    x_t is one sparse product H w_t, H: n × D·n with column (d−1)·n + src for a flight of
+    d steps from src, w_t = (v_{t−1}, …, v_{t−D}). The product reads only the columns some
+    flight uses, so they are numbered compactly (:attr:`Hc`, lag by lag, sources in order:
+    the same products in the same order, so the same numbers), and each lag j keeps v[S_j]
+    of its sources S_j only, in a ring of j + 1 slots written when v is made: the product
+    then reads a vector of a few MB (the distinct columns) instead of D·n floats spread over
+    tens of MB (``benchmarks/bench_horizon.py``). The whole v of the last D steps is kept
+    as well (one dense ring), for the boundary state. Vectors and matrices are float32 (the
+    products are memory bound), sums float64.
     """
 
     def __init__(self, chain: DelayChain) -> None:
@@ -207,6 +212,15 @@ class TimeShared:
         self.live = np.flatnonzero((np.diff(self.H.indptr) > 0)
                                    | (np.asarray(chain.start) != 0))
         self.H_live = sp.csr_matrix(self.H[self.live])
+        # the distinct columns u of H_live, in order (lag j = u // n, source u % n), and
+        # H_live on them: the flights' product on the lags' sources only (see the notes)
+        u, rank = np.unique(self.H_live.indices, return_inverse=True)
+        rank = rank.reshape(-1).astype(self.H_live.indices.dtype)
+        self.Hc = sp.csr_matrix((self.H_live.data, rank, self.H_live.indptr),
+                                shape=(self.live.size, u.size))
+        cut = np.searchsorted(u, np.arange(D + 1) * n)
+        self._lags = [(j, int(cut[j]), int(cut[j + 1]), u[cut[j]:cut[j + 1]] - j * n)
+                      for j in range(D) if cut[j + 1] > cut[j]]
         self._splits: dict = {}          # id(matrix) → (matrix, k, its k row blocks)
         self.RT = sp.csr_matrix(chain.reward.T)
         # expected steps (counted or dropped) of a flight leaving each state
@@ -249,43 +263,53 @@ class TimeShared:
         Returns (end state (D, n), Σ_t v_t (n,) float64).
         """
         D, n = self.D, self.chain.n
-        buf = np.zeros((2 * D, n), dtype=np.float32)
-        buf[1:D + 1] = hist                  # row 0 is written at t = 0 before it is read
-        buf[D + 1:] = hist[:D - 1]
-        flat = buf.reshape(-1)
+        ring = np.empty((D, n), dtype=np.float32)        # ring[s mod D] = v_s, the last D
+        ring[(-1 - np.arange(D)) % D] = hist             # v_{−1−j} = hist[j]
+        # lag j's sources, v_s[S_j] in slot s mod (j + 1): at step t slot t mod (j + 1)
+        # holds v_{t−1−j}, which the product reads, and then takes v_t
+        slots = {j: np.empty((j + 1, S.size), dtype=np.float32) for j, _, _, S in self._lags}
+        for j, _, _, S in self._lags:
+            for i in range(j + 1):
+                slots[j][(-1 - i) % (j + 1)] = hist[i, S]
+        w = np.empty(self.Hc.shape[1], dtype=np.float32)
         dep = np.zeros(n)
         x = np.zeros(self.live.size, dtype=np.float32)      # x_t on the live states
         k = default_threads() if threads is None else max(1, int(threads))
         k = 1 if n < PARALLEL_MIN else k
         if n >= PARALLEL_MIN:
             _OWN[0] = k
-        lands, turns = self._split(self.H_live, k), self._split(WT, k)
+        lands, turns = self._split(self.Hc, k), self._split(WT, k)
         if inject is not None:
             inject = np.asarray(inject, dtype=np.float32)[self.live]
 
-        def land(block, t, p):               # x_t over the block's rows
+        def land(block, t):                  # x_t over the block's rows
             r, Hb = block
-            x[r] = Hb @ flat[(p + 1) * n:(p + 1 + D) * n]
+            x[r] = Hb @ w
             if inject is not None and t == 0:
                 x[r] += inject[r]
 
-        def turn(block, p):                  # v_t over the block's rows, stored and summed
+        # each turn block also takes its rows' share of every lag's sources (S_j is sorted)
+        share = {id(b): [(j, *np.searchsorted(S, [b[0].start, b[0].stop]), S)
+                         for j, _, _, S in self._lags] for b in turns}
+
+        def turn(block, t):                  # v_t over the block's rows, stored and summed
             r, Wb = block
-            v = Wb @ x
-            buf[p, r] = v
-            buf[p + D, r] = v
-            dep[r] += v
+            v = ring[t % D]
+            v[r] = Wb @ x
+            dep[r] += v[r]
+            for j, lo, hi, S in share[id(block)]:
+                np.take(v, S[lo:hi], out=slots[j][t % (j + 1), lo:hi])
 
         pool = _pool(k - 1) if k > 1 else None
         for t in range(steps):
-            p = (-t) % D
-            for phase, blocks, args in ((land, lands, (t, p)), (turn, turns, (p,))):
-                futures = [pool.submit(phase, b, *args) for b in blocks[1:]] if pool else ()
-                phase(blocks[0], *args)
+            for j, a, b, _ in self._lags:
+                w[a:b] = slots[j][t % (j + 1)]
+            for phase, blocks in ((land, lands), (turn, turns)):
+                futures = [pool.submit(phase, bl, t) for bl in blocks[1:]] if pool else ()
+                phase(blocks[0], t)
                 for f in futures:
                     f.result()
-        p = (-steps) % D
-        return buf[p + 1:p + 1 + D].copy(), dep
+        return ring[(steps - 1 - np.arange(D)) % D].copy(), dep
 
     def advance(self, WT, hist: np.ndarray, steps: int, threads: int | None = None):
         """Run ``steps`` steps of one angle (``WT``: its turn prepared by :meth:`turn`) from
