@@ -26,7 +26,8 @@ threads from the start. Then the ``steps_to_limit`` report of the angles and the
 resumes the kept runs, with the CLI's defaults (cap 10⁷ steps, 60 s per policy). Wall and
 CPU seconds, the load average, and whether α and the q_T columns agree bitwise all three
 ways. ``--threads N`` fixes the thread count of the ways that use threads (default: the idle
-cores by the load average, :func:`planners.timeshare.default_threads`).
+cores by the load average, :func:`planners.timeshare.default_threads`); ``--now-only`` times
+only the CLI's way, without the report (for the speed goal: build + limits + q_T).
 """
 
 from __future__ import annotations
@@ -111,9 +112,14 @@ def _limits_and_horizon(model, way: str, T: int, target):
     return fit_horizon_mix(hz, ANGLES, NOISE, b, T, None, per), hz
 
 
-def pipeline_row(name: str, K: int, T: int, threads: int | None = None) -> str:
+WAYS = ("one thread", "split steps", "now")
+
+
+def pipeline_row(name: str, K: int, T: int, threads: int | None = None,
+                 now_only: bool = False) -> str:
     """One ``--pipeline`` row (see the module docstring); ``threads`` fixes the thread count
-    of the ways that split (default: :func:`planners.timeshare.default_threads`).
+    of the ways that split (default: :func:`planners.timeshare.default_threads`);
+    ``now_only``: only the CLI's way, and no steps_to_limit report ("—" in those columns).
     """
     clear_cache()
     t = _clock()
@@ -121,7 +127,7 @@ def pipeline_row(name: str, K: int, T: int, threads: int | None = None) -> str:
     build = _since(t)
     target = np.full(model.cs.P, 1.0 / model.cs.P)
     out = {}
-    for way in ("one thread", "split steps", "now"):
+    for way in ("now",) if now_only else WAYS:
         saved = timeshare.default_threads, api.default_threads
         if way == "one thread" or threads:
             timeshare.default_threads = api.default_threads = (
@@ -135,19 +141,22 @@ def pipeline_row(name: str, K: int, T: int, threads: int | None = None) -> str:
     k = threads or timeshare.default_threads()    # what "now" used (it follows the load)
     fit = out["now"][1]
     lims = [a.q for a in fit.per_angle]
-    t = _clock()
-    each, mix = steps_to_limit_each(hz, ANGLES, lims, noise=NOISE, alpha=fit.alpha,
-                                    mix_limit=np.column_stack(lims) @ fit.alpha,
-                                    max_seconds=LIMIT_SECONDS)
-    stl_s = _since(t)
-    same = all(np.array_equal(o[1].alpha, fit.alpha) and np.array_equal(o[1].columns, fit.columns)
-               for o in out.values())
     load = os.getloadavg()[0]
-    stl = " / ".join("—" if r["steps"] is None else str(r["steps"]) for r in [*each, mix])
+    if now_only:
+        stl_s, stl = "—", "—"
+    else:
+        t = _clock()
+        each, mix = steps_to_limit_each(hz, ANGLES, lims, noise=NOISE, alpha=fit.alpha,
+                                        mix_limit=np.column_stack(lims) @ fit.alpha,
+                                        max_seconds=LIMIT_SECONDS)
+        stl_s = f"{_since(t)[0]:.1f}"
+        stl = " / ".join("—" if r["steps"] is None else str(r["steps"]) for r in [*each, mix])
+    same = all(np.array_equal(o[1].alpha, fit.alpha) and np.array_equal(o[1].columns, fit.columns)
+               for o in out.values()) if len(out) > 1 else "—"
     w = {way: v[0] for way, v in out.items()}
     return (f"| {name} | {model.n_states} | {build[0]:.1f} | "
-            + " | ".join(f"{w[x][0]:.1f} / {w[x][1]:.1f}" for x in out)
-            + f" | **{build[0] + w['now'][0]:.1f}** | {same} | {stl_s[0]:.1f} | {stl} | {k} "
+            + " | ".join(f"{w[x][0]:.1f} / {w[x][1]:.1f}" if x in w else "—" for x in WAYS)
+            + f" | **{build[0] + w['now'][0]:.1f}** | {same} | {stl_s} | {stl} | {k} "
             f"| {load:.1f} |")
 
 
@@ -161,6 +170,8 @@ def main(argv=None) -> int:
     ap.add_argument("--pipeline", action="store_true",
                     help="time the CLI's --horizon pipeline before and now (see above)")
     ap.add_argument("--horizon", type=int, default=2000, help="--pipeline's T [steps]")
+    ap.add_argument("--now-only", action="store_true",
+                    help="--pipeline: time only the CLI's way, without the steps_to_limit report")
     ap.add_argument("--threads", type=int, default=None,
                     help="--pipeline's thread count (default: the idle cores by the load)")
     args = ap.parse_args(argv)
@@ -173,8 +184,8 @@ def main(argv=None) -> int:
               "| threads now | load |")
         print("|---|---|---|---|---|---|---|---|---|---|---|---|")
         for name in args.maps.split(","):
-            print(pipeline_row(name, args.orientations, args.horizon, args.threads),
-                  flush=True)
+            print(pipeline_row(name, args.orientations, args.horizon, args.threads,
+                               args.now_only), flush=True)
         return 0
     print(f"K = {args.orientations}, angles 30/75/315 and their mix, eps 5°, r 0.8; "
           f"cap {args.cap} steps")
