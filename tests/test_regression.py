@@ -91,6 +91,7 @@ def test_twin_tv_within_noise_floor_of_golden():
         assert g["tv"] <= 0.05 + gold["twin_event"][angle]["noise_floor"], angle
 
 
+@pytest.mark.slow
 @pytest.mark.physics
 def test_pybullet_tv_within_noise_floor_of_golden():
     pytest.importorskip("pybullet")
