@@ -122,6 +122,11 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("bouncesim: interrupted.", file=sys.stderr)
         code = 130
+    except BrokenPipeError:                     # the reader left (e.g. `| head`): the work
+        # is done and its files stay; stdout goes nowhere so that Python's exit is quiet
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        created.clear()
+        code = 141                              # as a shell reports SIGPIPE
     finally:
         discard_warnings()                      # an error is one line: no warning before it
         if code != 0:

@@ -328,3 +328,18 @@ def test_largest_group_is_counted_in_position_cells_for_every_model(capsys):
     assert summary["states"]["kind"].startswith("contact states")
     assert summary["states"]["count"] > cs.P       # states are not cells ...
     assert 1 <= max(pa["group_cells"]) <= cs.P     # ... the cells column is
+
+
+def test_output_piped_into_a_reader_that_leaves_is_quiet(tmp_path):
+    # `bouncesim run-plan ... --json | head -c 20`: the reader closes the pipe before the
+    # JSON is written; the command says nothing (no traceback) and its figure stays
+    out = tmp_path / "figs"
+    proc = subprocess.Popen([sys.executable, "-m", "bouncesim", "run-plan", "lab", "--angles",
+                             "90,135", "--start", "8", "--goal", "0", "--json", "--plot",
+                             str(out / "run.png")],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc.stdout.close()                      # the reader leaves at once
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=120) == 141
+    assert "Traceback" not in err and "Broken pipe" not in err, err
+    assert (out / "run.png").stat().st_size > 0
