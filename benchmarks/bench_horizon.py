@@ -13,8 +13,10 @@ runs every angle again) against one :func:`~planners.coverage.steps_to_limit_eac
 mix read off the angles' runs, finished runs dropped), whether all four answers are
 identical, and the per-step cost of the recursion's sparse products: the flights H with one
 vector against H with a block of the three angles' vectors (per vector), and a step's two
-products over every state against over the states mass can land in (CPU time). Measured:
-the block costs as much per vector as one product, so the passes keep one vector per run.
+products over every state against over the states mass can land in, and the flights' product
+read from the D·n departures against from the compact rings the recursion keeps (CPU time).
+Measured: the block costs as much per vector as one product, so the passes keep one vector
+per run.
 
 ``--pipeline`` times what ``bouncesim coverage MAP --model event --horizon 2000`` computes
 (angles 30°, 75°, 315°, ε = 5°, r = 0.8, uniform target): the model's build, then the three
@@ -63,10 +65,13 @@ NOISE = TurnNoise(5.0, 0.8)
 LIMIT_SECONDS = 60.0       # the CLI's --limit-seconds default (per policy)
 
 
-def product_ms(hz: Horizon, reps: int = 20) -> tuple[float, float, float, float]:
-    """CPU [ms] of H·x, of H·X per vector (X: 3 vectors), and of one step's two products
+def product_ms(hz: Horizon, reps: int = 20) -> tuple[float, ...]:
+    """CPU [ms] of H·x, of H·X per vector (X: 3 vectors), of one step's two products
     (flights, then the turn) over every state against over the states mass can land in
-    (:attr:`planners.timeshare.TimeShared.live`), which the recursion uses.
+    (:attr:`planners.timeshare.TimeShared.live`), and of the flights' product on the live
+    states read from the D·n departures (the straightforward way) against the compact rings
+    the recursion uses (:attr:`~planners.timeshare.TimeShared.Hc`, with the step's copies
+    into the product's vector and its gathers of v into the rings).
     """
     rec = hz._prepare(NOISE)
     ts = rec.ts
@@ -87,8 +92,21 @@ def product_ms(hz: Horizon, reps: int = 20) -> tuple[float, float, float, float]
             f()
         return (time.process_time() - t0) / reps * 1e3
 
+    H_live = sp.csr_matrix(H[ts.live])
+    v = x[:ts.chain.n]
+    w = np.empty(ts.Hc.shape[1], dtype=np.float32)
+    rings = {j: np.empty((j + 1, S.size), dtype=np.float32) for j, _, _, S in ts._lags}
+
+    def compact():                        # what one step of the recursion does for x_t
+        for j, a, b, _ in ts._lags:
+            w[a:b] = rings[j][0]
+        y = ts.Hc @ w
+        for j, _, _, S in ts._lags:
+            np.take(v, S, out=rings[j][0])
+        return y
+
     return (ms(lambda: H @ x), ms(lambda: H @ X) / 3, ms(lambda: W_all @ (H @ x)),
-            ms(lambda: W_live @ (ts.H_live @ x)))
+            ms(lambda: W_live @ (H_live @ x)), ms(lambda: H_live @ x), ms(compact))
 
 
 def _clock() -> tuple[float, float]:
@@ -190,8 +208,9 @@ def main(argv=None) -> int:
     print(f"K = {args.orientations}, angles 30/75/315 and their mix, eps 5°, r 0.8; "
           f"cap {args.cap} steps")
     print("| map | states | per policy [s] | one pass [s] | speed-up | identical | steps_to_limit "
-          "| H·x [ms] | H·X per vector [ms] | step, all states [ms] | step, live states [ms] |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+          "| H·x [ms] | H·X per vector [ms] | step, all states [ms] | step, live states [ms] "
+          "| flights from D·n [ms] | flights, compact [ms] |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for name in args.maps.split(","):
         clear_cache()
         cs = CellSpace(load_map(name, args.orientations))
@@ -219,10 +238,10 @@ def main(argv=None) -> int:
         key = ("steps", "tv", "last")
         same = all(r[k] == s[k] for r, s in zip(old, [*each, mix]) for k in key)
         stl = " / ".join("—" if r["steps"] is None else str(r["steps"]) for r in old)
-        hx, hX, step_all, step_live = product_ms(hz)
+        hx, hX, step_all, step_live, fl_window, fl_compact = product_ms(hz)
         print(f"| {name} | {model.n_states} | {t_old:.1f} | {t_new:.1f} | "
               f"{t_old / t_new:.2f} | {same} | {stl} | {hx:.2f} | {hX:.2f} | {step_all:.2f} "
-              f"| {step_live:.2f} |",
+              f"| {step_live:.2f} | {fl_window:.2f} | {fl_compact:.2f} |",
               flush=True)
     return 0
 

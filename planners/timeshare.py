@@ -211,12 +211,12 @@ class TimeShared:
         # x_t is zero elsewhere, so the products skip those rows of H and columns of Wᵀ
         self.live = np.flatnonzero((np.diff(self.H.indptr) > 0)
                                    | (np.asarray(chain.start) != 0))
-        self.H_live = sp.csr_matrix(self.H[self.live])
+        H_live = sp.csr_matrix(self.H[self.live])
         # the distinct columns u of H_live, in order (lag j = u // n, source u % n), and
         # H_live on them: the flights' product on the lags' sources only (see the notes)
-        u, rank = np.unique(self.H_live.indices, return_inverse=True)
-        rank = rank.reshape(-1).astype(self.H_live.indices.dtype)
-        self.Hc = sp.csr_matrix((self.H_live.data, rank, self.H_live.indptr),
+        u, rank = np.unique(H_live.indices, return_inverse=True)
+        rank = rank.reshape(-1).astype(H_live.indices.dtype)
+        self.Hc = sp.csr_matrix((H_live.data, rank, H_live.indptr),
                                 shape=(self.live.size, u.size))
         cut = np.searchsorted(u, np.arange(D + 1) * n)
         self._lags = [(j, int(cut[j]), int(cut[j + 1]), u[cut[j]:cut[j + 1]] - j * n)

@@ -137,7 +137,7 @@ def test_a_step_split_over_threads_gives_the_same_numbers():
     hist = np.zeros((ts.D, n), dtype=np.float32)
     hist[0] = rng.dirichlet(np.ones(n))
     runs = [ts.advance(WT, hist, steps, threads=k) for k in (1, 2, 3)]
-    assert len(ts._split(WT, 3)) == 3 and len(ts._split(ts.H_live, 3)) == 3
+    assert len(ts._split(WT, 3)) == 3 and len(ts._split(ts.Hc, 3)) == 3
     assert 0.8 * n < ts.live.size < 0.9 * n
     for end, dep in runs[1:]:
         assert np.array_equal(end, runs[0][0]) and np.array_equal(dep, runs[0][1])
