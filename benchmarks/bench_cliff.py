@@ -1,8 +1,9 @@
-"""The event model's stationary solve: the default method against the aggregation alone
-(and, optionally, the plain power iteration), with the horizon coverage's cost.
+"""The event model's stationary solve: the default method against the one before it (and,
+optionally, the plain power iteration), with the horizon coverage's cost.
 
     python -m benchmarks.bench_cliff                       # office maps + the catalogue
-    python -m benchmarks.bench_cliff --maps complex        # default against aggregation alone
+    python -m benchmarks.bench_cliff --maps complex        # default against the one before
+    python -m benchmarks.bench_cliff --maps complex --power-first 0   # ... aggregation alone
     python -m benchmarks.bench_cliff --maps office-pinhole --power-max 20000   # + power alone
 
 For every map at K = 360 (angles 30°, 75°, 315°, ε = 5°, r = 0.8): the event model's build
@@ -10,9 +11,10 @@ CPU time, then per method the CPU time of the three chains (``time.process_time`
 largest over the angles of the residual ‖πT − π‖₁, the L1 distance between the two
 methods' π, and the CPU time of the three angles' horizon coverage at T = 2000 (one
 :class:`~planners.coverage.Horizon`, docs/model.md §17); the load average is printed with
-every row. Methods (docs/model.md §10): the default (``--power-first`` damped power
-iterations, 3000 unless told, then aggregation–disaggregation from that iterate) and the
-aggregation alone from the uniform vector (the method before the power-first decision);
+every row. Methods (docs/model.md §10): the default (BiCGSTAB, then
+aggregation–disaggregation from its answer) and the one before it (``--power-first`` damped
+power iterations, 3000 unless told, then the aggregation from that iterate; 0: the
+aggregation alone from the uniform vector, the method before the power-first decision);
 with ``--power-max N`` also the plain power iteration capped at N iterations per class (the
 method before the aggregation; its result is then not converged: marked ``*``).
 Maps: the two-room office of :mod:`envs.generated` with a door one robot wide
@@ -29,7 +31,7 @@ import time
 
 import numpy as np
 
-import planners.coverage.event as event
+import planners.coverage.stationary as stationary
 from envs.generated import load_map
 from planners.cells import CellSpace
 from planners.coverage import Horizon, TurnNoise, clear_cache, model_for
@@ -42,7 +44,7 @@ HORIZON = 2000
 def run_method(model, method: str, power_first: int):
     """(CPU time [s], π per angle, residual per angle, largest class) of the three chains."""
     model.stationary_method = method
-    event._POWER_FIRST = power_first
+    stationary._POWER_FIRST = power_first
     c0 = time.process_time()
     acs = [model.analyse(a, NOISE) for a in ANGLES]
     cpu = time.process_time() - c0
@@ -60,21 +62,21 @@ def main(argv=None) -> int:
                                  description=__doc__.split("\n\n")[0])
     ap.add_argument("--maps", default="office,office-pinhole,office-wide,lab,fig1,complex")
     ap.add_argument("--orientations", type=int, default=360)
-    ap.add_argument("--power-first", type=int, default=event._POWER_FIRST,
-                    help="power iterations the default method tries before its aggregation "
-                    f"(default {event._POWER_FIRST}; 0 makes it the aggregation alone)")
+    ap.add_argument("--power-first", type=int, default=stationary._POWER_FIRST,
+                    help="power iterations the method before tries before its aggregation "
+                    f"(default {stationary._POWER_FIRST}; 0 makes it the aggregation alone)")
     ap.add_argument("--power-max", type=int, default=0,
                     help="also run the plain power iteration, capped at this many iterations "
                     "per class (default 0: not run)")
     args = ap.parse_args(argv)
-    first0, max0 = event._POWER_FIRST, event._POWER_MAX
+    first0, max0 = stationary._POWER_FIRST, stationary._POWER_MAX
     power = args.power_max > 0
-    print(f"K = {args.orientations}, angles 30/75/315, eps 5°, r 0.8; default: ≤ "
-          f"{args.power_first} power iterations, then aggregation; old: aggregation alone"
+    print(f"K = {args.orientations}, angles 30/75/315, eps 5°, r 0.8; default: BiCGSTAB, "
+          f"then aggregation; before: ≤ {args.power_first} power iterations, then aggregation"
           + (f"; power alone capped at {args.power_max} iterations" if power else "")
           + "; times in CPU seconds")
-    cols = ["map", "P", "states", "largest class", "build", "default", "aggregation alone",
-            "residual default", "residual agg. alone", "L1(default − agg. alone)"]
+    cols = ["map", "P", "states", "largest class", "build", "default", "before",
+            "residual default", "residual before", "L1(default − before)"]
     if power:
         cols += ["power alone", "residual power", "L1(default − power)"]
     cols += [f"horizon T={HORIZON}", "load"]
@@ -87,13 +89,13 @@ def main(argv=None) -> int:
             c0 = time.process_time()
             model = model_for(cs, "event")
             build = time.process_time() - c0
-            td, pd, rd, big = run_method(model, "aggregation", args.power_first)
-            ta, pa, ra, _ = run_method(model, "aggregation", 0)
+            td, pd, rd, big = run_method(model, "krylov", first0)
+            ta, pa, ra, _ = run_method(model, "aggregation", args.power_first)
             row = [name, cs.P, model.n_states, big, f"{build:.1f}", f"{td:.1f}", f"{ta:.1f}",
                    f"{max(rd):.1e}", f"{max(ra):.1e}",
                    f"{max(float(np.abs(x - y).sum()) for x, y in zip(pd, pa)):.1e}"]
             if power:
-                event._POWER_MAX = args.power_max
+                stationary._POWER_MAX = args.power_max
                 tp, pp, rp, _ = run_method(model, "power", args.power_first)
                 flag = "*" if max(rp) > 1e-5 else ""
                 row += [f"{tp:.1f}{flag}", f"{max(rp):.1e}",
@@ -105,7 +107,7 @@ def main(argv=None) -> int:
             row += [f"{time.process_time() - c0:.1f}", f"{os.getloadavg()[0]:.1f}"]
             print("| " + " | ".join(str(v) for v in row) + " |", flush=True)
     finally:
-        event._POWER_FIRST, event._POWER_MAX = first0, max0
+        stationary._POWER_FIRST, stationary._POWER_MAX = first0, max0
     return 0
 
 

@@ -71,7 +71,11 @@ def product_ms(hz: Horizon, reps: int = 20) -> tuple[float, ...]:
     (:attr:`planners.timeshare.TimeShared.live`), and of the flights' product on the live
     states read from the D·n departures (the straightforward way) against the compact rings
     the recursion uses (:attr:`~planners.timeshare.TimeShared.Hc`, with the step's copies
-    into the product's vector and its gathers of v into the rings).
+    into the product's vector and its gathers of v into the rings); then one whole step of
+    the recursion as it was (those flights, the turn to v on all n states, Σ v in float64)
+    against now (the flights from the ring of the sources' v, the turn straight to the
+    sources' v by Wᵀ's stacked rows, Σ x in float64), and
+    :meth:`~planners.timeshare.TimeShared.advance` per step over 100 steps (one thread).
     """
     rec = hz._prepare(NOISE)
     ts = rec.ts
@@ -105,8 +109,31 @@ def product_ms(hz: Horizon, reps: int = 20) -> tuple[float, ...]:
             np.take(v, S, out=rings[j][0])
         return y
 
+    dep = np.zeros(ts.chain.n)
+
+    def step_before():                    # x_t, then v_t on all states, Σ v_t
+        v[:] = W_live @ compact()
+        dep[:] += v
+
+    WS = ts._stacked(W_live)
+    U = rng.random((ts.D, ts.Hc.shape[1]), dtype=np.float32)
+    xs = np.zeros(ts.live.size)
+
+    def step_now():                       # x_t from the sources' ring, v_t on the sources
+        for j, a, b, _ in ts._lags:
+            w[a:b] = U[(-1 - j) % ts.D, a:b]
+        y = ts.Hc @ w
+        xs[:] += y
+        U[0] = WS @ y
+
+    hist = np.zeros((ts.D, ts.chain.n), dtype=np.float32)
+    hist[0, rec.offset:] = 1.0 / (ts.chain.n - rec.offset)
+    c0 = time.process_time()
+    ts.advance(W_live, hist, 100, threads=1)
+    adv = (time.process_time() - c0) / 100 * 1e3
     return (ms(lambda: H @ x), ms(lambda: H @ X) / 3, ms(lambda: W_all @ (H @ x)),
-            ms(lambda: W_live @ (H_live @ x)), ms(lambda: H_live @ x), ms(compact))
+            ms(lambda: W_live @ (H_live @ x)), ms(lambda: H_live @ x), ms(compact),
+            ms(step_before), ms(step_now), adv)
 
 
 def _clock() -> tuple[float, float]:
@@ -209,8 +236,9 @@ def main(argv=None) -> int:
           f"cap {args.cap} steps")
     print("| map | states | per policy [s] | one pass [s] | speed-up | identical | steps_to_limit "
           "| H·x [ms] | H·X per vector [ms] | step, all states [ms] | step, live states [ms] "
-          "| flights from D·n [ms] | flights, compact [ms] |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+          "| flights from D·n [ms] | flights, compact [ms] | step before [ms] | step now [ms] "
+          "| advance per step [ms] |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for name in args.maps.split(","):
         clear_cache()
         cs = CellSpace(load_map(name, args.orientations))
@@ -238,11 +266,11 @@ def main(argv=None) -> int:
         key = ("steps", "tv", "last")
         same = all(r[k] == s[k] for r, s in zip(old, [*each, mix]) for k in key)
         stl = " / ".join("—" if r["steps"] is None else str(r["steps"]) for r in old)
-        hx, hX, step_all, step_live, fl_window, fl_compact = product_ms(hz)
+        hx, hX, step_all, step_live, fl_window, fl_compact, before, now, adv = product_ms(hz)
         print(f"| {name} | {model.n_states} | {t_old:.1f} | {t_new:.1f} | "
               f"{t_old / t_new:.2f} | {same} | {stl} | {hx:.2f} | {hX:.2f} | {step_all:.2f} "
-              f"| {step_live:.2f} | {fl_window:.2f} | {fl_compact:.2f} |",
-              flush=True)
+              f"| {step_live:.2f} | {fl_window:.2f} | {fl_compact:.2f} | {before:.2f} "
+              f"| {now:.2f} | {adv:.2f} |", flush=True)
     return 0
 
 

@@ -191,11 +191,13 @@ class TimeShared:
     x_t is one sparse product H w_t, H: n × D·n with column (d−1)·n + src for a flight of
     d steps from src, w_t = (v_{t−1}, …, v_{t−D}). The product reads only the columns some
     flight uses, so they are numbered compactly (:attr:`Hc`, lag by lag, sources in order:
-    the same products in the same order, so the same numbers), and each lag j keeps v[S_j]
-    of its sources S_j only, in a ring of j + 1 slots written when v is made: the product
-    then reads a vector of a few MB (the distinct columns) instead of D·n floats spread over
-    tens of MB (``benchmarks/bench_horizon.py``). The whole v of the last D steps is kept
-    as well (one dense ring), for the boundary state. Vectors and matrices are float32 (the
+    the same products in the same order, so the same numbers): the product reads a vector
+    of a few MB (the distinct columns) instead of D·n floats spread over tens of MB. The
+    turn's product makes v_t on those columns directly (Wᵀ's rows of every lag's sources
+    S_j, stacked: :meth:`_stacked`), into a ring of D such vectors whose segments the next
+    steps copy into w; v_t on all n states is made only in a call's last D steps, for the
+    boundary state, and Σ_t v_t as Wᵀ Σ_t x_t (``benchmarks/bench_horizon.py`` times both
+    ways). Vectors and matrices are float32 (the
     products are memory bound), sums float64.
     """
 
@@ -221,7 +223,9 @@ class TimeShared:
         cut = np.searchsorted(u, np.arange(D + 1) * n)
         self._lags = [(j, int(cut[j]), int(cut[j + 1]), u[cut[j]:cut[j + 1]] - j * n)
                       for j in range(D) if cut[j + 1] > cut[j]]
+        self._src = u % n                # state of each column of Hc
         self._splits: dict = {}          # id(matrix) → (matrix, k, its k row blocks)
+        self._stacks: dict = {}          # id(turn) → (turn, its rows of self._src)
         self.RT = sp.csr_matrix(chain.reward.T)
         # expected steps (counted or dropped) of a flight leaving each state
         self.length = np.bincount(chain.src, weights=np.asarray(chain.weight)
@@ -251,6 +255,19 @@ class TimeShared:
         self._splits[id(A)] = (A, k, blocks)            # A kept alive: its id stays its own
         return blocks
 
+    def _stacked(self, WT) -> sp.csr_matrix:
+        """WT's rows of the flights' sources, lag by lag (the layout of :attr:`Hc`'s
+        columns): one product gives every lag's v_t[S_j]; kept per turn like the splits.
+        """
+        kept = self._stacks.get(id(WT))
+        if kept is not None and kept[0] is WT:
+            return kept[1]
+        WS = sp.csr_matrix(WT[self._src])
+        if len(self._stacks) >= _SPLITS_KEPT:
+            self._stacks.pop(next(iter(self._stacks)))
+        self._stacks[id(WT)] = (WT, WS)                 # WT kept alive: its id stays its own
+        return WS
+
     def _epoch(self, WT, hist: np.ndarray, steps: int, inject=None, threads=None):
         """Run ``steps`` steps of one angle (``WT`` from :meth:`turn`) from boundary state
         ``hist`` (D, n).
@@ -263,22 +280,24 @@ class TimeShared:
         Returns (end state (D, n), Σ_t v_t (n,) float64).
         """
         D, n = self.D, self.chain.n
-        ring = np.empty((D, n), dtype=np.float32)        # ring[s mod D] = v_s, the last D
+        m = self.Hc.shape[1]
+        ring = np.empty((D, n), dtype=np.float32)        # ring[s mod D] = v_s (last D steps)
         ring[(-1 - np.arange(D)) % D] = hist             # v_{−1−j} = hist[j]
-        # lag j's sources, v_s[S_j] in slot s mod (j + 1): at step t slot t mod (j + 1)
-        # holds v_{t−1−j}, which the product reads, and then takes v_t
-        slots = {j: np.empty((j + 1, S.size), dtype=np.float32) for j, _, _, S in self._lags}
-        for j, _, _, S in self._lags:
+        # U[s mod D] = v_s on the lags' sources (Hc's columns): at step t lag j reads its
+        # segment of U[(t − 1 − j) mod D], v_{t−1−j}[S_j]
+        U = np.empty((D, m), dtype=np.float32)
+        for j, a, b, S in self._lags:
             for i in range(j + 1):
-                slots[j][(-1 - i) % (j + 1)] = hist[i, S]
-        w = np.empty(self.Hc.shape[1], dtype=np.float32)
-        dep = np.zeros(n)
+                U[(-1 - i) % D, a:b] = hist[i, S]
+        w = np.empty(m, dtype=np.float32)
         x = np.zeros(self.live.size, dtype=np.float32)      # x_t on the live states
+        xsum = np.zeros(self.live.size)                     # Σ_t x_t; Σ_t v_t = Wᵀ Σ_t x_t
         k = default_threads() if threads is None else max(1, int(threads))
         k = 1 if n < PARALLEL_MIN else k
         if n >= PARALLEL_MIN:
             _OWN[0] = k
-        lands, turns = self._split(self.Hc, k), self._split(WT, k)
+        lands = self._split(self.Hc, k)
+        sources, wholes = self._split(self._stacked(WT), k), self._split(WT, k)
         if inject is not None:
             inject = np.asarray(inject, dtype=np.float32)[self.live]
 
@@ -287,29 +306,29 @@ class TimeShared:
             x[r] = Hb @ w
             if inject is not None and t == 0:
                 x[r] += inject[r]
+            xsum[r] += x[r]
 
-        # each turn block also takes its rows' share of every lag's sources (S_j is sorted)
-        share = {id(b): [(j, *np.searchsorted(S, [b[0].start, b[0].stop]), S)
-                         for j, _, _, S in self._lags] for b in turns}
-
-        def turn(block, t):                  # v_t over the block's rows, stored and summed
+        def turn(block, t):                  # v_t on the sources (the block's rows of U)
             r, Wb = block
-            v = ring[t % D]
-            v[r] = Wb @ x
-            dep[r] += v[r]
-            for j, lo, hi, S in share[id(block)]:
-                np.take(v, S[lo:hi], out=slots[j][t % (j + 1), lo:hi])
+            U[t % D, r] = Wb @ x
+
+        def whole(block, t):                 # v_t on every state (the last D steps)
+            r, Wb = block
+            ring[t % D, r] = Wb @ x
 
         pool = _pool(k - 1) if k > 1 else None
         for t in range(steps):
             for j, a, b, _ in self._lags:
-                w[a:b] = slots[j][t % (j + 1)]
-            for phase, blocks in ((land, lands), (turn, turns)):
+                w[a:b] = U[(t - 1 - j) % D, a:b]
+            last = t >= steps - D            # the end state needs the whole v_t
+            for phase, blocks in ((land, lands), (whole, wholes) if last else (turn, sources)):
                 futures = [pool.submit(phase, bl, t) for bl in blocks[1:]] if pool else ()
                 phase(blocks[0], t)
                 for f in futures:
                     f.result()
-        return ring[(steps - 1 - np.arange(D)) % D].copy(), dep
+            if last:                         # the same rows, so the same numbers as `turn`
+                np.take(ring[t % D], self._src, out=U[t % D])
+        return ring[(steps - 1 - np.arange(D)) % D].copy(), WT @ xsum
 
     def advance(self, WT, hist: np.ndarray, steps: int, threads: int | None = None):
         """Run ``steps`` steps of one angle (``WT``: its turn prepared by :meth:`turn`) from

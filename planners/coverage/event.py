@@ -48,18 +48,11 @@ from envs.contact import contact_flights
 from envs.motion import CONTACT_GAP, ContactParams, casters, drive_distance, flight_steps, unit
 
 from ..cells import CellSpace
-from ..markov import (
-    ChainAnalysis,
-    _assemble,
-    absorption_probabilities,
-    check_stochastic,
-    closed_classes,
-    stationary_distributions,
-)
 from ..timeshare import DelayChain
 from .base import AngleCoverage, cached_build
 from .event_flights import FlightCells, StepTable, step_table
 from .noise import TurnNoise
+from .stationary import analyse_contact_chain
 
 __all__ = ["EventSettings", "Boundary", "EventModel", "flight_steps", "analyse_contact_chain"]
 
@@ -70,14 +63,6 @@ _SNAP = 2e-3             # [m] a landing point must lie this close to the C-spac
 _NUDGE = CONTACT_GAP    # [m] flight starts sit this far off the ring, on the free side
 _INTO_TOL = 0.03         # u · inward normal below −this: a flight of length 0 (> sin 1.41°,
 #                          the angle between a rounded corner's chords and the true circle)
-_DIRECT_MAX = 20000      # closed classes up to this size are solved directly (power method)
-_POWER_TOL = 1e-6        # L1 error bound at which the power iteration stops
-_POWER_MAX = 200000      # iterations cap
-_POWER_FIRST = 3000      # power iterations tried before the aggregation (docs/model.md §10)
-_LAZY = 0.05             # weight of the current iterate (damps periodic modes)
-_AGG_SWEEPS = 10         # damped power steps per aggregation-disaggregation cycle
-_AGG_MAX = 20000         # cycles cap
-_AGG_BLEND = 1e-9        # share of uniform weights inside an aggregate (keeps C irreducible)
 
 
 @dataclass(frozen=True)
@@ -322,8 +307,8 @@ class EventModel:
     build_seconds : float
     knife_edge_flights : int      sampled flights (last set built) that pass a knife edge (§19)
     stationary_method : str
-        "aggregation" (default) or "power": how classes above 20000 states are solved
-        (:func:`analyse_contact_chain`).
+        "krylov" (default), "aggregation" or "power": how classes above 20000 states are
+        solved (:func:`analyse_contact_chain`).
     """
 
     name: ClassVar[str] = "event"
@@ -334,7 +319,7 @@ class EventModel:
 
     cs: CellSpace
     settings: EventSettings = field(default_factory=EventSettings)
-    stationary_method: str = "aggregation"
+    stationary_method: str = "krylov"
 
     def __post_init__(self) -> None:
         t0 = time.perf_counter()
@@ -475,126 +460,3 @@ class EventModel:
                              q=q / tot, pi=res.pi, analysis=res,
                              seconds=time.thread_time() - t0, settings=self.settings,
                              steps_per_flight=float(fs.length @ res.pi))
-
-
-def _power_stationary(Tg: sp.csr_matrix, max_iter: int | None = None
-                      ) -> tuple[np.ndarray, int]:
-    """Stationary distribution of one irreducible class by damped power iteration (the
-    benchmark's reference): x ← (1 − β) Tᵀx + βx with β = 0.05 (same fixed point; eigenvalues
-    on the unit circle other than 1 move inside it, so periodic classes converge). Stops when
-    d·ρ/(1 − ρ) < 1e-6 in L1 (d the last change, ρ the observed contraction over 20
-    iterations). Products in float32 (memory bound: 1.5 times faster; ~2e-6 from float64 in
-    L1 on ``complex``), sums and the stopping test in float64. Returns (π, iterations).
-    """
-    TT = sp.csr_matrix(Tg.T).astype(np.float32)
-    n = TT.shape[0]
-    x = np.full(n, 1.0 / n, dtype=np.float32)
-    a, b = np.float32(1.0 - _LAZY), np.float32(_LAZY)
-    prev = None
-    y, it = x, 0
-    for it in range(1, (_POWER_MAX if max_iter is None else max_iter) + 1):
-        y = a * (TT @ x) + b * x
-        if it % 20 == 0:
-            d = float(np.abs(y - x).sum(dtype=np.float64))
-            if d == 0.0:
-                break
-            if prev is not None and d < prev:
-                rho = (d / prev) ** (1.0 / 20)
-                if rho < 1 and d * rho / (1 - rho) < _POWER_TOL:
-                    break
-            prev = d
-        x = y
-    y = y.astype(float)
-    return y / y.sum(), it
-
-
-def _aggregated_stationary(Tg: sp.csr_matrix, agg: np.ndarray, x0=None
-                           ) -> tuple[np.ndarray, int]:
-    """Stationary distribution of one irreducible class by iterative aggregation–
-    disaggregation (Takahashi's method; docs/model.md §10).
-
-    ``agg`` maps every state of the class to an aggregate (its contact bin). One cycle: the
-    coarse chain C_IJ = Σ_{i∈I} x_i T_ij(J) / X_I over the aggregates, weighted by the current
-    iterate x, is solved exactly (sparse LU, a few hundred to a few thousand unknowns); x is
-    rescaled inside each aggregate to the coarse solution, then smoothed by 10 damped power
-    steps x ← 0.95·Tᵀx + 0.05·x. π is a fixed point of the cycle. The coarse solve carries
-    mass between weakly coupled regions (two rooms joined by a door few flights pass), the
-    slow modes that stall the plain power iteration; the smoothing removes the fast ones.
-    Stops when d·ρ/(1 − ρ) < 1e-6 in L1 (d: the change over a cycle, ρ: its contraction).
-    """
-    n = Tg.shape[0]
-    _, agg = np.unique(np.asarray(agg), return_inverse=True)
-    m = int(agg.max()) + 1
-    A = sp.csr_matrix((np.ones(n), (np.arange(n), agg)), shape=(n, m))
-    TA = sp.csr_matrix(Tg @ A)                              # state -> aggregate
-    TT = sp.csr_matrix(Tg.T)
-    size = np.bincount(agg, minlength=m)
-    x = np.full(n, 1.0 / n) if x0 is None else np.asarray(x0, dtype=float) / np.sum(x0)
-    prev = None
-    cycles = 0
-    while cycles < _AGG_MAX:
-        cycles += 1
-        X = np.bincount(agg, weights=x, minlength=m)
-        # weights inside each aggregate, blended with 1e-9 of the uniform weights: states the
-        # class visits with vanishing probability (masses that underflow to 0) would
-        # otherwise drop edges of the coarse chain and make it reducible (a singular solve)
-        empty = X <= 0.0
-        w = np.where(empty[agg], 0.0, x / np.where(empty, 1.0, X)[agg])
-        w = (1.0 - _AGG_BLEND) * w + _AGG_BLEND / size[agg]
-        w[empty[agg]] = 1.0 / size[agg][empty[agg]]
-        C = sp.csr_matrix(A.T @ sp.diags(w) @ TA)
-        xi = np.clip(stationary_distributions(C, [np.arange(m)]), 0.0, None)
-        y = w * xi[agg]
-        for _ in range(_AGG_SWEEPS):
-            y = (1.0 - _LAZY) * (TT @ y) + _LAZY * y
-        y /= y.sum()
-        d = float(np.abs(y - x).sum())
-        x = y
-        if d == 0.0 or (cycles >= 500 and d > 1e-3):   # or stalled: the caller solves directly
-            break
-        if x0 is not None and cycles == 1 and d < 10 * _POWER_TOL:   # x0 was its fixed point
-            break
-        if prev is not None and d < prev:
-            rho = d / prev
-            if d * rho / (1 - rho) < _POWER_TOL:
-                break
-        prev = d
-    return x, cycles
-
-
-def analyse_contact_chain(T, start, aggregates=None, method: str = "aggregation"
-                          ) -> ChainAnalysis:
-    """:func:`planners.markov.analyse_chain` for large contact chains.
-
-    Closed classes and absorption (from ``start``, only needed with several classes) as in
-    :mod:`planners.markov`. Classes of up to 20000 states are solved directly
-    (:func:`planners.markov.stationary_distributions`); larger ones by the damped power
-    iteration (≤ 3000 iterations), then aggregation–disaggregation over ``aggregates`` (the
-    contact bins) from that iterate (one cycle if it was the fixed point), checked by its
-    residual ‖Tᵀx − x‖₁ ≤ 1e-6, else solved directly (docs/model.md §10). With
-    ``method="power"`` (or no aggregates) the large classes use the damped power iteration,
-    which stalls on slowly mixing ones (two rooms joined by a door: docs/model.md §10).
-    """
-    if method not in ("aggregation", "power"):
-        raise ValueError(f"method must be 'aggregation' or 'power', got {method!r}.")
-    T = check_stochastic(T)
-    n = T.shape[0]
-    _, groups = closed_classes(T)
-    small = [g for g in groups if len(g) <= _DIRECT_MAX]
-    stat = stationary_distributions(T, small) if small else np.zeros(n)
-    for g in groups:
-        if len(g) > _DIRECT_MAX:
-            Tg = T[g][:, g]
-            if aggregates is None or method == "power":
-                stat[g], _ = _power_stationary(Tg)
-                continue
-            x, _ = _power_stationary(Tg, _POWER_FIRST)      # fast where the class mixes fast
-            x, _ = _aggregated_stationary(Tg, np.asarray(aggregates)[g], x0=x)  # checks it
-            if np.abs(Tg.T @ x - x).sum() > _POWER_TOL:         # not converged: direct solve
-                x = stationary_distributions(Tg, [np.arange(len(g))])
-            stat[g] = x
-    if len(groups) > 1:
-        a = absorption_probabilities(T, groups, start)
-    else:
-        a = np.ones(len(groups))
-    return _assemble(n, groups, stat, a)
