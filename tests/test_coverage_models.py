@@ -285,3 +285,25 @@ def test_event_matches_twin_random_envs(seed):
         ts = timeshared_coverage(model_for(cs, "event"), mix, epoch=500)
         hat = twin_q(env, mix, robots=500, burn=2000, steps=3000, seed=seed, epoch=500)
         assert tv(ts.q, hat) <= 0.05, (env.name, seed, res.alpha, tv(ts.q, hat))
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_boundary_grid_holds_every_segment_within_reach(seed):
+    # the event model's point locator looks a point up among the ring segments listed for
+    # its grid cell: every segment within g/√2 + 2 mm of the cell's centre (shapely's tree
+    # query), by segment index. Checked against the brute-force distance of every centre to
+    # every segment on a random polygon room (slanted walls) and a random rectilinear room
+    from envs.generated import random_polygon_room
+    from planners.coverage.event import _SNAP, Boundary, _point_seg_dist
+
+    rng = np.random.default_rng(seed)
+    for env in (random_polygon_room(rng), random_rectilinear_room(rng, 36)):
+        b = Boundary(env, 0.03)
+        jj, ii = np.mgrid[0:b.ny, 0:b.nx]
+        cen = np.column_stack([b.x0 + (ii.ravel() + 0.5) * b.g, b.y0 + (jj.ravel() + 0.5) * b.g])
+        d = _point_seg_dist(cen[:, None, :], b.A[None], b.B[None])
+        near = d <= b.g * np.sqrt(0.5) + _SNAP
+        assert near.any(axis=1).sum() > 10
+        for c in range(len(cen)):
+            row = b._cand[c]
+            assert row[row >= 0].tolist() == np.flatnonzero(near[c]).tolist(), c

@@ -178,18 +178,14 @@ class Boundary:
         cen = np.column_stack([self.x0 + (ii.ravel() + 0.5) * g,
                                self.y0 + (jj.ravel() + 0.5) * g])
         reach = g * math.sqrt(0.5) + _SNAP
-        rows, cols = [], []
-        for start in range(0, len(cen), 4096):
-            d = _point_seg_dist(cen[start:start + 4096, None, :], self.A[None], self.B[None])
-            f, s = np.nonzero(d <= reach)
-            rows.append(f + start)
-            cols.append(s)
-        rows, cols = np.concatenate(rows), np.concatenate(cols)
+        # every segment within reach of a cell's centre (shapely's tree), by cell then segment
+        tree = shapely.STRtree(shapely.linestrings(np.stack([self.A, self.B], axis=1)))
+        rows, cols = tree.query(shapely.points(cen), predicate="dwithin", distance=reach)
+        order = np.lexsort((cols, rows))
+        rows, cols = rows[order], cols[order]
         counts = np.bincount(rows, minlength=len(cen))
         k = max(1, int(counts.max()))
         table = np.full((len(cen), k), -1, dtype=np.int64)
-        order = np.argsort(rows, kind="stable")
-        rows, cols = rows[order], cols[order]
         slot = np.arange(rows.size) - np.concatenate([[0], np.cumsum(counts)])[rows]
         table[rows, slot] = cols
         self._cand = table
