@@ -19,8 +19,8 @@ expansion and the same floating-point arithmetic, so they return the same plans:
 
 With a contact rule (``FeedbackConfig.contact``, docs/model.md §23) both continue a flight
 whose contact lies outside the bumper arc along its slide to the bump, as §15's planner does
-(:func:`slide_on`): the flight costs and expects its clock length and lands at the bump; goal
-arrivals stay on the straight part.
+(:func:`envs.contact.slide_on`): the flight costs and expects its clock length and lands at
+the bump; goal arrivals stay on the straight part.
 
 Both return ``(angles, flights, final_m, cost)`` tuples, cheapest first, which
 :class:`planners.feedback.FeedbackNavigator` turns into candidates. :func:`search` with a
@@ -38,7 +38,7 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
-from envs.contact import advance, closes_bumper, front_contacts
+from envs.contact import slide_on
 from envs.motion import (
     APPROACH_MIN,
     BUMP_RANGE,
@@ -51,7 +51,7 @@ from envs.motion import (
 from .exact_chords import chords
 
 __all__ = ["MAX_SETTLED", "MAX_SETTLED_GUIDED", "NEAR_M", "BAND_PAD_M", "STRIP_M", "UNGUIDED",
-           "ScalarWalls", "cost_to_go", "search", "search_reference", "slide_on"]
+           "ScalarWalls", "cost_to_go", "search", "search_reference"]
 
 MAX_SETTLED = 3000
 """A search from one pose gives up after this many settled states."""
@@ -174,19 +174,6 @@ class ScalarWalls:
             if t < best:
                 best, cos_b = t, root / r
         return best, ns, nv, cos_b
-
-
-def slide_on(caster, contact, lx: float, ly: float, ux: float, uy: float):
-    """(x, y, extra clock [m]) of a flight's end under the contact rule ``contact``: where a
-    straight flight's contact at (lx, ly) lies outside the bumper arc the robot slides on
-    (:func:`envs.contact.advance`) to its bump; else (lx, ly, 0). As §15's planner
-    (:class:`planners.exact.ExactNavigator` with ``contact``).
-    """
-    if contact is None or any(closes_bumper(b, contact)
-                              for b, *_ in front_contacts(caster, lx, ly, ux, uy)):
-        return lx, ly, 0.0
-    sx, sy, extra, _, _ = advance(caster, lx, ly, ux, uy, contact)
-    return (sx, sy, extra) if extra > 0 else (lx, ly, 0.0)
 
 
 def _meets(px, py, ux, uy, D, x0, y0, x1, y1) -> bool:

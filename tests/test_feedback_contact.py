@@ -22,10 +22,8 @@ from planners.cells import CellSpace
 from planners.exact import ExactNavigator
 from planners.feedback import FeedbackConfig, FeedbackNavigator, ParticleFilter
 
-ANGLES = (45.0, 90.0, 135.0)
-RECT = Environment.from_dict({"name": "rect", "boundary": [[0, 0], [2, 0], [2, 2], [0, 2]],
-                              "robot_radius": 0.17,
-                              "discretization": {"cell_size": 0.25, "orientations": 8}})
+from .test_feedback import ANGLES, RECT  # the 2 m square room and the plan angles
+
 # 8 × 6 cells of 0.34 m; the north wall falls 0.24 m over 2.72 m (5.04° off the x axis),
 # so flights at 0° and 180° under it meet it below β = 9.6° and slide
 SLOPE = Environment.from_dict({
