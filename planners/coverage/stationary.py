@@ -47,7 +47,7 @@ _BLAS = [threading.Lock(), 0, None]   # one BLAS thread while any solve runs (se
 def _one_blas_thread():
     """Limit BLAS to one thread while any Krylov solve of this process runs. BiCGSTAB's
     inner products are BLAS calls on long vectors: a threaded BLAS on a 2-core machine where
-    the analyses already run on threads of their own made them 5-50 times slower. The
+    the analyses already run on threads of their own made them many times slower. The
     limit is process-wide (threadpoolctl), so concurrent solves count their users.
     """
     lock = _BLAS[0]
