@@ -151,11 +151,17 @@ def test_fast_search_gives_the_plain_searchs_plans_on_random_poses(env, sigma):
     # the one-pass casts over nearby walls, the guard on touching walls only and the memo of
     # flights must not change the search: the same plans, flights and costs to the bit as
     # the plain search (every cast over every wall) from random poses, at contacts or not
-    from planners.feedback_search import search, search_reference
     env = envs.load(env) if isinstance(env, str) else env
+    fast_equals_plain_search(env, FeedbackConfig(turn_sigma_deg=sigma, guided=False), 21)
+
+
+def fast_equals_plain_search(env, cfg: FeedbackConfig, seed: int) -> None:
+    """From 10 random poses for each of two random goals, :func:`search` and
+    :func:`search_reference` give the same plans to the bit, and most poses have one.
+    """
+    from planners.feedback_search import search, search_reference
     cells = CellSpace(env)
-    rng = np.random.default_rng(21)
-    cfg = FeedbackConfig(turn_sigma_deg=sigma, guided=False)
+    rng = np.random.default_rng(seed)
     found = 0
     for goal in rng.integers(0, cells.N, 2):
         nav = FeedbackNavigator(cells, ANGLES, int(goal), cfg)

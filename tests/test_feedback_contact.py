@@ -103,20 +103,9 @@ def test_plan_from_a_configuration_with_the_rule_is_the_exact_planners_plan():
 def test_fast_search_with_the_rule_gives_the_plain_searchs_plans(sigma):
     # the fast search calls the contact rule only where its first contact may lie outside
     # the arc; the plain one on every flight: the same plans to the bit from random poses
-    from planners.feedback_search import search, search_reference
-
-    from .test_feedback import _random_poses
-    cells = CellSpace(SLOPE)
-    rng = np.random.default_rng(22)
-    cfg = FeedbackConfig(turn_sigma_deg=sigma, guided=False, contact=PYBULLET_CONTACT)
-    found = 0
-    for goal in rng.integers(0, cells.N, 2):
-        nav = FeedbackNavigator(cells, ANGLES, int(goal), cfg)
-        for x, y, th, bumped in _random_poses(SLOPE, rng, 10):
-            fast = search(nav, x, y, th, 0.0, bumped)
-            assert fast == search_reference(nav, x, y, th, 0.0, bumped)
-            found += bool(fast)
-    assert found >= 8
+    from .test_feedback import fast_equals_plain_search
+    fast_equals_plain_search(
+        SLOPE, FeedbackConfig(turn_sigma_deg=sigma, guided=False, contact=PYBULLET_CONTACT), 22)
 
 
 # ---------------------------------------------------------------- runs
