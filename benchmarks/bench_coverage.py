@@ -193,7 +193,7 @@ def big(with_matrix: bool = True) -> None:
     print(f"chains + groups + limiting + alpha: {t_chain:.2f} s; with cells and step table: "
           f"{t_chain + t_fwd + t_cells:.2f} s; peak RSS {_rss_gb():.2f} GB")
     if with_matrix:
-        print("full-matrix method (planners.markov.analyse_chain on the N x N chain):")
+        print("full-matrix method (planners.coverage.markov.analyse_chain on the N x N chain):")
         for a, ac in zip(ANGLES, per):
             t0 = time.perf_counter()
             am = StepModel(cs, StepSettings("matrix")).analyse(a, TurnNoise(5.0, R))

@@ -44,8 +44,8 @@ from bouncesim.robots.kinematic import KinematicRobot
 from bouncesim.robots.noise import GaussianNoise
 from envs.motion import PYBULLET_CONTACT
 from planners.cells import CellSpace
-from planners.exact import ExactNavigator
-from planners.feedback import FeedbackConfig, FeedbackNavigator
+from planners.navigation.exact import ExactNavigator
+from planners.navigation.feedback import FeedbackConfig, FeedbackNavigator
 
 TARGET_MS = 50.0
 ANGLES = (45.0, 90.0, 135.0)

@@ -28,7 +28,7 @@ threads from the start. Then the ``steps_to_limit`` report of the angles and the
 resumes the kept runs, with the CLI's defaults (cap 10⁷ steps, 60 s per policy). Wall and
 CPU seconds, the load average, and whether α and the q_T columns agree bitwise all three
 ways. ``--threads N`` fixes the thread count of the ways that use threads (default: the idle
-cores by the load average, :func:`planners.timeshare.default_threads`); ``--now-only`` times
+cores by the load average, :func:`planners.coverage.timeshare.default_threads`); ``--now-only`` times
 only the CLI's way, without the report (for the speed goal: build + limits + q_T).
 """
 
@@ -42,7 +42,7 @@ import numpy as np
 import scipy.sparse as sp
 
 import planners.coverage.api as api
-import planners.timeshare as timeshare
+import planners.coverage.timeshare as timeshare
 from envs.generated import load_map
 from planners.cells import CellSpace
 from planners.coverage import (
@@ -68,14 +68,14 @@ LIMIT_SECONDS = 60.0       # the CLI's --limit-seconds default (per policy)
 def product_ms(hz: Horizon, reps: int = 20) -> tuple[float, ...]:
     """CPU [ms] of H·x, of H·X per vector (X: 3 vectors), of one step's two products
     (flights, then the turn) over every state against over the states mass can land in
-    (:attr:`planners.timeshare.TimeShared.live`), and of the flights' product on the live
+    (:attr:`planners.coverage.timeshare.TimeShared.live`), and of the flights' product on the live
     states read from the D·n departures (the straightforward way) against the compact rings
-    the recursion uses (:attr:`~planners.timeshare.TimeShared.Hc`, with the step's copies
+    the recursion uses (:attr:`~planners.coverage.timeshare.TimeShared.Hc`, with the step's copies
     into the product's vector and its gathers of v into the rings); then one whole step of
     the recursion as it was (those flights, the turn to v on all n states, Σ v in float64)
     against now (the flights from the ring of the sources' v, the turn straight to the
     sources' v by Wᵀ's stacked rows, Σ x in float64), and
-    :meth:`~planners.timeshare.TimeShared.advance` per step over 100 steps (one thread).
+    :meth:`~planners.coverage.timeshare.TimeShared.advance` per step over 100 steps (one thread).
     """
     rec = hz._prepare(NOISE)
     ts = rec.ts
@@ -163,7 +163,7 @@ WAYS = ("one thread", "split steps", "now")
 def pipeline_row(name: str, K: int, T: int, threads: int | None = None,
                  now_only: bool = False) -> str:
     """One ``--pipeline`` row (see the module docstring); ``threads`` fixes the thread count
-    of the ways that split (default: :func:`planners.timeshare.default_threads`);
+    of the ways that split (default: :func:`planners.coverage.timeshare.default_threads`);
     ``now_only``: only the CLI's way, and no steps_to_limit report ("—" in those columns).
     """
     clear_cache()

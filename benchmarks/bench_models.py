@@ -10,7 +10,7 @@ time to compute the three chains (30°, 75°, 315°, ε = 5°, r = 0.8) and the 
 the uniform target, the largest TV over the three angles between the predicted coverage and
 a kinematic-twin histogram (``--twin-steps`` per angle, seed 0), and the resulting α. The
 twin's seed-to-seed noise floor is printed under the table. The last timing column is the
-mix's time-shared coverage in ``--epoch``-step epochs (:mod:`planners.timeshare`), computed
+mix's time-shared coverage in ``--epoch``-step epochs (:mod:`planners.coverage.timeshare`), computed
 after the pipeline (its model already built). Each model runs in a fresh state (no cached
 flights), one after the other in the same process.
 """

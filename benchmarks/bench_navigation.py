@@ -33,7 +33,7 @@ import numpy as np
 import envs
 from envs.motion import BUMP_RANGE, CONTACT_GAP
 from planners.cells import CellSpace
-from planners.exact import ExactNavigator, chords
+from planners.navigation.exact import ExactNavigator, chords
 from planners.navigation import Navigator
 
 

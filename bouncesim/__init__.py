@@ -7,7 +7,7 @@ first use, so ``import bouncesim`` stays light and never needs pybullet or pyser
   (``envs.map_import``: an occupancy-grid map as an environment);
 - cells: :class:`CellSpace` (``planners.cells``);
 - navigation: :class:`Navigator` (``planners.navigation``, the paper's step model),
-  :class:`ExactNavigator` (``planners.exact``, exact bump poses), :class:`Plan`;
+  :class:`ExactNavigator` (``planners.navigation.exact``, exact bump poses), :class:`Plan`;
 - coverage: :func:`design_mix`, :func:`model_for`, :data:`MODELS`, :class:`TurnNoise`
   (``planners.coverage``), :class:`PolicyMix`, :func:`tv_distance`;
 - robots: :func:`make_robot`, :func:`noise_for_mix` (``bouncesim.robots``);
@@ -45,7 +45,7 @@ _LAZY = {
     "import_map": ("envs.map_import", "import_map"),
     "CellSpace": ("planners.cells", "CellSpace"),
     "Navigator": ("planners.navigation", "Navigator"),
-    "ExactNavigator": ("planners.exact", "ExactNavigator"),
+    "ExactNavigator": ("planners.navigation.exact", "ExactNavigator"),
     "Plan": ("planners.plan", "Plan"),
     "PolicyMix": ("planners.plan", "PolicyMix"),
     "MODELS": ("planners.coverage", "MODELS"),
@@ -70,7 +70,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs only; at run time __getattr__ im
     from envs.map_import import import_map
     from planners.cells import CellSpace
     from planners.coverage import MODELS, TurnNoise, design_mix, model_for
-    from planners.exact import ExactNavigator
+    from planners.navigation.exact import ExactNavigator
     from planners.metrics import tv_distance
     from planners.navigation import Navigator
     from planners.plan import Plan, PolicyMix

@@ -3,9 +3,9 @@
 The loop uses only the bump-and-clock interface of :class:`bouncesim.robots.base.Robot`
 (drive until bump, turn, drive for a time, bumper sides, the clock), so it runs unchanged on
 the kinematic twin, PyBullet, the Create 2 and its emulator, and on a user's own body. After
-every bump the filter (:class:`planners.feedback.ParticleFilter`) takes the flight's
+every bump the filter (:class:`planners.navigation.feedback.ParticleFilter`) takes the flight's
 distance (speed × elapsed time) and bumper side, and the navigator
-(:class:`planners.feedback.FeedbackNavigator`) picks the next bouncing angle; after the last
+(:class:`planners.navigation.feedback.FeedbackNavigator`) picks the next bouncing angle; after the last
 turn it picks the final drive that puts the most belief mass in the goal cell, and makes it
 when enough of the belief ends there (``FeedbackConfig.final_min``; else it flies on).
 Simulators are placed at the start and their true pose is logged and used for the success
@@ -34,7 +34,7 @@ import numpy as np
 from envs import Environment, UserError
 from envs.motion import PYBULLET_CONTACT, STEP_TOL, ContactParams
 from planners.cells import CellSpace
-from planners.feedback import FeedbackConfig, FeedbackNavigator, ParticleFilter
+from planners.navigation.feedback import FeedbackConfig, FeedbackNavigator, ParticleFilter
 from planners.plan import Plan
 
 from .robots.base import Robot, RobotError

@@ -17,7 +17,7 @@ step-sampled visit histogram q̂ of simulated runs:
 The same simulation is run twice with independent seeds (replicates 0 and 1); the TV between
 the two is the noise floor of the estimate at that step count. A mix is run by time-sharing
 in epochs of ``--epoch`` steps (docs/model.md §8); its prediction is the model's *time-shared*
-coverage (:mod:`planners.timeshare`: the model's chain followed through the epochs), and
+coverage (:mod:`planners.coverage.timeshare`: the model's chain followed through the epochs), and
 docs/model.md §7's Σ α_i q_i is reported beside it (``tv_pooled_sum``). The two differ when an
 epoch is short against an angle's mixing: in fig1 at 315° the robot leaks into a pocket at
 about 1e-4 per step, which a 1000-step epoch rarely reaches.

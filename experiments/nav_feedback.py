@@ -39,8 +39,8 @@ from bouncesim.robots.noise import GaussianNoise
 from bouncesim.runs.execute import execute
 from envs.motion import PYBULLET_CONTACT
 from planners.cells import CellSpace
-from planners.exact import ExactNavigator
-from planners.feedback import FeedbackConfig
+from planners.navigation.exact import ExactNavigator
+from planners.navigation.feedback import FeedbackConfig
 
 from .common import experiment_parser, name_list, output_dir, run_main, write_config
 from .nav_exact import map_named
@@ -64,7 +64,7 @@ class Config:
     particles : int        particles of the filter
     corrected : bool       also run feedback with heading correction (§22's extension)
     guided : bool          the guided plan search of §22 (off by default, as in
-                           :class:`planners.feedback.FeedbackConfig`)
+                           :class:`planners.navigation.feedback.FeedbackConfig`)
     contact : str          the twin's contact rule: 'off' (front-half bumper) or 'pybullet'
                            (§23's PYBULLET_CONTACT; exact plans are planned for it)
     filter_contact : str   'auto': the feedback navigator takes the body's rule (§22);

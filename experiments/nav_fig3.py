@@ -21,7 +21,7 @@ import pandas as pd
 import envs
 from bouncesim.runs.options import parse_angles
 from planners.cells import CellSpace
-from planners.exact import ExactNavigator
+from planners.navigation.exact import ExactNavigator
 from planners.navigation import Navigator
 from planners.plan import Plan
 

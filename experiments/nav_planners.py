@@ -48,10 +48,10 @@ from envs import Environment
 from envs.generated import PENTAGON, random_polygon_room, random_rectilinear_room
 from envs.motion import PYBULLET_CONTACT, ContactParams
 from planners.cells import CellSpace
-from planners.exact import ExactNavigator
+from planners.navigation.exact import ExactNavigator
 from planners.navigation import Navigator
 from planners.plan import Plan
-from planners.reliable import ReliableNavigator
+from planners.navigation.reliable import ReliableNavigator
 
 __all__ = ["PLANNERS", "PYBULLET_TURN_SIGMA", "FeedbackDriver", "NavConfig", "NoPlan",
            "OpenLoopDriver", "cells_of", "declared_noise", "exact_driver", "feedback_driver",

@@ -36,7 +36,7 @@ from bouncesim.robots.kinematic import KinematicRobot
 from bouncesim.robots.noise import GaussianNoise
 from bouncesim.runs.execute import execute
 from planners.cells import CellSpace
-from planners.reliable import W2_FACTORS, ReliableNavigator, draw_turns, rollout, wilson
+from planners.navigation.reliable import W2_FACTORS, ReliableNavigator, draw_turns, rollout, wilson
 
 from .common import experiment_parser, name_list, output_dir, run_main, write_config
 from .nav_exact import map_named

@@ -4,7 +4,7 @@ A :class:`Plan` is a sequence of labels: 0 for a forward step of one cell, or a 
 angle [deg] for a bump followed by an in-place CCW turn by that angle (docs/model.md §6). It prints
 in the paper's form and parses from both that form and the plain one.
 
-An *exact* plan (docs/model.md §15, the exact planner of :mod:`planners.exact`) also carries
+An *exact* plan (docs/model.md §15, the exact planner of :mod:`planners.navigation.exact`) also carries
 the expected length of every flight before a bump (``flights_m``) and a final drive by the
 clock (``final_m``). Its labels are the paper's form with zeros = round(flight / h): exact
 along the axes, approximate off them (a diagonal step of the step model moves √2·h). Its

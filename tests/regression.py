@@ -8,7 +8,7 @@ Three golden files:
 
 - ``coverage.json``: the predicted coverage q of every angle, the policy mix α (targets
   over positions and over configurations) and the mix's time-shared coverage in 1000-step
-  epochs (:mod:`planners.timeshare`) of fixed settings. Any drift beyond ``ATOL`` fails.
+  epochs (:mod:`planners.coverage.timeshare`) of fixed settings. Any drift beyond ``ATOL`` fails.
 - ``plans.json``: the shortest plans (observation strings and costs) of a fixed set of
   (start, goal) queries, and whether each plan reaches its goal when executed without noise
   in the kinematic twin (and, for the Fig. 3 plans, in PyBullet).

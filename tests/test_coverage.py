@@ -344,6 +344,6 @@ def test_pipeline_rejects_wrong_target_length(lab):
 
 
 def test_planners_do_not_import_matplotlib():
-    code = ("import sys, planners.coverage, planners.markov; "
+    code = ("import sys, planners.coverage, planners.coverage.markov; "
             "sys.exit(1 if 'matplotlib' in sys.modules else 0)")
     assert subprocess.run([sys.executable, "-c", code]).returncode == 0

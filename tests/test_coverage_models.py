@@ -64,7 +64,7 @@ def twin_q(env, angle, eps=5.0, r=0.8, robots=1000, burn=1000, steps=2000, seed=
 
 # ---------------------------------------------------------------------------- hand cases
 @pytest.mark.parametrize("name", ["envs.motion", "planners.coverage.event",
-                                  "planners.coverage.api", "planners.timeshare"])
+                                  "planners.coverage.api", "planners.coverage.timeshare"])
 def test_doctests(name):
     mod = importlib.import_module(name)
     result = doctest.testmod(mod, optionflags=doctest.ELLIPSIS)
@@ -268,7 +268,7 @@ def _random_polygon(rng, K=360):
 def test_event_matches_twin_random_envs(seed):
     """Random rectilinear rooms with obstacles and regular pentagons/hexagons with a
     polygonal hole, K = 360. Every angle, and the event model's α mix for the uniform
-    target executed in 500-step epochs (its time-shared prediction, planners.timeshare).
+    target executed in 500-step epochs (its time-shared prediction, planners.coverage.timeshare).
     Twin: 500 robots, 2000 burn-in + 3000 counted steps; two seeds of such per-angle
     histograms differ by 0.002-0.010. Measured per-angle TV 0.005-0.024, mix TV 0.006-0.016
     (at 1000 robots the mix TV was 0.005-0.016; Σ α_i q_i: 0.006-0.038).
@@ -294,7 +294,7 @@ def test_boundary_grid_holds_every_segment_within_reach(seed):
     # query), by segment index. Checked against the brute-force distance of every centre to
     # every segment on a random polygon room (slanted walls) and a random rectilinear room
     from envs.generated import random_polygon_room
-    from planners.coverage.event import _SNAP, Boundary, _point_seg_dist
+    from planners.boundary import _SNAP, Boundary, _point_seg_dist
 
     rng = np.random.default_rng(seed)
     for env in (random_polygon_room(rng), random_rectilinear_room(rng, 36)):

@@ -23,7 +23,7 @@ from envs import Environment
 from envs.generated import PENTAGON
 from experiments import nav_exact
 from planners.cells import CellSpace
-from planners.exact import ExactNavigator, chords
+from planners.navigation.exact import ExactNavigator, chords
 from planners.plan import Plan, PlanParseError
 
 from .conftest import room

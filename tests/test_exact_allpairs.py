@@ -14,8 +14,8 @@ import envs
 from benchmarks.bench_navigation import ref_exact_costs
 from envs.generated import random_polygon_room
 from planners.cells import CellSpace
-from planners.exact import ExactAllPairs, ExactNavigator
-from planners.exact_cast import HeadingCaster
+from planners.navigation.exact import ExactAllPairs, ExactNavigator
+from planners.navigation.exact._cast import HeadingCaster
 
 from .conftest import random_room
 

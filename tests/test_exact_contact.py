@@ -16,7 +16,7 @@ from envs import Environment
 from envs.generated import random_polygon_room
 from envs.motion import PYBULLET_CONTACT, ContactParams
 from planners.cells import CellSpace
-from planners.exact import ExactNavigator
+from planners.navigation.exact import ExactNavigator
 from planners.plan import Plan
 
 ANGLES = (45, 90, 135)

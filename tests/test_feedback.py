@@ -1,4 +1,4 @@
-"""Feedback navigation (planners/feedback.py, bouncesim/navigate.py; docs/model.md §22).
+"""Feedback navigation (planners/navigation/feedback/navigator.py, bouncesim/navigate.py; docs/model.md §22).
 
 Evidence: hand-computed filter updates and final drives in a rectangle; the pose planner
 against the exact planner (§15, an independent search over the same states); the filter's
@@ -21,8 +21,8 @@ from bouncesim.robots.noise import GaussianNoise, SteppedNoise
 from bouncesim.runs.execute import execute
 from envs import Environment
 from planners.cells import CellSpace
-from planners.exact import ExactNavigator
-from planners.feedback import (
+from planners.navigation.exact import ExactNavigator
+from planners.navigation.feedback import (
     FeedbackConfig,
     FeedbackNavigator,
     ParticleFilter,
@@ -159,7 +159,7 @@ def fast_equals_plain_search(env, cfg: FeedbackConfig, seed: int) -> None:
     """From 10 random poses for each of two random goals, :func:`search` and
     :func:`search_reference` give the same plans to the bit, and most poses have one.
     """
-    from planners.feedback_search import search, search_reference
+    from planners.navigation.feedback.search import search, search_reference
     cells = CellSpace(env)
     rng = np.random.default_rng(seed)
     found = 0

@@ -19,8 +19,8 @@ from bouncesim.robots.noise import GaussianNoise
 from envs import Environment
 from envs.motion import PYBULLET_CONTACT, ContactParams
 from planners.cells import CellSpace
-from planners.exact import ExactNavigator
-from planners.feedback import FeedbackConfig, FeedbackNavigator, ParticleFilter
+from planners.navigation.exact import ExactNavigator
+from planners.navigation.feedback import FeedbackConfig, FeedbackNavigator, ParticleFilter
 
 from .test_feedback import ANGLES, RECT  # the 2 m square room and the plan angles
 
@@ -135,7 +135,7 @@ def test_filter_holds_the_true_pose_of_a_sliding_twin():
     # after every flight some particle lies within 1 cm and 1° of the twin's pose, no
     # reading needs a re-initialisation, and the run reaches the goal; some flights slid
     from envs.motion import casters
-    from planners.feedback_filter import landings
+    from planners.navigation.feedback.filter import landings
     caster = casters(SLOPE)[0]
     cells = CellSpace(SLOPE)
     rng = np.random.default_rng(7)

@@ -1,4 +1,4 @@
-"""Markov-chain analysis (planners.markov) on chains small enough to solve by hand, and
+"""Markov-chain analysis (planners.coverage.markov) on chains small enough to solve by hand, and
 against independent implementations (quantecon; dense Cesàro limits) on random chains.
 """
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from planners.markov import (
+from planners.coverage.markov import (
     absorption_matrix,
     absorption_probabilities,
     analyse_chain,

@@ -14,7 +14,7 @@ import pytest
 from experiments import nav_montecarlo as nm
 from experiments import nav_planners as npl
 from planners.cells import CellSpace
-from planners.exact import ExactNavigator
+from planners.navigation.exact import ExactNavigator
 from planners.navigation import Navigator
 from planners.plan import Plan
 

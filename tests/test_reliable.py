@@ -1,4 +1,4 @@
-"""Plans chosen for reliability (planners/reliable.py, docs/model.md §21).
+"""Plans chosen for reliability (planners/navigation/reliable.py, docs/model.md §21).
 
 Independent evidence: a success probability computed by hand in a 4 × 3 room, the kinematic
 twin driven through the executor (scalar casts, its own turn handling) with the particles'
@@ -23,10 +23,10 @@ from envs import Environment
 from envs.generated import random_polygon_room
 from envs.motion import PYBULLET_CONTACT, ContactParams
 from planners.cells import CellSpace
-from planners.coverage.noise import TurnNoise
-from planners.exact import ExactNavigator
+from planners.noise import TurnNoise
+from planners.navigation.exact import ExactNavigator
 from planners.navigation import Navigator
-from planners.reliable import (
+from planners.navigation.reliable import (
     ReliableNavigator,
     draw_turns,
     estimate,

@@ -1,4 +1,4 @@
-"""planners.timeshare: the coverage of a policy mix executed in epochs (docs/model.md §12).
+"""planners.coverage.timeshare: the coverage of a policy mix executed in epochs (docs/model.md §12).
 
 Independent evidence: dense brute force (matrix powers of the epoch map, and of an explicit
 step-level expansion of a delay chain) on random small chains, the one-angle and long-epoch
@@ -18,7 +18,7 @@ from planners.cells import CellSpace
 from planners.coverage import TurnNoise, design_mix, model_for, timeshared_coverage
 from planners.metrics import tv_distance
 from planners.plan import PolicyMix
-from planners.timeshare import PARALLEL_MIN, DelayChain, TimeShared, timeshared
+from planners.coverage.timeshare import PARALLEL_MIN, DelayChain, TimeShared, timeshared
 
 
 def _stochastic(rng, n, m):

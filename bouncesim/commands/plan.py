@@ -12,9 +12,9 @@ import numpy as np
 from bouncesim.robots.noise import parse_noise
 from envs import UserError
 from planners.cells import CellSpace
-from planners.exact import ExactNavigator, step_flights
+from planners.navigation.exact import ExactNavigator, step_flights
 from planners.navigation import Navigator
-from planners.reliable import DEFAULT_PARTICLES, DEFAULT_SLACK, ReliableNavigator
+from planners.navigation.reliable import DEFAULT_PARTICLES, DEFAULT_SLACK, ReliableNavigator
 
 from .common import (
     add_contact_arg,
@@ -88,7 +88,7 @@ def add_planner_args(p) -> None:
 
 def make_navigator(args, cells: CellSpace | None = None) -> Navigator | ExactNavigator:
     """The navigator of ``--planner`` (:class:`~planners.navigation.Navigator` or
-    :class:`~planners.exact.ExactNavigator`) for the parsed environment, angles and weights;
+    :class:`~planners.navigation.exact.ExactNavigator`) for the parsed environment, angles and weights;
     the step planner's roadmap is refused above --max-memory before it is built.
     """
     if cells is None:

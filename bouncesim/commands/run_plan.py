@@ -264,7 +264,7 @@ def _add_feedback_args(p) -> None:
 def _run_feedback(args, env, cells, start: int, goal: int, noise) -> int:
     """``run-plan --planner feedback``: drive the robot by feedback (bouncesim.navigate)."""
     from bouncesim.navigate import navigate_feedback
-    from planners.feedback import FeedbackConfig
+    from planners.navigation.feedback import FeedbackConfig
     if args.plot:
         raise UserError("--plot is not available with --planner feedback yet.")
     declared = noise if args.turn_sigma is None else float(args.turn_sigma)

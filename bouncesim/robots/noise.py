@@ -41,8 +41,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from envs import UserError
-from planners.coverage.noise import TurnNoise
-from planners.coverage.noise import as_commands as _commands
+from planners.noise import TurnNoise
+from planners.noise import as_commands as _commands
 
 if TYPE_CHECKING:
     from planners.plan import PolicyMix

@@ -14,7 +14,7 @@ it never feeds back into control. The room is the robot's (``robot.env``), or th
   the clock and stops. A run's length is the distance the step model moves in n steps at the
   current heading (:meth:`planners.cells.CellSpace.run_length`: n·h along an axis, n·√2·h
   along a diagonal at K = 8), known from the start heading and the angles before it.
-  An exact plan (:mod:`planners.exact`, docs/model.md §15) runs by its angles instead: drive
+  An exact plan (:mod:`planners.navigation.exact`, docs/model.md §15) runs by its angles instead: drive
   until a bump and turn, for every angle, then drive its final length by the clock; its
   expected flights only log deviations (more than h/4 off). Returns a :class:`PlanRun`.
 - A :class:`~planners.plan.PolicyMix` is time-shared: epochs of ``epoch`` steps, each with one

@@ -50,7 +50,7 @@ from .horizon import (
     steps_to_limit_each,
 )
 from .mix import MixDesign, MixFit, solve_mix
-from .noise import TurnNoise
+from ..noise import TurnNoise
 from .sampled import SampledModel, SampledSettings
 from .step import StepModel, StepSettings, transition_matrix
 from .targets import SPACES, TARGET_FORMATS, TargetError, load_target, uniform_target

@@ -35,12 +35,12 @@ from envs import UserError
 
 from ..cells import CellSpace
 from ..plan import PolicyMix
-from ..timeshare import TimeSharedCoverage, default_threads, note_threads, timeshared
+from .timeshare import TimeSharedCoverage, default_threads, note_threads, timeshared
 from .base import CoverageModel
 from .event import EventModel
 from .horizon import fit_horizon_mix, horizon_of
 from .mix import MixDesign, solve_mix
-from .noise import TurnNoise
+from ..noise import TurnNoise
 from .sampled import SampledModel
 from .step import StepModel
 from .targets import check_target, space_size
@@ -111,7 +111,7 @@ def analyses(model: CoverageModel, angles, noise: TurnNoise = _EXACT,
              also: Iterable[Callable[[], Any]] = ()) -> Iterator:
     """Every angle's :meth:`analyse`, in order: the first alone (it builds what the angles
     share, e.g. the event model's Gaussian flights), the others on
-    :func:`~planners.timeshare.default_threads` threads (scipy's products and solves release
+    :func:`~planners.coverage.timeshare.default_threads` threads (scipy's products and solves release
     the GIL); the same results as one after the other.
 
     ``also``: more work (calls without arguments, e.g. the horizon runs of
@@ -210,7 +210,7 @@ def timeshared_coverage(model: CoverageModel, mix: PolicyMix, epoch: int = 1000,
     """Predicted coverage of a policy mix executed in epochs of ``epoch`` steps (docs/model.md §12).
 
     docs/model.md §7's Σ α_i q_i assumes every epoch reaches its angle's limiting distribution; this
-    follows the model's own chain through the epochs instead (:mod:`planners.timeshare`),
+    follows the model's own chain through the epochs instead (:mod:`planners.coverage.timeshare`),
     through the protocol's :meth:`~CoverageModel.delay_chain` and
     :meth:`~CoverageModel.turn_matrix`, so it works for every model.
 
@@ -219,7 +219,7 @@ def timeshared_coverage(model: CoverageModel, mix: PolicyMix, epoch: int = 1000,
     model : CoverageModel
     mix : PolicyMix         angles, α and the rotation noise (ε, r), e.g. ``design.mix``
     epoch : int             steps per epoch
-    **kw : tol, max_epochs, progress (see :meth:`planners.timeshare.TimeShared.run`)
+    **kw : tol, max_epochs, progress (see :meth:`planners.coverage.timeshare.TimeShared.run`)
     """
     noise = TurnNoise(mix.eps, mix.r)
     angles = check_angles(model.cs.K, mix.angles, noise)

@@ -7,7 +7,7 @@ flights, rewards) and then answers for any bouncing angle and :class:`TurnNoise`
 - :meth:`CoverageModel.analyse`: the angle's chain, its limiting distribution and the
   predicted step-sampled coverage q over the P position cells (docs/model.md §7, §9);
 - :meth:`CoverageModel.turn_matrix` and :meth:`CoverageModel.delay_chain`: the model as a
-  delay chain (:mod:`planners.timeshare`), so a policy mix run in epochs (docs/model.md §8) is
+  delay chain (:mod:`planners.coverage.timeshare`), so a policy mix run in epochs (docs/model.md §8) is
   predicted the same way for every model.
 """
 
@@ -22,9 +22,9 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..cells import CellSpace
-from ..markov import ChainAnalysis
-from ..timeshare import DelayChain
-from .noise import NoiseView, TurnNoise
+from .markov import ChainAnalysis
+from .timeshare import DelayChain
+from ..noise import NoiseView, TurnNoise
 
 __all__ = ["STATE_KINDS", "AngleCoverage", "CoverageModel", "cached_build", "clear_cache",
            "group_cells"]

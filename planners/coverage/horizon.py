@@ -4,7 +4,7 @@
 docs/model.md §7 predicts the *limiting* coverage. On a map whose rooms exchange the robot
 rarely the limit can be days of driving away; a user who runs the robot for T steps wants
 the expected fraction of *those* T steps spent in each cell. This module computes it with
-the model's own dynamics, step by step, through the delay chain of :mod:`planners.timeshare`
+the model's own dynamics, step by step, through the delay chain of :mod:`planners.coverage.timeshare`
 (a horizon is one run of T steps from the start, no fixed point):
 
 - :class:`Horizon`: a model's delay chain extended for horizons: per-step rewards, so that a
@@ -44,10 +44,10 @@ from scipy.optimize import minimize
 from envs import UserError
 
 from ..metrics import tv_distance
-from ..timeshare import DelayChain, TimeShared
+from .timeshare import DelayChain, TimeShared
 from .event_flights import StepTable
 from .mix import MixDesign, solve_mix
-from .noise import TurnNoise
+from ..noise import TurnNoise
 
 __all__ = ["Horizon", "HorizonCoverage", "horizon_coverage", "horizon_of", "steps_to_limit",
            "steps_to_limit_each",
@@ -199,7 +199,7 @@ class _Trajectory:
 
     def counts(self, T: int, threads: int | None = None) -> np.ndarray:
         """Counted steps per cell (P,) of the first T steps. ``threads``: row blocks per step
-        (:meth:`~planners.timeshare.TimeShared.advance`; 1 when runs go on threads of their
+        (:meth:`~planners.coverage.timeshare.TimeShared.advance`; 1 when runs go on threads of their
         own, :func:`planners.coverage.api.analyses`); the counts do not depend on it.
         """
         if T not in self.known:
@@ -291,7 +291,7 @@ class Horizon:
         """``steps`` steps of m runs in lockstep: ``hist`` (D, n, m) their last D departures,
         ``WT`` their m turn matrices (transposed, float32). Returns (end state (D, n, m),
         Σ v_t (n, m) float64). Each run is one vector through
-        :meth:`planners.timeshare.TimeShared.advance`: a sparse product with a block of m
+        :meth:`planners.coverage.timeshare.TimeShared.advance`: a sparse product with a block of m
         vectors costs as much as m products here (``benchmarks/bench_horizon.py``).
         """
         ends, deps = zip(*(rec.ts.advance(W, hist[:, :, j], steps) for j, W in enumerate(WT)))

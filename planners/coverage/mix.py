@@ -13,7 +13,7 @@ from scipy.optimize import minimize
 
 from ..metrics import tv_distance
 from ..plan import PolicyMix
-from .noise import NoiseView, TurnNoise
+from ..noise import NoiseView, TurnNoise
 
 __all__ = ["MixFit", "MixDesign", "solve_mix"]
 

@@ -7,7 +7,7 @@ fits; the cell centre if none does) times ``theta_samples`` headings spread over
 twin's rule (:func:`envs.motion.step`: forward h when at least h − STEP_TOL is free, else a
 move to contact and a turn by φ + δ with the docs/model.md §7 noise) and is mapped to the
 configuration cell it ends in; the fractions give the row of (p, k) in a sparse N × N chain,
-analysed with :mod:`planners.markov` (uniform start over the N configurations, as
+analysed with :mod:`planners.coverage.markov` (uniform start over the N configurations, as
 docs/model.md §7). Coverage counts steps where the twin counts them: a forward step in its
 start cell, a bump step in the cell of the contact point (steps in no free cell are
 dropped; a sample that ends in a cell that is not free is sent to the nearest free cell for
@@ -30,10 +30,10 @@ from envs import UserError
 from envs.motion import casters, drive_distance, step, unit
 
 from ..cells import CellSpace
-from ..markov import analyse_chain
-from ..timeshare import DelayChain
+from .markov import analyse_chain
+from .timeshare import DelayChain
 from .base import AngleCoverage, cached_build
-from .noise import TurnNoise
+from ..noise import TurnNoise
 
 __all__ = ["SampledSettings", "SampledModel"]
 

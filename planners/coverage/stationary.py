@@ -1,7 +1,7 @@
 """The stationary distributions of the event model's large contact chains (docs/model.md §10).
 
 Closed classes of up to 20 000 states are solved directly (sparse LU,
-:func:`planners.markov.stationary_distributions`). Larger ones by BiCGSTAB
+:func:`planners.coverage.markov.stationary_distributions`). Larger ones by BiCGSTAB
 (:func:`_krylov_stationary`), or the damped power iteration where it fails
 (:func:`_power_stationary`), checked by iterative aggregation–disaggregation over the contact
 bins (:func:`_aggregated_stationary`) and, if that does not converge, the direct solve:
@@ -18,7 +18,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as sla
 from threadpoolctl import threadpool_limits
 
-from ..markov import (
+from .markov import (
     ChainAnalysis,
     _assemble,
     absorption_probabilities,
@@ -186,11 +186,11 @@ def _aggregated_stationary(Tg: sp.csr_matrix, agg: np.ndarray, x0=None
 
 def analyse_contact_chain(T, start, aggregates=None, method: str = "krylov"
                           ) -> ChainAnalysis:
-    """:func:`planners.markov.analyse_chain` for large contact chains.
+    """:func:`planners.coverage.markov.analyse_chain` for large contact chains.
 
     Closed classes and absorption (from ``start``, only needed with several classes) as in
-    :mod:`planners.markov`. Classes of up to 20000 states are solved directly
-    (:func:`planners.markov.stationary_distributions`). Larger ones (docs/model.md §10):
+    :mod:`planners.coverage.markov`. Classes of up to 20000 states are solved directly
+    (:func:`planners.coverage.markov.stationary_distributions`). Larger ones (docs/model.md §10):
 
     - ``"krylov"`` (default): BiCGSTAB (:func:`_krylov_stationary`; where it fails, the
       damped power iteration, ≤ 3000 iterations), then aggregation–disaggregation over

@@ -3,7 +3,7 @@
 For one bouncing angle φ and rotation noise (ε, r) the robot's motion over the N
 configuration cells is a Markov chain: a forward cell moves to its step-table successor with
 probability 1; a bump cell (p, k) turns to orientation k + (φ + δ)/Δ with the probabilities of
-:class:`~planners.coverage.noise.TurnNoise` (r for δ = 0, (1 − r)/(2ε/Δ) for each
+:class:`~planners.noise.TurnNoise` (r for δ = 0, (1 − r)/(2ε/Δ) for each
 δ ∈ {−ε, …, −Δ, Δ, …, ε}). If φ + δ ≡ 0 (mod 360°) the robot keeps its heading and bumps
 again at once: that is a valid transition from the bump cell to itself (a self-loop), not an
 error. When 2ε ≥ 360° some headings are reached by several δ; their probabilities add up.
@@ -43,10 +43,10 @@ import scipy.sparse as sp
 from envs import UserError
 
 from ..cells import CellSpace
-from ..markov import analyse_chain, analyse_run_chain
-from ..timeshare import DelayChain
+from .markov import analyse_chain, analyse_run_chain
+from .timeshare import DelayChain
 from .base import AngleCoverage
-from .noise import TurnNoise
+from ..noise import TurnNoise
 
 __all__ = ["StepSettings", "StepModel", "transition_matrix"]
 
@@ -103,8 +103,8 @@ class StepSettings:
     ----------
     method : {"runs", "matrix"}
         ``"runs"`` (default) solves the chain censored to the bump cells and expands it
-        exactly along the forward runs (:func:`planners.markov.analyse_run_chain`);
-        ``"matrix"`` analyses the full N × N matrix (:func:`planners.markov.analyse_chain`).
+        exactly along the forward runs (:func:`planners.coverage.markov.analyse_run_chain`);
+        ``"matrix"`` analyses the full N × N matrix (:func:`planners.coverage.markov.analyse_chain`).
         Both give the same numbers; "runs" is several times faster on fine grids.
     """
 

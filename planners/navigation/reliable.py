@@ -1,6 +1,6 @@
 """Plans chosen for reliability under turn noise (docs/model.md §21).
 
-The exact planner (:mod:`planners.exact`, docs/model.md §15) returns the cheapest plan; with
+The exact planner (:mod:`planners.navigation.exact`, docs/model.md §15) returns the cheapest plan; with
 rotation noise an open-loop plan misses its goal when the heading errors of its turns carry
 the robot off course. This layer lists the near-optimal exact plans
 (:meth:`ExactNavigator.plans`, every goal arrival within a cost ``slack`` of the cheapest),
@@ -29,7 +29,7 @@ p = Φ(asin(¼)/σ) − ½, 0.4262 at σ = 10°:
 >>> import numpy as np
 >>> from envs import Environment
 >>> from planners.cells import CellSpace
->>> from planners.coverage.noise import TurnNoise
+>>> from planners.noise import TurnNoise
 >>> env = Environment.from_dict({"boundary": [[0, 0], [1.36, 0], [1.36, 1.02], [0, 1.02]],
 ...     "robot_radius": 0.17, "discretization": {"cell_size": 0.34, "orientations": 8}})
 >>> cs = CellSpace(env)
@@ -56,10 +56,10 @@ from envs import UserError
 from envs.contact import advance, contact_flights, glancing
 from envs.motion import BUMP_RANGE, ContactParams, casters, drive_distance, unit
 
-from .cells import CellSpace
-from .coverage.noise import TurnNoise
+from ..cells import CellSpace
+from ..noise import TurnNoise
 from .exact import ExactNavigator, ExactRoute
-from .plan import Plan
+from ..plan import Plan
 
 __all__ = ["DEFAULT_SLACK", "DEFAULT_PARTICLES", "MAX_CANDIDATES", "W2_FACTORS", "Estimate",
            "ReliableNavigator", "ReliableRoute", "Rollout", "draw_turns", "estimate",
@@ -152,7 +152,7 @@ def draw_turns(noise, plan: Plan, n: int, rng: np.random.Generator,
     """(n, bumps) executed turns [deg] of the plan's turns under ``noise``, one column per
     turn in order, each column drawn as one array (as ``n`` twins draw them, turn by turn).
 
-    ``noise``: a :class:`~planners.coverage.noise.TurnNoise` (§7 or §18), a spec string
+    ``noise``: a :class:`~planners.noise.TurnNoise` (§7 or §18), a spec string
     (``gauss:σ``, ``model:eps=E,r=R``, ``none``), or any object with
     ``sample_many(rng, commanded)`` (the twin's noise models).
     """
@@ -317,7 +317,7 @@ def plan_cost(plan: Plan, h: float, w1: float, w2: float) -> float:
 class ReliableRoute(ExactRoute):
     """An exact route chosen for reliability (docs/model.md §21).
 
-    Attributes (besides :class:`~planners.exact.ExactRoute`'s; ``cost`` is at the user's
+    Attributes (besides :class:`~planners.navigation.exact.ExactRoute`'s; ``cost`` is at the user's
     weights)
     ----------
     p_success : float           success probability from an independent particle set
@@ -355,7 +355,7 @@ class ReliableRoute(ExactRoute):
 
 class ReliableNavigator:
     """The most reliable of the near-optimal exact plans (docs/model.md §21), with the shape
-    of :class:`~planners.exact.ExactNavigator` (``plan(start, goal)``).
+    of :class:`~planners.navigation.exact.ExactNavigator` (``plan(start, goal)``).
 
     Parameters
     ----------

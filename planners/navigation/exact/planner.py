@@ -7,12 +7,12 @@ the wall) and its heading after the turn. Flights are the exact ray casts of the
 (:mod:`envs.motion`, the kinematic twin's casts), so every plan replays exactly.
 
 - Search: uniform-cost over states (contact bin × heading × current angle); the contact
-  bins are the event model's (:class:`planners.coverage.event.Boundary`, arc-length bins of
+  bins are the event model's (:class:`planners.boundary.Boundary`, arc-length bins of
   h/4 by default). Each state keeps the exact pose of its first settled arrival. A single
   query is A* with scalar casts (a few hundred states); all pairs use Dial's buckets as wide
   as the smallest edge weight: the lowest bucket is final as a whole, so it is expanded at
   once over many starts' trees, with one vectorised ray cast for the flights not cast yet
-  (a flight depends on its pose and heading only: :mod:`planners.exact_batch`).
+  (a flight depends on its pose and heading only: :mod:`planners.navigation.exact._batch`).
 - Cost: w1 per step-equivalent of travel (flight length / h) and per same-angle bump, w2 per
   change of angle; the first bump costs min(w1, w2) (any start angle, as in §6).
 - Goal: after the last turn the heading equals the goal heading and the flight passes through
@@ -55,12 +55,12 @@ from envs import UserError
 from envs.contact import slide_on
 from envs.motion import BUMP_RANGE, ContactParams, casters, drive_distance
 
-from .cells import CellSpace
-from .coverage.event import Boundary
-from .exact_batch import FlightTable, search_many
-from .exact_cast import HeadingCaster
-from .exact_chords import _origin, chords
-from .plan import Plan
+from ...cells import CellSpace
+from ...boundary import Boundary
+from ._batch import FlightTable, search_many
+from ._cast import HeadingCaster
+from ._chords import _origin, chords
+from ...plan import Plan
 
 __all__ = ["ExactNavigator", "ExactRoute", "ExactAllPairs", "ExactSearch", "chords",
            "step_flights"]
@@ -356,7 +356,7 @@ class ExactNavigator:
         source i owns states i·(S + 1) … i·(S + 1) + S, the last one its start). One cost
         band of all trees is settled per round (every state cheaper than the smallest
         unsettled cost plus the smallest edge weight is final); every distinct flight is
-        cast once, in a table shared by the trees (:func:`planners.exact_batch.search_many`).
+        cast once, in a table shared by the trees (:func:`planners.navigation.exact._batch.search_many`).
         """
         return search_many(self, starts, table, tree)
 

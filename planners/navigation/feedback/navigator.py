@@ -7,7 +7,7 @@ those readings into a belief over the robot's pose and the belief into the next 
 angle and the final drive. It is pure (numpy, scipy, the motion layer and the exact planner);
 the loop that drives a robot is :func:`bouncesim.navigate.navigate_feedback`.
 
-- :class:`ParticleFilter` (in :mod:`planners.feedback_filter`, re-exported): n weighted
+- :class:`ParticleFilter` (in :mod:`planners.navigation.feedback.filter`, re-exported): n weighted
   poses (x [m], y [m], heading [deg]). A turn by φ adds φ plus a draw of the declared turn
   noise N(0, σ² + σ_floor²) to every heading; a flight moves every particle along its exact
   ray cast (:mod:`envs.motion`) to its contact and weighs it by the measured distance
@@ -26,7 +26,7 @@ the loop that drives a robot is :func:`bouncesim.navigate.navigate_feedback`.
   first angle is turned. The final drive is the length that puts the most belief mass in the
   goal cell (:func:`final_drive`); it is made when at least ``final_min`` of the belief ends
   there (:meth:`FeedbackNavigator.stops`), else the robot flies on to the next bump.
-  The search itself lives in :mod:`planners.feedback_search`
+  The search itself lives in :mod:`planners.navigation.feedback.search`
   (a fast one, the plain reference it is checked against, and the guided one, off by
   default).
 
@@ -57,9 +57,9 @@ import numpy as np
 
 from envs.motion import unit
 
-from .cells import CellSpace
-from .exact import ExactNavigator
-from .feedback_filter import (
+from ...cells import CellSpace
+from ..exact import ExactNavigator
+from .filter import (
     SIDES,
     FeedbackConfig,
     FlightUpdate,
@@ -67,7 +67,7 @@ from .feedback_filter import (
     landings,
     side_of,
 )
-from .feedback_search import ScalarWalls, cost_to_go, search, search_reference
+from .search import ScalarWalls, cost_to_go, search, search_reference
 
 __all__ = ["FeedbackConfig", "FlightUpdate", "ParticleFilter", "Candidate", "FeedbackNavigator",
            "goal_intervals", "final_drive", "side_of", "SIDES"]

@@ -1,6 +1,6 @@
 """The exact planner's search from many starts at once (docs/model.md §15, all pairs).
 
-Every tree of :meth:`planners.exact.ExactNavigator.search` keeps, per state, the exact pose
+Every tree of :meth:`planners.navigation.exact.ExactNavigator.search` keeps, per state, the exact pose
 of its best arrival; the flight from that pose depends on the pose and the heading only,
 not on the start. On ``complex`` the 1464 starts settle 6.0 M states but only 0.34 M
 distinct (pose, heading) pairs, so the flights are cast once, in a table shared by every
@@ -14,7 +14,7 @@ tree (and by every batch of starts): :class:`FlightTable`.
 - Per node the table holds what the search needs of its flight, computed once with one
   vectorised cast for all new nodes of a band: the clock length, its cost w1·clock/h, the
   landing's contact bin (as the m child states) and the goal arrivals along the flight (the
-  chords of :func:`planners.exact_chords.chords` at least ``min_depth`` deep: goal
+  chords of :func:`planners.navigation.exact._chords.chords` at least ``min_depth`` deep: goal
   configuration k·P + p, its cost w1·t/h and t).
 - The search itself is the Dial's-bucket search described in §15, with the same order,
   costs (the same floating-point operations) and ties, so its trees and all-pairs results
@@ -29,7 +29,7 @@ import numpy as np
 
 from envs.contact import contact_flights
 
-from .exact_chords import chords
+from ._chords import chords
 
 __all__ = ["FlightTable", "search_many"]
 
@@ -174,7 +174,7 @@ def search_many(nav, starts: np.ndarray, table: FlightTable | None = None,
     smallest edge weight is final); the flights come from ``table`` (a new one if None).
 
     Returns ``(cost, pred, pos, flight, used, gcost, gstate, gt, [])`` as
-    :meth:`planners.exact.ExactNavigator._search`; with ``tree`` False, ``pred``, ``pos``
+    :meth:`planners.navigation.exact.ExactNavigator._search`; with ``tree`` False, ``pred``, ``pos``
     and ``flight`` are None (all pairs needs the goal arrivals and angle masks only).
     """
     K, m, N = nav.cells.K, nav.m, nav.cells.N

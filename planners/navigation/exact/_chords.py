@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .cells import CellSpace
+from ...cells import CellSpace
 
 __all__ = ["chords"]
 

@@ -11,7 +11,7 @@ expansion and the same floating-point arithmetic, so they return the same plans:
   can stop a flight within ``BUMP_RANGE``, so the knife-edge guard's two casts (heading
   ± g) run over them alone. What a pose and heading lead to is computed once per search. A
   flight at the goal's heading is cut into chords (the numpy
-  :func:`~planners.exact_chords.chords`) only when it meets the goal cell shrunk by half the
+  :func:`~planners.navigation.exact._chords.chords`) only when it meets the goal cell shrunk by half the
   minimum depth (no arrival is possible otherwise).
 - :func:`search_reference`, the straightforward one (every cast over every wall, chords
   whenever the flight's bounding box meets the goal cell): the tests and
@@ -23,7 +23,7 @@ whose contact lies outside the bumper arc along its slide to the bump, as §15's
 the bump; goal arrivals stay on the straight part.
 
 Both return ``(angles, flights, final_m, cost)`` tuples, cheapest first, which
-:class:`planners.feedback.FeedbackNavigator` turns into candidates. :func:`search` with a
+:class:`planners.navigation.feedback.FeedbackNavigator` turns into candidates. :func:`search` with a
 ``guide`` (:func:`cost_to_go`) is the guided search of §22, a different rule (off by
 default): it returns plans that need not be the cheapest.
 """
@@ -48,7 +48,7 @@ from envs.motion import (
     unit,
 )
 
-from .exact_chords import chords
+from ..exact import chords
 
 __all__ = ["MAX_SETTLED", "MAX_SETTLED_GUIDED", "NEAR_M", "BAND_PAD_M", "STRIP_M", "UNGUIDED",
            "ScalarWalls", "cost_to_go", "search", "search_reference"]

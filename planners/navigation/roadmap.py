@@ -40,7 +40,7 @@ import scipy.sparse as sp
 
 from envs import UserError
 
-from .cells import CellSpace
+from ..cells import CellSpace
 
 __all__ = ["Roadmap"]
 

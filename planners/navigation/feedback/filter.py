@@ -2,7 +2,7 @@
 pose as weighted particles, updated by the readings a bump-and-clock robot has (the flight's
 distance by the clock, the bumper side) under the exact flights of the motion layer.
 
-Re-exported by :mod:`planners.feedback`, which adds the decision rule; see there for an
+Re-exported by :mod:`planners.navigation.feedback`, which adds the decision rule; see there for an
 example.
 """
 

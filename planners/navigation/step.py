@@ -24,9 +24,9 @@ from scipy.sparse.csgraph import dijkstra
 
 from envs import UserError
 
-from .cells import CellSpace
-from .plan import Plan
-from .resources import DEFAULT_MAX_MEMORY, check_memory, parse_memory, search_bytes
+from ..cells import CellSpace
+from ..plan import Plan
+from ..resources import DEFAULT_MAX_MEMORY, check_memory, parse_memory, search_bytes
 from .roadmap import Roadmap
 
 __all__ = ["AllPairs", "Navigator", "Route"]
