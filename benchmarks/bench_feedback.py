@@ -39,7 +39,7 @@ import time
 import numpy as np
 
 import envs
-from bouncesim.navigate import navigate_feedback
+from bouncesim.runs.execute import navigate_feedback
 from bouncesim.robots.kinematic import KinematicRobot
 from bouncesim.robots.noise import GaussianNoise
 from envs.motion import PYBULLET_CONTACT

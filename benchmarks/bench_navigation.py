@@ -33,8 +33,8 @@ import numpy as np
 import envs
 from envs.motion import BUMP_RANGE, CONTACT_GAP
 from planners.cells import CellSpace
-from planners.navigation.exact import ExactNavigator, chords
 from planners.navigation import Navigator
+from planners.navigation.exact import ExactNavigator, chords
 
 
 def best_of(fn, repeat: int):

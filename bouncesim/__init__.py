@@ -1,18 +1,23 @@
 """bouncesim: plan, execute and draw bump-and-clock robots from a notebook.
 
-The short list a researcher needs, in the order of a session (every name is imported on
-first use, so ``import bouncesim`` stays light and never needs pybullet or pyserial):
+The names outside code can rely on through later refactors, in the order of a session
+(every name is imported on first use, so ``import bouncesim`` stays light and never needs
+pybullet or pyserial):
 
 - maps: :func:`load` (``envs.load``), :func:`env_names`, :func:`import_map`
   (``envs.map_import``: an occupancy-grid map as an environment);
 - cells: :class:`CellSpace` (``planners.cells``);
-- navigation: :class:`Navigator` (``planners.navigation``, the paper's step model),
-  :class:`ExactNavigator` (``planners.navigation.exact``, exact bump poses), :class:`Plan`;
+- navigation: :data:`PLANNERS` and :func:`make_planner` (``planners.navigation``: one
+  protocol, one :class:`Route`), the planners :class:`Navigator` (the paper's step model)
+  and :class:`ExactNavigator` (exact bump poses), :class:`Plan`;
 - coverage: :func:`design_mix`, :func:`model_for`, :data:`MODELS`, :class:`TurnNoise`
   (``planners.coverage``), :class:`PolicyMix`, :func:`tv_distance`;
-- robots: :func:`make_robot`, :func:`noise_for_mix` (``bouncesim.robots``);
-- runs: :func:`execute` (``bouncesim.runs.execute``), :class:`Trace`,
-  :func:`navigate_feedback` (``bouncesim.navigate``: closed-loop navigation of any robot);
+- robots: :class:`Robot` (the interface a body implements), :func:`make_robot`,
+  :func:`parse_noise` (a noise spec as a body's noise model), :func:`noise_for_mix`
+  (``bouncesim.robots``);
+- runs: :func:`execute` (``bouncesim.runs.execute``: the one run loop, for plans, mixes and
+  feedback policies), :class:`Trace`, :func:`navigate_feedback` (``bouncesim.runs.execute``:
+  closed-loop navigation of any robot);
 - figures: :func:`draw_trace`, :func:`draw_env`, :func:`heatmap`, :func:`save_figure`.
 
 Examples
@@ -33,9 +38,10 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
-__all__ = ["MODELS", "CellSpace", "ExactNavigator", "Navigator", "Plan", "PolicyMix", "Trace",
-           "TurnNoise", "design_mix", "draw_env", "draw_trace", "env_names", "execute", "heatmap",
-           "import_map", "load", "make_robot", "model_for", "navigate_feedback", "noise_for_mix",
+__all__ = ["MODELS", "PLANNERS", "CellSpace", "ExactNavigator", "Navigator", "Plan", "PolicyMix",
+           "Robot", "Route", "Trace", "TurnNoise", "design_mix", "draw_env", "draw_trace",
+           "env_names", "execute", "heatmap", "import_map", "load", "make_planner",
+           "make_robot", "model_for", "navigate_feedback", "noise_for_mix", "parse_noise",
            "save_figure", "tv_distance"]
 
 # public name -> (module, attribute): imported on first access (PEP 562)
@@ -44,20 +50,25 @@ _LAZY = {
     "env_names": ("envs", "names"),
     "import_map": ("envs.map_import", "import_map"),
     "CellSpace": ("planners.cells", "CellSpace"),
+    "PLANNERS": ("planners.navigation", "PLANNERS"),
+    "make_planner": ("planners.navigation", "make_planner"),
+    "Route": ("planners.navigation", "Route"),
     "Navigator": ("planners.navigation", "Navigator"),
-    "ExactNavigator": ("planners.navigation.exact", "ExactNavigator"),
+    "ExactNavigator": ("planners.navigation", "ExactNavigator"),
     "Plan": ("planners.plan", "Plan"),
     "PolicyMix": ("planners.plan", "PolicyMix"),
     "MODELS": ("planners.coverage", "MODELS"),
-    "TurnNoise": ("planners.coverage", "TurnNoise"),
+    "TurnNoise": ("planners.noise", "TurnNoise"),
     "design_mix": ("planners.coverage", "design_mix"),
     "model_for": ("planners.coverage", "model_for"),
     "tv_distance": ("planners.metrics", "tv_distance"),
+    "Robot": ("bouncesim.robots.base", "Robot"),
     "make_robot": ("bouncesim.robots.factory", "make_robot"),
+    "parse_noise": ("bouncesim.robots.noise", "parse_noise"),
     "noise_for_mix": ("bouncesim.robots.noise", "noise_for_mix"),
     "execute": ("bouncesim.runs.execute", "execute"),
     "Trace": ("bouncesim.runs.trace", "Trace"),
-    "navigate_feedback": ("bouncesim.navigate", "navigate_feedback"),
+    "navigate_feedback": ("bouncesim.runs.execute", "navigate_feedback"),
     "draw_trace": ("bouncesim.plots", "draw_trace"),
     "draw_env": ("bouncesim.plots", "draw_env"),
     "save_figure": ("bouncesim.plots", "save_figure"),
@@ -69,18 +80,19 @@ if TYPE_CHECKING:  # for type checkers and IDEs only; at run time __getattr__ im
     from envs import names as env_names
     from envs.map_import import import_map
     from planners.cells import CellSpace
-    from planners.coverage import MODELS, TurnNoise, design_mix, model_for
-    from planners.navigation.exact import ExactNavigator
+    from planners.coverage import MODELS, design_mix, model_for
     from planners.metrics import tv_distance
-    from planners.navigation import Navigator
+    from planners.navigation import PLANNERS, ExactNavigator, Navigator, Route, make_planner
+    from planners.noise import TurnNoise
     from planners.plan import Plan, PolicyMix
 
     from .coverage_plots import heatmap
-    from .navigate import navigate_feedback
     from .plots import draw_env, draw_trace, save_figure
+    from .robots.base import Robot
     from .robots.factory import make_robot
-    from .robots.noise import noise_for_mix
+    from .robots.noise import noise_for_mix, parse_noise
     from .runs.execute import execute
+    from .runs.execute import navigate_feedback
     from .runs.trace import Trace
 
 

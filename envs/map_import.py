@@ -20,7 +20,7 @@ from shapely.geometry import Polygon
 
 from .environment import Environment
 from .errors import UserError
-from .raster import OccupancyMap, _largest, clean, hausdorff_to_raster, read_map, trace
+from .raster import OccupancyMap, largest_part, clean, hausdorff_to_raster, read_map, trace
 
 __all__ = ["ImportReport", "build_env", "env_json", "import_map", "snap", "suggest_cell_size"]
 
@@ -115,7 +115,7 @@ def snap(free: Polygon, cell_size: float, shifts: int = 4) -> tuple[Polygon, tup
             if len(keep) == 0:
                 continue
             # snap the corners to exact multiples so that the union has no slivers
-            cand = _largest(shapely.set_precision(shapely.union_all(keep), h * 1e-6))
+            cand = largest_part(shapely.set_precision(shapely.union_all(keep), h * 1e-6))
             iou = cand.intersection(free).area / cand.union(free).area
             if best is None or iou > best[0] + 1e-12:
                 best = (iou, cand)

@@ -50,7 +50,7 @@ from .environment import Environment
 from .errors import UserError
 
 __all__ = ["WallCaster", "LocalCaster", "casters", "unit", "unit_rad", "drive_distance",
-           "step", "flight_steps", "grid_index", "CONTACT_GAP", "BUMP_RANGE", "STEP_TOL",
+           "step", "flight_steps", "grid_index", "cast_scalar", "CONTACT_GAP", "BUMP_RANGE", "STEP_TOL",
            "APPROACH_MIN", "GRAZE_TOL"]
 
 CONTACT_GAP = 1e-9
@@ -165,7 +165,7 @@ def grid_index(xy, origin, h: float, shape) -> np.ndarray:
 
 
 # ============================================================================ ray casts
-def _cast_scalar(sides, verts, r, r2, graze, x, y, ux, uy, within=None):
+def cast_scalar(sides, verts, r, r2, graze, x, y, ux, uy, within=None):
     """The capsule ray cast for one disk over lists of sides (Ax, Ay, ex, ey, L) and corners
     (Vx, Vy): the contact distance, or with ``within`` the wall points touched within it.
     """
@@ -251,12 +251,12 @@ class WallCaster:
         self._nx, self._ny = self.n[:, 0][None], self.n[:, 1][None]
         self._Lr = self.L[None]
         self._Vx, self._Vy = self.vertices[:, 0][None], self.vertices[:, 1][None]
-        self._r2 = self.r * self.r
-        self._graze = self.r * self.r - (self.r - _GRAZE_TOL) ** 2
+        self.r2 = self.r * self.r
+        self.graze = self.r * self.r - (self.r - _GRAZE_TOL) ** 2
         # Python floats for the scalar path (one robot): same formulas, same rounding
-        self._side_list = [tuple(float(v) for v in row) for row in
+        self.side_list = [tuple(float(v) for v in row) for row in
                            np.column_stack([self.A, self.e, self.L])]
-        self._vert_list = [(float(x), float(y)) for x, y in self.vertices]
+        self.vert_list = [(float(x), float(y)) for x, y in self.vertices]
 
     @property
     def n_features(self) -> int:
@@ -297,8 +297,8 @@ class WallCaster:
         vy = py - self._Vy
         b = vx * ux + vy * uy
         rho2 = vx * vx + vy * vy - b * b
-        disc = self._r2 - rho2
-        ok = (b < 0.0) & (disc > self._graze)
+        disc = self.r2 - rho2
+        ok = (b < 0.0) & (disc > self.graze)
         with np.errstate(invalid="ignore"):
             t = np.maximum(-b - np.sqrt(disc), 0.0)
         return (np.where(ok, t, np.inf),)
@@ -319,7 +319,7 @@ class WallCaster:
         (x, y, side) the disk touches when moving up to ``within`` along (ux, uy); side is the
         segment (Ax, Ay, ex, ey, L) or None for a corner.
         """
-        return _cast_scalar(self._side_list, self._vert_list, self.r, self._r2, self._graze,
+        return cast_scalar(self.side_list, self.vert_list, self.r, self.r2, self.graze,
                             x, y, ux, uy, within)
 
     def contact_points(self, pos, u, within: float = BUMP_RANGE) -> list[tuple]:
@@ -410,7 +410,7 @@ class LocalCaster:
         sides, verts = self._scalar_lists
         f = j * self.nx + i
         c = self.caster
-        return _cast_scalar(sides[f], verts[f], c.r, c._r2, c._graze, x, y, ux, uy, within)
+        return cast_scalar(sides[f], verts[f], c.r, c.r2, c.graze, x, y, ux, uy, within)
 
     def fine_cell(self, pos: np.ndarray) -> np.ndarray:
         """Index of the fine grid cell of each (n, 2) position (clipped to the grid)."""
@@ -442,8 +442,8 @@ class LocalCaster:
         vx = px - C[:, 0]
         vy = py - C[:, 1]
         b = vx * ux + vy * uy
-        disc = self.caster._r2 - (vx * vx + vy * vy - b * b)
-        ok = (b < 0.0) & (disc > self.caster._graze)
+        disc = self.caster.r2 - (vx * vx + vy * vy - b * b)
+        ok = (b < 0.0) & (disc > self.caster.graze)
         with np.errstate(invalid="ignore"):
             tc = np.where(ok, -b - np.sqrt(np.maximum(disc, 0.0)), np.inf)
         return np.maximum(np.minimum(ts, tc.min(axis=1)), 0.0)

@@ -47,7 +47,8 @@ from shapely.geometry import Polygon
 from .errors import UserError
 
 __all__ = ["TOLERANCE_PX", "YAML_KEYS", "OccupancyMap", "clean", "despeckle",
-           "hausdorff_to_raster", "read_image", "read_map", "threshold", "trace"]
+           "hausdorff_to_raster", "largest_part", "read_image", "read_map", "threshold",
+           "trace"]
 
 # The keys a ROS (map_server) map YAML must have; ``mode`` is optional (default trinary).
 YAML_KEYS = ("image", "resolution", "origin", "negate", "occupied_thresh", "free_thresh")
@@ -367,7 +368,7 @@ def trace(region: np.ndarray, resolution: float, origin, tolerance: float | None
             return poly
     poly = Polygon(outer.exterior, [raw[i].exterior for i in inner]).buffer(0)
     tol_m = tol * resolution
-    return _largest(shapely.simplify(poly, tol_m, preserve_topology=True).buffer(0))
+    return largest_part(shapely.simplify(poly, tol_m, preserve_topology=True).buffer(0))
 
 
 def _fit_line(pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -445,7 +446,8 @@ def _refine_ring(ring: np.ndarray, simple: np.ndarray, tol: float,
     return np.asarray(out)
 
 
-def _largest(geom) -> Polygon:
+def largest_part(geom) -> Polygon:
+    """The largest polygon of a geometry (itself when it is one)."""
     if isinstance(geom, Polygon):
         return geom
     parts = [g for g in shapely.get_parts(geom) if isinstance(g, Polygon)]

@@ -30,7 +30,7 @@ import pandas as pd
 import shapely
 from shapely.geometry import Polygon, box
 
-from envs.raster import _largest, clean, trace
+from envs.raster import largest_part, clean, trace
 from experiments.common import experiment_parser, output_dir, write_config
 from experiments.example_map import room
 
@@ -79,8 +79,8 @@ def _pixel_edges(region: np.ndarray, tol: float) -> Polygon:
         row = np.concatenate([[False], region[r], [False]]).astype(np.int8)
         starts, ends = np.nonzero(np.diff(row) == 1)[0], np.nonzero(np.diff(row) == -1)[0]
         boxes += list(shapely.box(starts * RES, (n - r - 1) * RES, ends * RES, (n - r) * RES))
-    poly = _largest(shapely.union_all(boxes))
-    return _largest(shapely.simplify(poly, tol, preserve_topology=True))
+    poly = largest_part(shapely.union_all(boxes))
+    return largest_part(shapely.simplify(poly, tol, preserve_topology=True))
 
 
 TRACERS = ("marching+refit", "marching", "pixel-edges")

@@ -29,8 +29,8 @@ from bouncesim.runs.execute import execute
 from envs import Environment
 from envs.generated import PENTAGON, random_polygon_room
 from planners.cells import CellSpace
-from planners.navigation.exact import ExactNavigator
 from planners.navigation import Navigator
+from planners.navigation.exact import ExactNavigator
 
 from .common import experiment_parser, name_list, output_dir, run_main, write_config
 

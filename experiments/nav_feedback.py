@@ -3,7 +3,7 @@
 For each map, (start, goal) pairs are drawn uniformly from the ordered pairs (start ≠ goal)
 the exact planner reaches (Φ = {45°, 90°, 135°}, K = 8, w1 = 1, w2 = 100). Every pair is run
 once per σ in the kinematic twin (front-half bumper, 0.2 m/s) with Gaussian turn noise σ:
-by feedback (:func:`bouncesim.navigate.navigate_feedback`, the filter told σ), by feedback
+by feedback (:func:`bouncesim.runs.execute.navigate_feedback`, the filter told σ), by feedback
 with heading correction (§22's extension, off by default elsewhere) and, with the same robot
 noise seed, by the open-loop exact plan (:func:`bouncesim.runs.execute.execute`).
 Maps: ``lab`` and one random polygon room with a hole (``experiments.nav_exact``).
@@ -32,7 +32,7 @@ import numpy as np
 import pandas as pd
 
 import envs
-from bouncesim.navigate import navigate_feedback
+from bouncesim.runs.execute import navigate_feedback
 from bouncesim.plots import save_figure
 from bouncesim.robots import make_robot
 from bouncesim.robots.noise import GaussianNoise

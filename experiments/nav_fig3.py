@@ -21,8 +21,8 @@ import pandas as pd
 import envs
 from bouncesim.runs.options import parse_angles
 from planners.cells import CellSpace
-from planners.navigation.exact import ExactNavigator
 from planners.navigation import Navigator
+from planners.navigation.exact import ExactNavigator
 from planners.plan import Plan
 
 from .common import experiment_parser, output_dir, run_main, write_config

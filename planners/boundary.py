@@ -31,7 +31,7 @@ from shapely.geometry.polygon import orient
 from envs import UserError
 from envs.motion import CONTACT_GAP
 
-__all__ = ["Boundary"]
+__all__ = ["Boundary", "bins_estimate"]
 
 _SNAP = 2e-3             # [m] a landing point must lie this close to the C-space ring
 _NUDGE = CONTACT_GAP    # [m] flight starts sit this far off the ring, on the free side
@@ -124,14 +124,14 @@ class Boundary:
         table = np.full((len(cen), k), -1, dtype=np.int64)
         slot = np.arange(rows.size) - np.concatenate([[0], np.cumsum(counts)])[rows]
         table[rows, slot] = cols
-        self._cand = table
+        self.candidates = table
 
     def locate(self, pts) -> tuple[np.ndarray, np.ndarray]:
         """(ring, arc length [m]) of the nearest ring point of each point (n, 2)."""
         pts = np.asarray(pts, dtype=float).reshape(-1, 2)
         i = np.clip(((pts[:, 0] - self.x0) / self.g).astype(np.int64), 0, self.nx - 1)
         j = np.clip(((pts[:, 1] - self.y0) / self.g).astype(np.int64), 0, self.ny - 1)
-        cand = self._cand[j * self.nx + i]                       # (n, k)
+        cand = self.candidates[j * self.nx + i]                       # (n, k)
         valid = cand >= 0
         c = np.where(valid, cand, 0)
         d = _point_seg_dist(pts[:, None, :], self.A[c], self.B[c])
@@ -186,3 +186,13 @@ def _point_seg_dist(p, a, b) -> np.ndarray:
     t = np.clip(((p - a) * e).sum(-1) / np.where(ee > 0, ee, 1.0), 0.0, 1.0)
     d = p - (a + t[..., None] * e)
     return np.hypot(d[..., 0], d[..., 1])
+
+
+def bins_estimate(env, bin_length: float) -> int:
+    """About how many contact bins :class:`Boundary` cuts ``env``'s C-space into at
+    ``bin_length`` [m], from the rings' length alone (nothing built): length / bin length plus
+    one per ring, an upper bound for memory estimates.
+    """
+    ring = env.cspace.boundary
+    rings = max(1, len(getattr(ring, "geoms", [ring])))
+    return int(math.ceil(ring.length / bin_length)) + rings

@@ -145,6 +145,11 @@ class CellSpace:
         return self.K * self.P
 
     @cached_property
+    def origin(self) -> np.ndarray:
+        """(2,) the grid's origin [m]: the lower-left corner of cell (0, 0)."""
+        return np.asarray(self.env.origin, dtype=float)
+
+    @cached_property
     def centres(self) -> np.ndarray:
         """(P, 2) centre [m] of each free position cell."""
         x0, y0 = self.env.origin
@@ -226,7 +231,7 @@ class CellSpace:
         P, K, h = self.P, self.K, self.h
         if P == 0:
             return np.zeros(0, dtype=np.int64)
-        check_memory(self, task="cells", max_memory=self.max_memory)
+        check_memory(self, max_memory=self.max_memory)
         u = self.units                                                           # (K, 2)
         c = np.broadcast_to(self.centres[None, :, :], (K, P, 2)).reshape(-1, 2)  # z order
         uu = np.repeat(u, P, axis=0)

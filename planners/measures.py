@@ -23,9 +23,9 @@ Examples
 >>> goal_check(cs, 0, (0.20, 0.10, 22.6)).success   # just outside the heading tolerance
 False
 >>> round(flight_cap(cs), 4)                        # the 3.06 m x 2.04 m room's diagonal + h
-4.0176
->>> flight_limit(cs, 2.0, zeros=3), round(flight_limit(cs, 2.0, flight_m=0.5), 4)
-(3.4, 1.68)
+4.0177
+>>> round(flight_limit(cs, 2.0, zeros=3), 9), flight_limit(cs, 2.0, flight_m=0.5)  # 2·(n+2)·h
+(3.4, 2.36)
 """
 
 from __future__ import annotations

@@ -29,6 +29,14 @@ integrated over each orientation bin, Φ((j + ½)Δ/σ) − Φ((j − ½)Δ/σ) 
 Traceback (most recent call last):
 ...
 envs.errors.UserError: error range eps -5° must be non-negative.
+
+One grammar for every noise spec (the CLI's ``--noise``, the coverage models, the simulated
+bodies of :mod:`bouncesim.robots.noise`): :func:`parse_noise_spec`.
+
+>>> parse_noise_spec("model:eps=5,r=0.8")
+NoiseSpec(kind='model', noise=TurnNoise(eps_deg=5.0, r=0.8, sigma_deg=0.0), delta_deg=None)
+>>> parse_noise_spec("gauss:sigma=2").noise, parse_noise_spec("off").kind
+(TurnNoise(eps_deg=0.0, r=1.0, sigma_deg=2.0), 'none')
 """
 
 from __future__ import annotations
@@ -42,9 +50,10 @@ from scipy.special import ndtr, ndtri
 
 from envs import UserError
 
-from ..cells import angle_steps
+from .cells import angle_steps
 
-__all__ = ["NoiseView", "R_RESOLUTION", "TurnNoise", "as_commands"]
+__all__ = ["NOISE_FORMS", "NoiseSpec", "NoiseView", "R_RESOLUTION", "TurnNoise",
+           "as_commands", "parse_noise_spec"]
 
 
 def as_commands(commanded, n: int | None) -> np.ndarray:
@@ -99,27 +108,18 @@ class TurnNoise:
 
     @classmethod
     def from_spec(cls, text: str) -> "TurnNoise":
-        """The noise of a CLI spec: ``none``, ``gauss:SIGMA`` (also ``gauss:sigma=SIGMA``) or
-        ``model:eps=E,r=R`` [deg], the forms of the twin's ``--noise``.
+        """The noise of a spec in the one grammar (:func:`parse_noise_spec`): ``none``,
+        ``gauss:SIGMA`` or ``model:eps=E,r=R`` [deg]. A spec's own quantum (``delta=D``) is
+        for a simulated body; a model's quantum is its Δ = 360°/K, so it is refused here.
 
         >>> TurnNoise.from_spec("gauss:3"), TurnNoise.from_spec("model:eps=5,r=0.8")
         (TurnNoise(eps_deg=0.0, r=1.0, sigma_deg=3.0), TurnNoise(eps_deg=5.0, r=0.8, sigma_deg=0.0))
         """
-        s = str(text).strip().lower().replace(" ", "")
-        kind, _, rest = s.partition(":")
-        try:
-            if s in {"", "none", "exact"}:
-                return cls()
-            if kind in {"gauss", "gaussian"}:
-                return cls.gauss(float(rest.removeprefix("sigma=")))
-            if kind in {"model", "stepped"}:
-                kv = dict(tok.split("=", 1) for tok in rest.split(","))
-                if set(kv) == {"eps", "r"}:
-                    return cls(float(kv["eps"]), float(kv["r"]))
-        except ValueError:
-            pass
-        raise UserError(f"noise {text!r} is not understood; use none, gauss:SIGMA or "
-                        f"model:eps=E,r=R (degrees).")
+        spec = parse_noise_spec(text)
+        if spec.delta_deg is not None:
+            raise UserError(f"noise {text!r} sets delta, the error quantum of a simulated "
+                            "body; a coverage model's quantum is its orientation step.")
+        return spec.noise
 
     def __post_init__(self) -> None:
         for name, what in (("eps_deg", "error range eps"), ("r", "reliability r"),
@@ -270,3 +270,73 @@ class NoiseView:
     def r(self) -> float:
         """Reliability r of the rotation noise (probability of an exact turn)."""
         return self.noise.r
+
+
+NOISE_FORMS = "use none, gauss:SIGMA or model:eps=E,r=R (degrees)"
+"""The accepted forms, as error messages name them."""
+
+
+@dataclass(frozen=True)
+class NoiseSpec:
+    """A parsed noise spec (:func:`parse_noise_spec`).
+
+    Attributes
+    ----------
+    kind : str            ``"none"``, ``"gauss"`` or ``"model"`` (the word the spec used)
+    noise : TurnNoise     the turn noise
+    delta_deg : float or None
+        ``model`` only: the error quantum Δ [deg] the spec sets (``delta=D``); None: the
+        environment's 360°/K
+    """
+
+    kind: str
+    noise: TurnNoise
+    delta_deg: float | None = None
+
+
+_KINDS = {"": "none", "none": "none", "off": "none", "exact": "none",
+          "gauss": "gauss", "gaussian": "gauss", "normal": "gauss",
+          "model": "model", "stepped": "model"}
+
+
+def parse_noise_spec(text) -> NoiseSpec:
+    """The one noise-spec grammar (case and spaces ignored):
+
+    - ``none`` (also ``off``, ``exact`` or empty): exact turns;
+    - ``gauss:SIGMA`` (also ``gauss:sigma=SIGMA``; ``gaussian``, ``normal``): Gaussian turn
+      noise N(0, σ²) [deg] (docs/model.md §18);
+    - ``model:eps=E,r=R`` (also ``stepped:``), optionally ``,delta=D``: the §7 model with
+      error range ε [deg] and reliability r; D [deg] sets a simulated body's error quantum
+      (default: the environment's Δ = 360°/K).
+
+    Raises :class:`envs.UserError` (one sentence naming the accepted forms) on anything else.
+    """
+    s = str(text).strip().lower().replace(" ", "")
+    word, colon, rest = s.partition(":")
+    kind = _KINDS.get(word)
+    if kind is None or (kind == "none" and colon):
+        raise UserError(f"unknown noise {text!r}; {NOISE_FORMS}.")
+    if kind == "none":
+        return NoiseSpec("none", TurnNoise())
+    if kind == "gauss":
+        try:
+            sigma = float(rest.removeprefix("sigma="))
+        except ValueError:
+            raise UserError(f"noise {text!r} needs a number of degrees after '{word}:'; "
+                            f"{NOISE_FORMS}.") from None
+        return NoiseSpec("gauss", TurnNoise.gauss(sigma))
+    params: dict = {}
+    for tok in rest.split(","):
+        key, eq, val = tok.partition("=")
+        if not eq or key not in {"eps", "r", "delta"} or key in params:
+            raise UserError(f"noise {text!r} is not understood; {NOISE_FORMS}.")
+        try:
+            params[key] = float(val)
+        except ValueError:
+            raise UserError(f"noise parameter {key} in {text!r} is not a number.") from None
+    if not {"eps", "r"} <= set(params):
+        raise UserError(f"noise {text!r} needs both eps and r; {NOISE_FORMS}.")
+    delta = params.get("delta")
+    if delta is not None and not (math.isfinite(delta) and delta > 0):
+        raise UserError(f"the noise quantum delta must be positive, got {delta:g}°.")
+    return NoiseSpec("model", TurnNoise(params["eps"], params["r"]), delta)

@@ -4,11 +4,14 @@ A :class:`Plan` is a sequence of labels: 0 for a forward step of one cell, or a 
 angle [deg] for a bump followed by an in-place CCW turn by that angle (docs/model.md §6). It prints
 in the paper's form and parses from both that form and the plain one.
 
-An *exact* plan (docs/model.md §15, the exact planner of :mod:`planners.navigation.exact`) also carries
-the expected length of every flight before a bump (``flights_m``) and a final drive by the
-clock (``final_m``). Its labels are the paper's form with zeros = round(flight / h): exact
-along the axes, approximate off them (a diagonal step of the step model moves √2·h). Its
-text form appends the flights: ``00 90° 0 | flights 0.68 0.34 m | final 0.34 m``.
+A plan from a planner (:class:`planners.navigation.Route`) also carries the expected length of
+every flight before a bump (``flights_m``) and of the final drive by the clock (``final_m``).
+An *exact* plan (docs/model.md §15, :mod:`planners.navigation.exact`) runs by its angles: its
+flights are exact and its labels are the paper's form with zeros = round(flight / h), exact
+along the axes and approximate off them (a diagonal step of the step model moves √2·h); its
+text form appends the flights: ``00 90° 0 | flights 0.68 0.34 m | final 0.34 m``. A step-model
+plan runs by its observation string; its flights are the step model's run lengths (§8), marked
+``exact_flights=False``, and its text form is the paper's.
 
 Examples
 --------
@@ -39,6 +42,8 @@ import re
 from dataclasses import dataclass
 
 from envs import UserError
+
+from .noise import TurnNoise
 
 __all__ = ["Plan", "PlanParseError", "PolicyMix"]
 
@@ -79,13 +84,18 @@ class Plan:
         angle, in order); None for a step-model plan.
     final_m : float or None
         Exact plans only: the final drive by the clock [m] after the last turn.
-    planner : str or None  'step', 'exact' or None (unknown, e.g. a hand-written plan)
+    planner : str or None  the planner that made it (a :data:`planners.navigation.PLANNERS`
+                           name), or None (unknown, e.g. a hand-written plan)
+    exact_flights : bool   True (default): the flights are exact and the plan runs by its
+                           angles (§15); False: they are the step model's run lengths and the
+                           plan runs by its observation string (§8)
     """
 
     labels: tuple
     flights_m: tuple | None = None
     final_m: float | None = None
     planner: str | None = None
+    exact_flights: bool = True
 
     def __post_init__(self) -> None:
         labs = []
@@ -125,10 +135,17 @@ class Plan:
         labels.extend([0] * int(round(_length(final_m, "final drive") / h)))
         return cls(tuple(labels), tuple(flights), float(final_m), planner)
 
+    @classmethod
+    def with_flights(cls, plan: Plan, flights_m, final_m: float, planner: str) -> Plan:
+        """A step-model ``plan`` with the run lengths of its segments [m] (docs/model.md
+        §8, :func:`planners.measures.step_flights`): it still runs by its observation string.
+        """
+        return cls(plan.labels, tuple(flights_m), float(final_m), planner, exact_flights=False)
+
     @property
     def is_exact(self) -> bool:
         """True when the plan carries exact flights (it runs by its angles, §15)."""
-        return self.flights_m is not None
+        return self.flights_m is not None and self.exact_flights
 
     @property
     def turns(self) -> tuple:
@@ -184,7 +201,7 @@ class Plan:
         """The paper's form followed by the exact flights and the final drive [m] (for a
         plan without flights, the paper's form alone).
         """
-        if self.flights_m is None:
+        if not self.is_exact:
             return str(self)
         head = "" if not self.labels else str(self)
         flights = " ".join(_metres(v) for v in self.flights_m)
@@ -195,20 +212,22 @@ class Plan:
         """JSON fields of the plan: ``plan`` (labels), ``plan_text`` (the paper's form; zeros
         = round(flight / h) for exact plans, approximate off the axes), ``planner``,
         ``angles`` (the bouncing angles in order), ``flights_m`` and ``final_m`` (None for a
-        plan without exact flights).
+        plan without flights) and ``exact_flights`` (whether it runs by its angles).
         """
         return {"plan": self.to_list(), "plan_text": str(self), "planner": self.planner,
                 "angles": list(self.turns),
                 "flights_m": None if self.flights_m is None else list(self.flights_m),
-                "final_m": self.final_m}
+                "final_m": self.final_m, "exact_flights": self.is_exact}
 
     @classmethod
     def from_json(cls, data: dict) -> Plan:
-        """The plan of :meth:`to_json`'s fields (``plan`` labels, or ``plan_text``)."""
+        """The plan of :meth:`to_json`'s fields (``plan`` labels, or ``plan_text``); a plan
+        with flights runs by its angles unless ``exact_flights`` is false.
+        """
         labels = data.get("plan")
         base = cls.parse(data.get("plan_text") or "") if labels is None else cls(tuple(labels))
         return cls(base.labels, data.get("flights_m"), data.get("final_m"),
-                   data.get("planner"))
+                   data.get("planner"), bool(data.get("exact_flights", True)))
 
     def __str__(self) -> str:
         if not self.labels:
@@ -283,7 +302,8 @@ class Plan:
 
 @dataclass(frozen=True)
 class PolicyMix:
-    """A policy mix: bouncing angles [deg] with probabilities alpha and the noise model.
+    """A policy mix: bouncing angles [deg] with probabilities alpha and the turn noise it
+    was designed for.
 
     Attributes
     ----------
@@ -291,12 +311,15 @@ class PolicyMix:
     alpha : tuple of float    probabilities (non-negative, sum 1)
     eps : float               error range ε [deg] (docs/model.md §7)
     r : float                 reliability in [0, 1]
+    sigma : float             Gaussian turn noise σ [deg] (docs/model.md §18; 0: none; σ > 0
+                              excludes ε > 0 with r < 1, as :class:`planners.noise.TurnNoise`)
     """
 
     angles: tuple
     alpha: tuple
     eps: float = 0.0
     r: float = 1.0
+    sigma: float = 0.0
 
     def __post_init__(self) -> None:
         angles = tuple(float(a) for a in self.angles)
@@ -311,3 +334,9 @@ class PolicyMix:
             raise UserError(f"error range eps must be non-negative, got {self.eps}.")
         object.__setattr__(self, "angles", angles)
         object.__setattr__(self, "alpha", tuple(max(a, 0.0) for a in alpha))
+        object.__setattr__(self, "sigma", self.noise.sigma_deg)    # checks the combination
+
+    @property
+    def noise(self) -> TurnNoise:
+        """The mix's turn noise (ε, r, σ) as a :class:`~planners.noise.TurnNoise`."""
+        return TurnNoise(self.eps, self.r, self.sigma)

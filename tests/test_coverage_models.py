@@ -305,5 +305,5 @@ def test_boundary_grid_holds_every_segment_within_reach(seed):
         near = d <= b.g * np.sqrt(0.5) + _SNAP
         assert near.any(axis=1).sum() > 10
         for c in range(len(cen)):
-            row = b._cand[c]
+            row = b.candidates[c]
             assert row[row >= 0].tolist() == np.flatnonzero(near[c]).tolist(), c

@@ -1,4 +1,4 @@
-"""Feedback navigation (planners/navigation/feedback/navigator.py, bouncesim/navigate.py; docs/model.md §22).
+"""Feedback navigation (planners/navigation/feedback/, bouncesim/runs/feedback.py; docs/model.md §22).
 
 Evidence: hand-computed filter updates and final drives in a rectangle; the pose planner
 against the exact planner (§15, an independent search over the same states); the filter's
@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 
 import envs
-from bouncesim.navigate import declared_sigma, navigate_feedback
+from bouncesim.runs.execute import navigate_feedback
+from planners.navigation.feedback import declared_sigma
 from bouncesim.robots.kinematic import KinematicRobot
 from bouncesim.robots.noise import GaussianNoise, SteppedNoise
 from bouncesim.runs.execute import execute

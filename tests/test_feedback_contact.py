@@ -13,7 +13,8 @@ import math
 import numpy as np
 import pytest
 
-from bouncesim.navigate import body_contact, navigate_feedback
+from bouncesim.runs.execute import navigate_feedback
+from bouncesim.runs.feedback import body_contact
 from bouncesim.robots.kinematic import KinematicRobot
 from bouncesim.robots.noise import GaussianNoise
 from envs import Environment

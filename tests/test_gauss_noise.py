@@ -17,8 +17,8 @@ from envs.generated import office
 from planners.cells import CellSpace
 from planners.coverage import TurnNoise, model_for
 from planners.coverage.event import EventSettings
-from planners.coverage.stationary import _aggregated_stationary
 from planners.coverage.markov import closed_classes, stationary_distributions
+from planners.coverage.stationary import _aggregated_stationary
 from planners.metrics import tv_distance
 
 

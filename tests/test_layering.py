@@ -13,7 +13,15 @@ one, else pkg). The rules (docs: the README's Layout section):
 - ``benchmarks`` imports no ``experiments`` and ``experiments`` no ``benchmarks`` (which is not
   installed); neither imports the CLI (``bouncesim.cli``,
   ``bouncesim.commands``): they call library functions;
-- no module of ``envs``, ``planners`` or ``bouncesim`` exceeds 600 lines.
+- no module of ``envs``, ``planners`` or ``bouncesim`` exceeds 600 lines;
+- no module imports a private name (``_name``) of another module of ours, and a private
+  module (``pkg._mod``) is imported only from its own package;
+- in ``envs``, ``planners`` and ``bouncesim`` no planner or coverage-model name is compared
+  as a string (``x == "exact"``, ``x in ("step", ...)``): a planner or model says what it is
+  through its class (``needs``, ``closed_loop``, ``flights``, ``contact_rule``, ...), and
+  its name is read only by its registry (``planners/navigation/registry.py``,
+  ``planners/coverage/api.py``). The experiments, which filter result tables by planner,
+  are exempt.
 """
 
 from __future__ import annotations
@@ -172,3 +180,107 @@ def test_modules_stay_small():
             if name.split(".")[0] in ("envs", "planners", "bouncesim")
             and (n := path.read_text(encoding="utf-8").count("\n")) > MAX_LINES}
     assert not long, f"modules over {MAX_LINES} lines: {long}"
+
+
+# ---------------------------------------------------------------- private names, dispatch
+REGISTRIES = {"planners.navigation.registry", "planners.coverage.api"}
+LIBRARY = ("envs", "planners", "bouncesim")
+
+
+def registry_names() -> set[str]:
+    from planners.coverage import MODELS
+    from planners.navigation import PLANNERS
+    return set(PLANNERS) | set(MODELS)
+
+
+def private_imports(root: Path = ROOT) -> list[str]:
+    """Every import of another module's private name, or of a private module from outside
+    its package, one readable line each.
+    """
+    modules = _modules(root)
+    problems = []
+    for name, path in sorted(modules.items()):
+        own_pkg = name if path.name == "__init__.py" else name.rpartition(".")[0]
+        for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
+            if isinstance(node, ast.ImportFrom):
+                if node.level:
+                    base = own_pkg.split(".")
+                    base = base[:len(base) - (node.level - 1)]
+                    mod = ".".join(base + ([node.module] if node.module else []))
+                else:
+                    mod = node.module or ""
+                targets = [(mod, a.name) for a in node.names]
+            elif isinstance(node, ast.Import):
+                targets = [(a.name, None) for a in node.names]
+            else:
+                continue
+            for mod, attr in targets:
+                if mod.split(".")[0] not in PACKAGES:
+                    continue
+                full = f"{mod}.{attr}" if attr and f"{mod}.{attr}" in modules else mod
+                parts = full.split(".")
+                for i, part in enumerate(parts):
+                    if part.startswith("_") and not part.startswith("__"):
+                        pkg = ".".join(parts[:i])
+                        if not (own_pkg == pkg or own_pkg.startswith(pkg + ".")):
+                            problems.append(f"{name} imports the private module {full} "
+                                            f"(line {node.lineno})")
+                        break
+                if attr and full == mod and attr.startswith("_") and not attr.startswith("__"):
+                    problems.append(f"{name} imports the private name {mod}.{attr} "
+                                    f"(line {node.lineno})")
+    return problems
+
+
+def name_dispatch(root: Path = ROOT, names: set[str] | None = None) -> list[str]:
+    """Every comparison of a string to a planner or model name in the library packages
+    outside the registries, one readable line each.
+    """
+    names = registry_names() if names is None else names
+    problems = []
+    for name, path in sorted(_modules(root).items()):
+        if name.split(".")[0] not in LIBRARY or name in REGISTRIES:
+            continue
+        for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
+            if not isinstance(node, ast.Compare):
+                continue
+            consts = set()
+            for c in (node.left, *node.comparators):
+                elts = c.elts if isinstance(c, (ast.Tuple, ast.List, ast.Set)) else [c]
+                consts |= {e.value for e in elts
+                           if isinstance(e, ast.Constant) and isinstance(e.value, str)}
+            if consts & names:
+                problems.append(f"{name} compares a name as a string: {ast.unparse(node)} "
+                                f"(line {node.lineno})")
+    return problems
+
+
+def test_no_private_names_cross_modules():
+    problems = private_imports()
+    assert not problems, "\n".join(problems)
+
+
+def test_no_planner_or_model_name_dispatch_outside_the_registries():
+    assert {"step", "exact", "reliable", "feedback", "sampled", "event"} <= registry_names()
+    problems = name_dispatch()
+    assert not problems, "\n".join(problems)
+
+
+def test_the_new_rules_catch_what_they_should(tmp_path):
+    for pkg in PACKAGES:
+        (tmp_path / pkg).mkdir()
+        (tmp_path / pkg / "__init__.py").write_text("")
+    (tmp_path / "planners" / "sub").mkdir()
+    (tmp_path / "planners" / "sub" / "__init__.py").write_text("from ._hidden import f\n")
+    (tmp_path / "planners" / "sub" / "_hidden.py").write_text("def f():\n    pass\n")
+    (tmp_path / "planners" / "a.py").write_text("from .b import _secret, shown\n")
+    (tmp_path / "planners" / "b.py").write_text("_secret = shown = 1\n")
+    (tmp_path / "bouncesim" / "c.py").write_text(
+        "from planners.sub._hidden import f\n"
+        "def g(args):\n    return args.planner == 'exact' or args.model in ('step', 'x')\n")
+    priv = private_imports(tmp_path)
+    assert priv == ["bouncesim.c imports the private module planners.sub._hidden (line 1)",
+                    "planners.a imports the private name planners.b._secret (line 1)"]
+    found = name_dispatch(tmp_path, {"exact", "step"})
+    assert len(found) == 2 and all(p.startswith("bouncesim.c compares") for p in found)
+

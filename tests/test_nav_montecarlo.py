@@ -14,8 +14,8 @@ import pytest
 from experiments import nav_montecarlo as nm
 from experiments import nav_planners as npl
 from planners.cells import CellSpace
-from planners.navigation.exact import ExactNavigator
 from planners.navigation import Navigator
+from planners.navigation.exact import ExactNavigator
 from planners.plan import Plan
 
 from .conftest import room

@@ -126,3 +126,23 @@ def test_noise_for_mix():
     mix = PolicyMix((90.0,), (1.0,), eps=2.0, r=0.9)
     assert noise_for_mix(mix, 1.0) == SteppedNoise(2.0, 0.9, 1.0)
     assert noise_for_mix(PolicyMix((90.0,), (1.0,)), 1.0) == NoNoise()
+
+
+def test_a_gaussian_designed_mix_keeps_its_sigma():
+    # a mix designed for Gaussian turn noise is executed with that noise: design_mix's
+    # PolicyMix carries σ and noise_for_mix turns it into the body's Gaussian noise model
+    # (it used to carry eps=0, r=1 and noise_for_mix returned exact turns)
+    import envs
+    from planners.cells import CellSpace
+    from planners.coverage import design_mix, model_for
+    from planners.noise import TurnNoise
+    cs = CellSpace(envs.load("lab", orientations=72))
+    mix = design_mix(model_for(cs, "step"), [30, 75], TurnNoise.gauss(3)).mix
+    assert (mix.eps, mix.r, mix.sigma) == (0.0, 1.0, 3.0)
+    assert mix.noise == TurnNoise.gauss(3)
+    assert noise_for_mix(mix, cs.delta_deg) == GaussianNoise(3.0)
+    # the §7 noise is unchanged, and one kind at a time
+    assert noise_for_mix(PolicyMix((90.0,), (1.0,), eps=2.0, r=0.9), 1.0) == \
+        SteppedNoise(2.0, 0.9, 1.0)
+    with pytest.raises(UserError):
+        PolicyMix((90.0,), (1.0,), eps=2.0, r=0.9, sigma=1.0)

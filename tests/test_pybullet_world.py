@@ -124,7 +124,7 @@ def test_wall_pieces_seal_the_room_from_outside(boundary):
 def test_missing_pybullet_is_one_sentence(monkeypatch):
     monkeypatch.setitem(sys.modules, "pybullet", None)
     with pytest.raises(UserError, match=r"pip install 'bouncesim\[sim\]'"):
-        pbw._import_pybullet()
+        pbw.import_pybullet()
 
 
 @needs_pybullet

@@ -23,9 +23,8 @@ from envs import Environment
 from envs.generated import random_polygon_room
 from envs.motion import PYBULLET_CONTACT, ContactParams
 from planners.cells import CellSpace
-from planners.noise import TurnNoise
-from planners.navigation.exact import ExactNavigator
 from planners.navigation import Navigator
+from planners.navigation.exact import ExactNavigator
 from planners.navigation.reliable import (
     ReliableNavigator,
     draw_turns,
@@ -34,6 +33,7 @@ from planners.navigation.reliable import (
     rollout,
     wilson,
 )
+from planners.noise import TurnNoise
 
 ANGLES = (45.0, 90.0, 135.0)
 ROOM = {"boundary": [[0, 0], [1.36, 0], [1.36, 1.02], [0, 1.02]], "robot_radius": 0.17,

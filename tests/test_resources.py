@@ -13,8 +13,9 @@ import envs
 from bouncesim.cli import main
 from planners import resources as res
 from planners.cells import CellSpace
-from planners.coverage import TurnNoise, clear_cache, default_settings, model_for
-from planners.navigation import Navigator
+from planners.coverage import MODELS, TurnNoise, clear_cache, default_settings, model_for
+from planners.navigation import ExactNavigator, Navigator
+from planners.navigation.step import all_pairs_bytes, roadmap_bytes, search_bytes
 
 from .conftest import room
 
@@ -57,12 +58,12 @@ def test_roadmap_and_search_estimates(name, K):
     nav = Navigator(cs, [90, 135] if K == 8 else [30, 75, 315])
     m = nav.roadmap.m
     measured = traced_peak(lambda: nav.roadmap.graph)
-    assert within(res.roadmap_bytes(cs.N, m, cs.forward).traced, measured)
+    assert within(roadmap_bytes(cs.N, m, cs.forward).traced, measured)
     measured = traced_peak(lambda: nav.plan(0, cs.N - 1))
-    assert within(res.search_bytes(cs.N, m).traced, measured)
+    assert within(search_bytes(cs.N, m).traced, measured)
     # the whole pipeline's estimate is at least its largest stage
-    assert res.estimate(cs, nav.angles, task="plan", searches=1).total >= \
-        res.roadmap_bytes(cs.N, m, cs.forward).traced
+    assert Navigator.memory_estimate(cs, nav.angles, "plan", searches=1).total >= \
+        roadmap_bytes(cs.N, m, cs.forward).traced
 
 
 @pytest.mark.parametrize("name,angles", [("lab", [90, 135]), ("lab", [45, 90, 135]),
@@ -72,7 +73,7 @@ def test_all_pairs_estimate(name, angles):
     nav = Navigator(cs, angles)
     _ = nav.roadmap.graph
     measured = traced_peak(nav.all_pairs)
-    assert within(res.all_pairs_bytes(cs.N, nav.roadmap.m).traced, measured)
+    assert within(all_pairs_bytes(cs.N, nav.roadmap.m).traced, measured)
 
 
 @pytest.mark.parametrize("name,K,eps", [("lab", 8, 45), ("lab", 72, 10), ("complex", 72, 5),
@@ -81,7 +82,7 @@ def test_step_chain_estimate(name, K, eps):
     cs = CellSpace(envs.load(name, orientations=K))
     _ = cs.forward
     measured = traced_peak(lambda: model_for(cs, "step").analyse(90, TurnNoise(eps, 0.8)))
-    assert within(res.chain_bytes(cs, [90], eps).traced, measured)
+    assert within(MODELS["step"].memory_estimate(cs, [90], eps).traced, measured)
 
 
 @pytest.mark.parametrize("model,K", [("sampled", 72), ("event", 72), ("event", 36)])
@@ -91,13 +92,15 @@ def test_continuous_model_estimates(model, K):
     clear_cache()
     measured = traced_peak(lambda: model_for(cs, model).analyse(90, TurnNoise(0.0, 1.0)))
     clear_cache()
-    assert within(res.chain_bytes(cs, [90], model=model,
-                                  settings=default_settings(model)).traced, measured)
+    assert within(MODELS[model].memory_estimate(cs, [90],
+                                                settings=default_settings(model)).traced, measured)
 
 
 def test_estimates_scale_with_orientations():
-    a = res.estimate(CellSpace(envs.load("complex", orientations=8)), [45, 90])
-    b = res.estimate(CellSpace(envs.load("complex", orientations=800)), [45, 90])
+    a = Navigator.memory_estimate(CellSpace(envs.load("complex", orientations=8)), [45, 90],
+                                  searches=64)
+    b = Navigator.memory_estimate(CellSpace(envs.load("complex", orientations=800)), [45, 90],
+                                  searches=64)
     assert 50 < b.total / a.total < 200
 
 
@@ -167,7 +170,8 @@ def test_max_memory_keyword_in_python():
 def test_search_cache_fits_the_limit():
     cs = CellSpace(envs.load("lab"))
     nav = Navigator(cs, [90, 135], max_memory=None)
-    small = Navigator(cs, [90, 135], max_memory=res.estimate(cs, [90, 135], searches=3).total)
+    small = Navigator(cs, [90, 135], max_memory=Navigator.memory_estimate(cs, [90, 135],
+                                                              searches=3).total)
     assert nav._cache_size == 64 and 1 <= small._cache_size <= 4
 
 

@@ -252,7 +252,7 @@ def test_exact_plans_are_drawn_through_their_poses(tmp_path, capsys, figures):
              "--planner", "exact"]
     assert main(["plan", *query, "--json"]) == 0
     plan = json.loads(capsys.readouterr().out.splitlines()[0])
-    poses = np.array(plan["path"])
+    poses = np.array(plan["poses"])
     (tmp_path / "plan.json").write_text(json.dumps(plan) + "\n")
     _show(["studio", "--plan", str(tmp_path / "plan.json")], tmp_path)
     assert main(["run-plan", *query, "--plot", str(tmp_path / "run.png"), "--quiet"]) == 0
@@ -266,11 +266,31 @@ def test_exact_plans_are_drawn_through_their_poses(tmp_path, capsys, figures):
     from shapely.geometry import Point
     for x, y, _ in poses[1:-1]:
         assert walls.distance(Point(x, y)) == pytest.approx(studio.env.robot_radius, abs=0.01)
-    moved = dict(plan, path=(poses + [5.0, 0, 0]).tolist())
+    moved = dict(plan, poses=(poses + [5.0, 0, 0]).tolist())
     (tmp_path / "moved.json").write_text(json.dumps(moved) + "\n")
     assert main(["show", "studio", "--plan", str(tmp_path / "moved.json"),
                  "--out", str(tmp_path / "x.png")]) == 2
     assert "another map" in capsys.readouterr().err
+
+
+def test_reliable_and_feedback_plans_are_drawn_through_their_poses(tmp_path, capsys, figures):
+    # every plan that runs by its exact flights is drawn through its poses: the reliable
+    # planner's plan of a pair (it used to be replayed on the step model and refused: "does
+    # not fit the map") and the feedback planner's plan from the start
+    for planner, extra in (("reliable", ["--noise", "gauss:2", "--particles", "50"]),
+                           ("feedback", [])):
+        query = ["studio", "--angles", "45,90,135", "--start", "180", "--goal", "448",
+                 "--planner", planner, *extra, "--json"]
+        assert main(["plan", *query]) == 0
+        plan = json.loads(capsys.readouterr().out.splitlines()[0])
+        assert plan["planner"] == planner and plan["exact_flights"] is True
+        (tmp_path / f"{planner}.json").write_text(json.dumps(plan) + "\n")
+        figures.clear()
+        _show(["studio", "--plan", str(tmp_path / f"{planner}.json")], tmp_path)
+        capsys.readouterr()
+        line = next(ln for ln in figures[0].axes[0].lines
+                    if ln.get_label() == "planned (exact poses)")
+        assert np.column_stack(line.get_data()) == pytest.approx(np.array(plan["poses"])[:, :2])
 
 
 def test_run_plan_plot_refuses_a_bad_name_before_running(tmp_path, capsys):

@@ -16,9 +16,9 @@ import scipy.sparse as sp
 import envs
 from planners.cells import CellSpace
 from planners.coverage import TurnNoise, design_mix, model_for, timeshared_coverage
+from planners.coverage.timeshare import PARALLEL_MIN, DelayChain, TimeShared, timeshared
 from planners.metrics import tv_distance
 from planners.plan import PolicyMix
-from planners.coverage.timeshare import PARALLEL_MIN, DelayChain, TimeShared, timeshared
 
 
 def _stochastic(rng, n, m):

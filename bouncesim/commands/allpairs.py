@@ -8,8 +8,11 @@ import time
 import numpy as np
 import pandas as pd
 
+from envs import UserError
+from planners.navigation import PLANNERS, planner_class
+
 from .common import add_env_args, add_output, check_fits, flush_warnings, max_memory, writable_path
-from .plan import add_planner_args, make_navigator
+from .plan import add_planner_args, make_planner_of
 
 __all__ = ["histogram_frame", "register", "run"]
 
@@ -36,9 +39,13 @@ def histogram_frame(counts: np.ndarray) -> pd.DataFrame:
 
 def run(args) -> int:
     """Run ``bouncesim allpairs``: weights, angle use and figure files; exit status."""
-    nav = make_navigator(args)
+    if not hasattr(planner_class(args.planner), "all_pairs"):
+        have = ", ".join(n for n, c in PLANNERS.items() if hasattr(c, "all_pairs"))
+        raise UserError(f"the {args.planner} planner has no all-pairs search ({have} do).")
+    nav = make_planner_of(args)
     limit = max_memory(args)
-    check_fits(args, nav.cells, nav.angles, task="allpairs")
+    check_fits(args, nav.cells, nav.memory_estimate(nav.cells, nav.angles, task="allpairs"),
+               what="all pairs")
     out = writable_path(args.out, "--out", folder=True)
     flush_warnings()
     t0 = time.perf_counter()

@@ -24,7 +24,14 @@ from envs import UserError
 from envs.diagnostics import diagnose
 from envs.motion import PYBULLET_CONTACT, ContactParams
 from planners.cells import CellSpace
-from planners.resources import check_memory, max_grid_cells, memory_warning, parse_memory
+from planners.coverage import MODELS
+from planners.resources import (
+    MemoryEstimate,
+    check_memory,
+    max_grid_cells,
+    memory_warning,
+    parse_memory,
+)
 
 __all__ = ["add_angle_noise_args", "add_contact_arg", "add_env_args", "add_output", "check_fits",
            "check_outputs", "contact_rule", "load_env",
@@ -80,11 +87,12 @@ def contact_rule(args: argparse.Namespace) -> ContactParams | None:
         choice = "pybullet" if getattr(args, "backend", None) == "pybullet" else "off"
     if choice == "off":
         return None
-    model = getattr(args, "model", "event")
-    if model != "event":
+    model = getattr(args, "model", None)
+    if model is not None and not MODELS[model].contact_rule:
         if args.contact == "auto":
             return None
-        raise UserError(f"the contact rule is part of the event model only, not the "
+        users = ", ".join(n for n, c in MODELS.items() if c.contact_rule)
+        raise UserError(f"the contact rule is part of the {users} model only, not the "
                         f"{model} model.")
     return PYBULLET_CONTACT
 
@@ -188,12 +196,13 @@ def make_cells(args: argparse.Namespace, env: envs.Environment) -> CellSpace:
     return CellSpace(env, max_memory=max_memory(args))
 
 
-def check_fits(args: argparse.Namespace, cells: CellSpace, angles=(), task: str = "plan",
-               **kw):
-    """:func:`planners.resources.check_memory` at --max-memory (refuse above it), and a
-    warning when the estimate exceeds the memory free now; returns the estimate.
+def check_fits(args: argparse.Namespace, cells: CellSpace, est: MemoryEstimate,
+               what: str = "planning") -> MemoryEstimate:
+    """A planner's or model's memory estimate ``est`` (its ``memory_estimate``) checked at
+    --max-memory (refused above it, in one sentence), and a warning when it exceeds the
+    memory free now; returns it.
     """
-    est = check_memory(cells, angles, task=task, max_memory=max_memory(args), **kw)
+    est = check_memory(cells, est, what=what, max_memory=max_memory(args))
     note = memory_warning(est)
     if note:
         warn(note)

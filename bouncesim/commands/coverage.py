@@ -20,7 +20,6 @@ from planners.cells import CellSpace
 from planners.coverage import (
     MODELS,
     SPACES,
-    STATE_KINDS,
     TARGET_FORMATS,
     MixDesign,
     TurnNoise,
@@ -205,8 +204,8 @@ def run(args) -> int:
     elif args.start is not None:
         raise UserError("--start needs --horizon (the limit does not depend on the start).")
     spread = float(noise.support(cs.K)[0].max()) * cs.delta_deg    # ε, or the Gaussian's ±M·Δ
-    check_fits(args, cs, angles, task="coverage", eps_deg=spread, model=args.model,
-               settings=settings)
+    check_fits(args, cs, MODELS[args.model].memory_estimate(cs, angles, spread, settings),
+               what="coverage")
     if args.out is not None:
         writable_path(args.out, "--out", folder=True)
     flush_warnings()
@@ -216,7 +215,7 @@ def run(args) -> int:
                         epoch=args.epoch, start=start)
     summary = summarise(result, cs, env.name, target_desc)
     summary["model"] = args.model
-    summary["states"] = {"kind": STATE_KINDS.get(args.model, "states"),
+    summary["states"] = {"kind": MODELS[args.model].state_kind,
                          "count": int(result.per_angle[0].pi.size) if result.per_angle else 0}
     for pa, cov in zip(summary["per_angle"], result.per_angle):   # positions, every model
         pa["group_cells"] = group_cells(model, cov).tolist()

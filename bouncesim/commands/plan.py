@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import inspect
 import math
 import sys
 from pathlib import Path
@@ -12,9 +13,9 @@ import numpy as np
 from bouncesim.robots.noise import parse_noise
 from envs import UserError
 from planners.cells import CellSpace
-from planners.navigation.exact import ExactNavigator, step_flights
-from planners.navigation import Navigator
-from planners.navigation.reliable import DEFAULT_PARTICLES, DEFAULT_SLACK, ReliableNavigator
+from planners.navigation import PLANNERS, Route, make_planner, planner_class
+from planners.navigation.feedback import FeedbackConfig
+from planners.navigation.reliable import DEFAULT_PARTICLES, DEFAULT_SLACK
 
 from .common import (
     add_contact_arg,
@@ -29,8 +30,7 @@ from .common import (
     print_json,
 )
 
-__all__ = ["add_planner_args", "make_navigator", "parse_config", "register", "route_json",
-           "run"]
+__all__ = ["add_planner_args", "make_planner_of", "parse_config", "register", "run"]
 
 EXIT_NO_PATH = 3
 
@@ -70,8 +70,8 @@ def parse_config(text: str, cells: CellSpace, what: str = "start") -> int:
 
 
 def add_planner_args(p) -> None:
-    """Add ``--angles``, ``--w1`` and ``--w2`` (the roadmap's angles [deg] and weights) to a
-    parser.
+    """Add ``--angles``, ``--w1``, ``--w2`` and ``--planner`` (a name of
+    :data:`planners.navigation.PLANNERS`) to a parser.
     """
     p.add_argument("--angles", required=True, metavar="A,B,...",
                    help="bouncing angles [deg], multiples of 360/K, e.g. 45,90,135")
@@ -79,52 +79,47 @@ def add_planner_args(p) -> None:
                    help="weight of a step or a same-angle bump (default 1)")
     p.add_argument("--w2", type=float, default=100.0,
                    help="weight of a bump that changes the angle (default 100)")
-    p.add_argument("--planner", choices=("step", "exact", "reliable"), default="step",
+    p.add_argument("--planner", choices=tuple(PLANNERS), default="step",
                    help="step: the paper's step model (docs/model.md §6, default); exact: "
                    "plans over exact bump poses that a continuous robot follows (§15); "
                    "reliable: the near-optimal exact plan most likely to succeed under "
-                   "--noise (§21)")
+                   "--noise (§21); feedback: a particle filter re-plans after every bump "
+                   "(§22; `plan` prints its plan from the start before any bump)")
 
 
-def make_navigator(args, cells: CellSpace | None = None) -> Navigator | ExactNavigator:
-    """The navigator of ``--planner`` (:class:`~planners.navigation.Navigator` or
-    :class:`~planners.navigation.exact.ExactNavigator`) for the parsed environment, angles and weights;
-    the step planner's roadmap is refused above --max-memory before it is built.
+def make_planner_of(args, cells: CellSpace | None = None, rng=None, noise=None):
+    """The planner of ``--planner`` for the parsed environment, angles and weights, with what
+    it needs (its ``needs``): the turn noise of ``--noise`` (or ``noise``), the random source
+    ``rng`` (default: a stream of its own from ``--seed``), the contact rule of ``--contact``
+    where the command has one. Refused in one sentence above --max-memory, before building.
     """
     if cells is None:
         cells = make_cells(args, load_env(args))
-    if getattr(args, "planner", "step") == "exact":
-        return ExactNavigator(cells, parse_angles(args.angles), args.w1, args.w2,
-                              contact=contact_rule(args) if hasattr(args, "contact") else None)
-    if args.planner == "reliable":      # its particles: a stream of their own from --seed
-        if not hasattr(args, "noise"):
-            raise UserError("--planner reliable is for plan and run-plan (it needs --noise).")
-        return ReliableNavigator(
-            cells, parse_angles(args.angles), parse_noise(args.noise, cells.delta_deg),
-            args.w1, args.w2, slack=getattr(args, "slack", DEFAULT_SLACK),
-            particles=getattr(args, "particles", DEFAULT_PARTICLES),
-            rng=np.random.default_rng([args.seed, 20]),
-            contact=contact_rule(args) if hasattr(args, "contact") else None)
-    if getattr(args, "contact", "off") != "off":
-        raise UserError("--contact is for --planner exact or reliable (the step planner "
-                        "assumes the front-half bumper).")
-    nav = Navigator(cells, parse_angles(args.angles), args.w1, args.w2,
-                    max_memory=max_memory(args))
-    check_fits(args, cells, nav.angles, task="plan", searches=1)
-    return nav
-
-
-def route_json(route, cells: CellSpace) -> dict:
-    """A route as JSON with the plan fields of both planners: planner, angles (in order),
-    flights_m (expected flight lengths [m]) and final_m (the final drive [m]); for the step
-    model the flights are its runs' lengths (docs/model.md §8).
-    """
-    out = route.to_json()
-    if not route.plan.is_exact:
-        flights, final = step_flights(cells, route.start, route.plan)
-        out.update({"planner": "step", "angles": list(route.plan.turns),
-                    "flights_m": [round(f, 9) for f in flights], "final_m": round(final, 9)})
-    return out
+    cls = planner_class(args.planner)
+    contact = contact_rule(args) if hasattr(args, "contact") else None
+    if contact is not None and "contact" not in cls.needs:
+        users = ", ".join(n for n, c in PLANNERS.items() if "contact" in c.needs)
+        raise UserError(f"--contact is for the planners that plan for a contact rule "
+                        f"({users}); the {args.planner} planner assumes the front-half "
+                        "bumper.")
+    kw: dict = {}
+    if "noise" in cls.needs:
+        kw["noise"] = noise if noise is not None else \
+            parse_noise(getattr(args, "noise", "none"), cells.delta_deg)
+    if "rng" in cls.needs:              # its particles: a stream of their own from --seed
+        kw["rng"] = rng if rng is not None else np.random.default_rng([args.seed, 20])
+    if "contact" in cls.needs and hasattr(args, "contact"):
+        kw["contact"] = contact
+    params = inspect.signature(cls).parameters
+    for opt in ("particles", "slack"):
+        if opt in params and hasattr(args, opt):
+            kw[opt] = getattr(args, opt)
+    if "config" in params:
+        kw["config"] = FeedbackConfig()
+    est = cls.memory_estimate(cells, parse_angles(args.angles))
+    check_fits(args, cells, est)
+    return make_planner(args.planner, cells, parse_angles(args.angles), w1=args.w1,
+                        w2=args.w2, max_memory=max_memory(args), **kw)
 
 
 def register(sub) -> None:
@@ -192,7 +187,7 @@ def run(args) -> int:
         raise UserError("give --start and --goal, or --pairs FILE.csv.")
     if args.pairs is not None and (args.start is not None or args.goal is not None):
         raise UserError("give either --start/--goal or --pairs, not both.")
-    nav = make_navigator(args)
+    nav = make_planner_of(args)
     cells = nav.cells
     if args.pairs is None:
         resolved = [(parse_config(args.start, cells, "start"),
@@ -206,10 +201,7 @@ def run(args) -> int:
         if route is None:
             missing += 1
         if args.json:
-            print_json(route_json(route, cells) if route else
-                       {"start": s, "goal": g, "plan": None, "plan_text": None, "cost": None,
-                        "angles_used": None, "path": None, "planner": args.planner,
-                        "angles": None, "flights_m": None, "final_m": None})
+            print_json(route.to_json() if route else Route.none_json(s, g, args.planner))
         elif route is None:
             print(f"{s} -> {g}: no path with angles "
                   f"{', '.join(f'{a:g}°' for a in nav.angles)}")
@@ -217,7 +209,7 @@ def run(args) -> int:
             print(f"{s} -> {g}: {route.plan.exact_text()}  (cost {route.cost:.4g}, "
                   f"{route.angles_used} angle(s), {route.plan.bumps} bumps; the zeros are "
                   f"round(flight / h), approximate off the axes)")
-            if args.planner == "reliable":
+            if "p_success_ci" in route.extras:
                 lo, hi = route.p_success_ci
                 print(f"  p_success {route.p_success:.3f} [{lo:.3f}, {hi:.3f}] under "
                       f"{route.noise} ({route.particles} particles; {route.candidates} "

@@ -10,6 +10,7 @@ from bouncesim.robots import KINDS, make_robot
 from bouncesim.robots.noise import parse_noise
 from bouncesim.runs.execute import check_speed, execute
 from envs import UserError
+from planners.navigation import planner_class
 
 from .common import (
     add_env_args,
@@ -18,11 +19,10 @@ from .common import (
     load_env,
     make_cells,
     make_rng,
-    parse_angles,
     print_json,
     progress,
 )
-from .plan import add_planner_args, make_navigator, parse_config
+from .plan import add_planner_args, make_planner_of, parse_config
 
 __all__ = ["register", "run", "EXIT_FAILURE", "EXIT_NO_PATH"]
 
@@ -55,7 +55,9 @@ def register(sub) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter)
     add_env_args(p)
     add_planner_args(p)
-    _add_feedback_args(p)
+    p.add_argument("--turn-sigma", type=float, default=None, metavar="DEG",
+                   help="closed-loop planners (feedback): the turn noise σ [deg] the filter "
+                   "assumes (default: the σ of --noise; set it on a real robot)")
     p.add_argument("--start", required=True, metavar="S", help="start: z or X,Y,DEG")
     p.add_argument("--goal", required=True, metavar="G", help="goal: z or X,Y,DEG")
     p.add_argument("--robot", choices=ROBOTS, default="kinematic",
@@ -124,8 +126,7 @@ def run(args) -> int:
     """Run ``bouncesim run-plan``: plan, execute on the chosen body; exit status (4: failed)."""
     env = load_env(args)
     cells = make_cells(args, env)
-    feedback = getattr(args, "planner", None) == "feedback"
-    nav = None if feedback else make_navigator(args, cells)
+    cls = planner_class(args.planner)
     start = parse_config(args.start, cells, "start")
     goal = parse_config(args.goal, cells, "goal")
     noise = parse_noise(args.noise, cells.delta_deg)
@@ -148,10 +149,11 @@ def run(args) -> int:
         raise UserError("--noise is for simulated robots; a real Create 2 brings its own.")
     if args.robot in ("create2", "emulator") and (args.gui or args.record):
         raise UserError("--gui and --record need --robot pybullet.")
-    if feedback:
-        return _run_feedback(args, env, cells, start, goal, noise)
+    if cls.closed_loop:
+        return _run_closed_loop(args, env, cells, start, goal, noise)
     if args.turn_sigma is not None:
-        raise UserError("--turn-sigma is for --planner feedback.")
+        raise UserError("--turn-sigma is for closed-loop planners (--planner feedback).")
+    nav = make_planner_of(args, cells)
     route = nav.plan(start, goal)
     if route is None:
         if args.json:
@@ -230,11 +232,6 @@ def _robot_options(args) -> dict:
             "faults": args.fault, "lockstep": args.lockstep}
 
 
-def _planned(route):
-    """The route to draw: an exact route's poses, a step route's configurations."""
-    return route.poses if hasattr(route, "poses") else route.path
-
-
 def _plot(path, env, cells, route, result) -> None:
     """--plot: the planned route against the executed trace (a hardware run has no poses)."""
     from bouncesim.plots import plan_vs_executed, save_figure
@@ -244,42 +241,30 @@ def _plot(path, env, cells, route, result) -> None:
     status = "success" if result.success else "failure"
     title = (f"{env.name}: {route.start} → {route.goal}, plan {route.plan}; executed: "
              f"{status}")
-    save_figure(plan_vs_executed(env, cells, _planned(route), result.trace, goal=result.goal_pose,
+    save_figure(plan_vs_executed(env, cells, route.path or route.poses, result.trace,
+                                 goal=result.goal_pose,
                                  title=title), path, dpi=150)
 
 
-# ---------------------------------------------------------------- feedback (docs/model.md §22)
-def _add_feedback_args(p) -> None:
-    """``--planner feedback`` (run-plan only) and the turn noise its filter assumes."""
-    for action in p._actions:
-        if action.dest == "planner":
-            action.choices = (*action.choices, "feedback")
-            action.help += ("; feedback (run-plan only): a particle filter re-plans after "
-                            "every bump (§22)")
-    p.add_argument("--turn-sigma", type=float, default=None, metavar="DEG",
-                   help="feedback only: the turn noise σ [deg] the filter assumes (default: "
-                   "the σ of --noise; set it on a real robot)")
-
-
-def _run_feedback(args, env, cells, start: int, goal: int, noise) -> int:
-    """``run-plan --planner feedback``: drive the robot by feedback (bouncesim.navigate)."""
-    from bouncesim.navigate import navigate_feedback
-    from planners.navigation.feedback import FeedbackConfig
+# ------------------------------------------------- closed-loop planners (docs/model.md §22)
+def _run_closed_loop(args, env, cells, start: int, goal: int, noise) -> int:
+    """``run-plan`` with a closed-loop planner (feedback): its policy decides after every bump
+    in the one run loop (:func:`bouncesim.runs.execute.execute`).
+    """
     if args.plot:
-        raise UserError("--plot is not available with --planner feedback yet.")
+        raise UserError(f"--plot is not available with --planner {args.planner} yet.")
     declared = noise if args.turn_sigma is None else float(args.turn_sigma)
-    robot_rng, filter_rng = make_rng(args.seed).spawn(2)
+    robot_rng, planner_rng = make_rng(args.seed).spawn(2)
+    planner = make_planner_of(args, cells, rng=planner_rng, noise=declared)
     say = progress(args)
     robot = make_robot(args.robot, env, noise=noise, rng=robot_rng, **_robot_options(args))
     with robot:
         check_speed(args.speed, robot)
         flush_warnings()
         if say:
-            say(f"feedback navigation on the {args.robot} robot")
-        result = navigate_feedback(robot, env, start, goal, declared, filter_rng,
-                                   angles=parse_angles(args.angles), cells=cells,
-                                   config=FeedbackConfig(), speed=args.speed,
-                                   back_off=args.back_off, w1=args.w1, w2=args.w2)
+            say(f"{args.planner} navigation on the {args.robot} robot")
+        result = execute(planner.policy(start, goal), robot, cells=cells, speed=args.speed,
+                         back_off=args.back_off)
     if args.trace:
         result.trace.to_csv(args.trace)
     unknown = result.final_pose is None and result.completed
@@ -289,7 +274,7 @@ def _run_feedback(args, env, cells, start: int, goal: int, noise) -> int:
         out.update(result.to_json())
         print_json(out)
     else:
-        print(f"{start} -> {goal}: feedback, executed {result.plan.exact_text()}")
+        print(f"{start} -> {goal}: {args.planner}, executed {result.plan.exact_text()}")
         ms = max(result.decision_ms, default=0.0)
         err = "" if result.position_error is None else (
             f" (final pose error {result.position_error:.3f} m, {result.heading_error:+.1f}°)")

@@ -110,7 +110,8 @@ def read_plan(path: Path, cells: CellSpace, start: int | None) -> tuple[int, int
                                                                           list, str]:
     """(start, goal or None, path, plan text) of a ``plan --json`` line or of an observation
     string file (which needs ``start``). The path is the configurations z the step model
-    visits, or for an exact plan (``"planner": "exact"``) its poses (x, y, heading).
+    visits, or for a plan that runs by its exact flights (the exact, reliable and feedback
+    planners', ``"exact_flights": true``) its poses (x, y, heading).
     """
     try:
         text = Path(path).read_text().strip()
@@ -137,8 +138,9 @@ def read_plan(path: Path, cells: CellSpace, start: int | None) -> tuple[int, int
         if start is not None:
             raise UserError("--plan with a JSON plan brings its start and goal; drop --start "
                             "and --goal.")
-        if obj.get("planner") == "exact":
-            return s, g, _exact_poses(obj, cells, path), str(Plan.from_json(obj))
+        plan = Plan.from_json(obj)
+        if plan.is_exact:                  # it runs by its angles: draw its exact poses
+            return s, g, _exact_poses(obj, cells, path), str(plan)
         plan = Plan.parse(" ".join(str(v) for v in obj["plan"]) or "")
         z = replay_plan(cells, plan, s)
         if z[-1] != g:
@@ -155,13 +157,13 @@ def _exact_poses(obj: dict, cells: CellSpace, path: Path) -> list:
     """The poses of an exact plan's JSON, checked against the map: they start at the start
     configuration's pose and lie in the room.
     """
-    poses = obj.get("path")
+    poses = obj.get("poses") or obj.get("path")      # "path": files before the one Route
     try:
         pts = np.asarray(poses, dtype=float)
     except (TypeError, ValueError):
         pts = np.empty((0, 0))
     if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) < 2 or not np.isfinite(pts).all():
-        raise UserError(f"{path} lacks the exact poses (path) of `plan --planner exact --json`.")
+        raise UserError(f"{path} lacks the exact poses of `plan --planner exact --json`.")
     x0, y0, x1, y1 = cells.env.bounds
     inside = ((pts[:, 0] >= x0 - 1e-6) & (pts[:, 0] <= x1 + 1e-6)
               & (pts[:, 1] >= y0 - 1e-6) & (pts[:, 1] <= y1 + 1e-6))

@@ -52,7 +52,7 @@ from .common import (
     writable_path,
 )
 
-__all__ = ["register", "run", "simulate_trial", "model_bump_rate", "more_trials", "floors",
+__all__ = ["register", "run", "simulate_trial", "more_trials", "floors",
            "BACKENDS"]
 
 BACKENDS = ("kinematic", "pybullet")
@@ -177,20 +177,6 @@ def simulate_trial(params: dict, rng: np.random.Generator) -> dict:
 
 
 # ----------------------------------------------------------------------------- predict
-def model_bump_rate(model, ac) -> float:
-    """Bumps per step the model predicts for one angle's :class:`AngleCoverage` ``ac``.
-
-    Event model: 1 / (mean steps per flight); step model: π summed over the configurations
-    whose step is a bump; sampled model: π weighted by each cell's bumping fraction.
-    """
-    if getattr(ac, "model", "") == "event":
-        return 1.0 / float(ac.steps_per_flight)
-    frac = getattr(model, "bump_frac", None)
-    if frac is None:
-        frac = (np.asarray(model.cs.forward) < 0).astype(float)
-    return float(np.asarray(ac.pi, dtype=float) @ np.asarray(frac, dtype=float))
-
-
 def floors(counts: np.ndarray, half: np.ndarray, rng: np.random.Generator,
            splits: int = SPLITS) -> tuple[float, float]:
     """The noise floor of one policy's trials and its mean over random splits.
@@ -305,8 +291,8 @@ def run(args) -> int:
     trials_per = max(2, 2 * math.ceil(total / (2 * robots * PER_ROBOT[backend])))
     per_robot = max(1, math.ceil(total / (trials_per * robots)))
     if backend == "pybullet":
-        from ..robots.pybullet.robot import _import_pybullet
-        _import_pybullet()                      # one sentence when pybullet is missing
+        from ..robots.pybullet.robot import import_pybullet
+        import_pybullet()                      # one sentence when pybullet is missing
     t0 = time.perf_counter()
     contact = contact_rule(args)
     model = model_for(cs, args.model, None if contact is None else {"contact": contact})
@@ -314,7 +300,7 @@ def run(args) -> int:
     alpha = _parse_alpha(args.alpha, model, angles, noise)
     policies = [(_label(a), (a,), (1.0,)) for a in angles]
     q = {lab: ac.q for (lab, _, _), ac in zip(policies, per)}
-    bumps_model = {lab: model_bump_rate(model, ac) for (lab, _, _), ac in zip(policies, per)}
+    bumps_model = {lab: model.bump_rate(ac) for (lab, _, _), ac in zip(policies, per)}
     if alpha is not None:
         mix = PolicyMix(tuple(angles), alpha, args.eps, args.r)
         q["mix"] = timeshared_coverage(model, mix, epoch=args.epoch).q

@@ -41,14 +41,14 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from envs import UserError
-from planners.noise import TurnNoise
+from planners.noise import TurnNoise, parse_noise_spec
 from planners.noise import as_commands as _commands
 
 if TYPE_CHECKING:
     from planners.plan import PolicyMix
 
-__all__ = ["NoiseModel", "NoNoise", "SteppedNoise", "GaussianNoise", "parse_noise",
-           "noise_for_mix", "noise_and_rng"]
+__all__ = ["NoiseModel", "NoNoise", "SteppedNoise", "GaussianNoise", "body_noise",
+           "parse_noise", "noise_for_mix", "noise_and_rng"]
 
 
 class NoiseModel:
@@ -189,62 +189,52 @@ class GaussianNoise(NoiseModel):
         return f"gauss:{self.sigma_deg:g}"
 
 
-_FORMS = "use none, gauss:SIGMA or model:eps=E,r=R (degrees)"
-
-
 def parse_noise(text: str, delta_deg: float | None = None) -> NoiseModel:
-    """Parse a CLI noise spec.
-
-    ``none`` | ``gauss:SIGMA`` (also ``gauss:sigma=SIGMA``) | ``model:eps=E,r=R`` (optionally
-    ``,delta=D``; by default Δ is ``delta_deg``, the environment's 360°/K).
+    """A simulated body's noise model from a spec in the one grammar
+    (:func:`planners.noise.parse_noise_spec`): ``none`` | ``gauss:SIGMA`` |
+    ``model:eps=E,r=R`` (optionally ``,delta=D``; by default Δ is ``delta_deg``, the
+    environment's 360°/K).
 
     Raises
     ------
     UserError
         One sentence naming the accepted forms.
     """
-    s = str(text).strip().lower().replace(" ", "")
-    if s in {"", "none", "off", "exact"}:
+    spec = parse_noise_spec(text)
+    if spec.kind == "none":
         return NoNoise()
-    kind, _, rest = s.partition(":")
-    if kind in {"gauss", "gaussian", "normal"}:
-        val = rest.removeprefix("sigma=")
-        try:
-            sigma = float(val)
-        except ValueError:
-            raise UserError(f"noise {text!r} needs a number of degrees after 'gauss:'; "
-                            f"{_FORMS}.") from None
-        return GaussianNoise(sigma)
-    if kind in {"model", "stepped"}:
-        params = {}
-        for tok in rest.split(","):
-            key, eq, val = tok.partition("=")
-            if not eq or key not in {"eps", "r", "delta"} or key in params:
-                raise UserError(f"noise {text!r} is not understood; {_FORMS}.")
-            try:
-                params[key] = float(val)
-            except ValueError:
-                raise UserError(f"noise parameter {key} in {text!r} is not a number.") \
-                    from None
-        if not {"eps", "r"} <= set(params):
-            raise UserError(f"noise {text!r} needs both eps and r; {_FORMS}.")
-        delta = params.get("delta", delta_deg)
-        if delta is None:
-            raise UserError("the model noise needs the orientation step delta (give delta=D).")
-        m = params["eps"] / delta if delta > 0 else 0.0
-        if delta > 0 and abs(m - round(m)) > 1e-9 * max(1.0, abs(m)):
-            raise UserError(f"model noise eps = {params['eps']:g}° is not a multiple of the "
-                            f"orientation step {delta:g}°; use a multiple or more orientations "
-                            f"(e.g. --orientations 360).")
-        return SteppedNoise(params["eps"], params["r"], delta)
-    raise UserError(f"unknown noise {text!r}; {_FORMS}.")
+    if spec.kind == "gauss":
+        return GaussianNoise(spec.noise.sigma_deg)
+    return body_noise(spec.noise, spec.delta_deg if spec.delta_deg is not None else delta_deg)
+
+
+def body_noise(noise: TurnNoise, delta_deg: float | None) -> NoiseModel:
+    """The noise model of a simulated body for a :class:`~planners.noise.TurnNoise`: exact
+    turns, Gaussian σ, or the §7 model at the error quantum Δ = ``delta_deg`` [deg].
+    """
+    if noise.gaussian:
+        return GaussianNoise(noise.sigma_deg)
+    if noise.exact:
+        return NoNoise()
+    if delta_deg is None:
+        raise UserError("the model noise needs the orientation step delta (give delta=D).")
+    m = noise.eps_deg / delta_deg if delta_deg > 0 else 0.0
+    if delta_deg > 0 and abs(m - round(m)) > 1e-9 * max(1.0, abs(m)):
+        raise UserError(f"model noise eps = {noise.eps_deg:g}° is not a multiple of the "
+                        f"orientation step {delta_deg:g}°; use a multiple or more orientations "
+                        f"(e.g. --orientations 360).")
+    return SteppedNoise(noise.eps_deg, noise.r, delta_deg)
 
 
 def noise_for_mix(mix: PolicyMix, delta_deg: float) -> NoiseModel:
-    """The §7 noise model of a :class:`planners.plan.PolicyMix` (its eps and r) at Δ [deg]."""
-    if mix.eps == 0 or mix.r == 1:
-        return NoNoise()
-    return SteppedNoise(mix.eps, mix.r, delta_deg)
+    """The noise model of a :class:`planners.plan.PolicyMix` (its ε and r, §7, or its
+    Gaussian σ, §18) at Δ [deg].
+
+    >>> from planners.plan import PolicyMix
+    >>> noise_for_mix(PolicyMix((90.0,), (1.0,), sigma=3.0), 1.0)
+    GaussianNoise(sigma_deg=3.0)
+    """
+    return body_noise(mix.noise, delta_deg)
 
 
 def noise_and_rng(noise: NoiseModel | None, rng) -> tuple[NoiseModel, np.random.Generator | None]:

@@ -1,11 +1,16 @@
-"""The one execution loop: :func:`execute` runs a plan or a policy mix on any
-:class:`bouncesim.robots.Robot` (docs/model.md §8-9).
+"""The one run loop: :func:`execute` runs a plan, a policy mix or a feedback navigator on any
+:class:`bouncesim.robots.Robot` (docs/model.md §8-9, §22).
 
-It controls the robot through the bump-and-clock interface only (drive, stop, bumper, clock,
-wait, turn and the composite drive_until_bump / drive_for). Simulators are additionally
-*placed* at the start (``Robot.place``; on hardware a person places the robot) and their true
-pose (``Robot.true_pose``) is logged for the trace, the success check and the visit histogram;
-it never feeds back into control. The room is the robot's (``robot.env``), or the given cells'.
+Every policy is a *runner* that yields moves (:mod:`bouncesim.runs.moves`: fly until a bump,
+drive by the clock, turn, back off, note) and hears back what each move did; after every bump
+it chooses the next turn. The loop alone talks to the robot through the bump-and-clock
+interface (drive, stop, bumper, clock, wait, turn and the composite drive_until_bump /
+drive_for), checks the time limit before every drive, logs turns and back-offs, and stops the
+robot and logs the stop whatever ends the run (the end of the policy, a limit, a
+:class:`~bouncesim.robots.RobotError`). Simulators are additionally *placed* at the start
+(``Robot.place``; on hardware a person places the robot) and their true pose
+(``Robot.true_pose``) is logged for the trace, the success check and the visit histogram; it
+never feeds back into control. The room is the robot's (``robot.env``), or the given cells'.
 
 - A :class:`~planners.plan.Plan` runs its observation string: for every segment (n zeros,
   angle) drive until a bump, log a deviation when the travelled distance (speed x elapsed
@@ -14,18 +19,21 @@ it never feeds back into control. The room is the robot's (``robot.env``), or th
   the clock and stops. A run's length is the distance the step model moves in n steps at the
   current heading (:meth:`planners.cells.CellSpace.run_length`: n·h along an axis, n·√2·h
   along a diagonal at K = 8), known from the start heading and the angles before it.
-  An exact plan (:mod:`planners.navigation.exact`, docs/model.md §15) runs by its angles instead: drive
-  until a bump and turn, for every angle, then drive its final length by the clock; its
-  expected flights only log deviations (more than h/4 off). Returns a :class:`PlanRun`.
+  An exact plan (:mod:`planners.navigation.exact`, docs/model.md §15) runs by its angles
+  instead: drive until a bump and turn, for every angle, then drive its final length by the
+  clock; its expected flights only log deviations (more than h/4 off). Returns a
+  :class:`PlanRun`.
 - A :class:`~planners.plan.PolicyMix` is time-shared: epochs of ``epoch`` steps, each with one
   angle drawn with probabilities α; a step drives h by the clock or until a bump, and on a
   bump turns by the epoch's angle (the robot's own noise model perturbs the turn). Returns a
   :class:`MixRun`.
+- A feedback policy (:meth:`planners.navigation.feedback.FeedbackPlanner.policy`) re-plans
+  from a particle belief after every bump (docs/model.md §22;
+  :mod:`bouncesim.runs.feedback`). Returns a :class:`~bouncesim.runs.feedback.FeedbackRun`.
 
 Runs always end: every drive has a timeout, a plan has finitely many segments, a coverage run
-has a step budget (and optionally a limit on bumps in a row without moving, and on time).
-Whatever ends a run (the end of the policy, a limit, a :class:`~bouncesim.robots.RobotError`)
-stops the robot and logs the stop the same way.
+has a step budget (and optionally a limit on bumps in a row without moving, and on time), a
+feedback run a bump budget.
 
 Examples
 --------
@@ -50,96 +58,30 @@ import math
 
 import numpy as np
 
-from envs import UserError
-from envs.motion import STEP_TOL, step
+from envs import Environment, UserError
 from planners.cells import CellSpace
-from planners.plan import Plan, PolicyMix
+from planners.navigation.feedback import FeedbackConfig, FeedbackPlanner, FeedbackPolicy
+from planners.plan import PolicyMix
 
 from ..robots.base import Robot, RobotError
+from .feedback import FeedbackRun, FeedbackRunner
+from .moves import BackOff, Fly, Moved, Note, Turn
 from .results import Deviation, MixRun, PlanRun, SegmentDone
+from .runners import MixRunner, PlanRunner, check_speed, place_if_simulated, time_up
 from .trace import Trace
 
-__all__ = ["check_speed", "execute", "place_if_simulated", "PlanRun", "MixRun", "Deviation",
-           "SegmentDone"]
+__all__ = ["check_speed", "execute", "navigate_feedback", "place_if_simulated", "PlanRun",
+           "MixRun", "FeedbackRun", "Deviation", "SegmentDone"]
 
 
-def _wrap180(deg: float) -> float:
-    """Wrap an angle [deg] into (−180, 180]."""
-    w = math.fmod(deg, 360.0)
-    if w > 180.0:
-        w -= 360.0
-    elif w <= -180.0:
-        w += 360.0
-    return w
-
-
-def _resolve_pose(spec, cells: CellSpace, what: str) -> tuple[int | None, tuple | None]:
-    """(z or None, pose) of a configuration index or an (x, y, heading) pose."""
-    if spec is None:
-        return None, None
-    if isinstance(spec, (int, np.integer)):
-        z = int(spec)
-        if not 0 <= z < cells.N:
-            raise UserError(f"{what} {z} is out of range: configurations are 0 to "
-                            f"{cells.N - 1}.")
-        return z, cells.pose(z)
-    try:
-        x, y, h = (float(v) for v in spec)
-    except (TypeError, ValueError):
-        raise UserError(f"{what} must be a configuration index or a pose (x, y, heading).") \
-            from None
-    if not all(map(math.isfinite, (x, y, h))):
-        raise UserError(f"{what} pose ({x:g}, {y:g}, {h:g}) has a part that is not a finite "
-                        "number.")
-    z = cells.config_of_pose(x, y, h)
-    return (z if z >= 0 else None), (x, y, h)
-
-
-def place_if_simulated(robot: Robot, pose) -> bool:
-    """Place a simulated robot; False on hardware (a person places it)."""
-    if pose is None:
-        return False
-    try:
-        robot.place(*pose)
-        return True
-    except NotImplementedError:
-        return False
-
-
-def check_speed(speed: float, robot: Robot) -> float:
-    """``speed`` [m/s] as a float; :class:`UserError` unless 0 < speed <= the robot's maximum."""
-    speed = float(speed)
-    vmax = robot.spec.max_wheel_speed
-    if not (math.isfinite(speed) and 0 < speed <= vmax):
-        raise UserError(f"speed must lie in (0, {vmax:g}] m/s, got {speed:g}.")
-    return speed
-
-
-def _back_off(robot: Robot, speed: float, distance: float) -> None:
-    """Reverse ``distance`` [m] by the clock. Not drive_for: the bumper is still pressed."""
-    robot.drive(-speed)
-    try:
-        robot.wait(distance / speed)
-    finally:
-        robot.stop()
-
-
-def _robot_error(robot: Robot, trace: Trace, t0: float, exc: RobotError) -> str:
-    """Log a RobotError that ended a run; return the run's reason."""
-    trace.add(robot.clock() - t0, robot.true_pose(), "error", str(exc))
-    return f"robot error: {exc}"
-
-
-def _stopped(robot: Robot, trace: Trace, t0: float, reason: str) -> tuple:
-    """Log the stop of a run; return (elapsed [s], final pose or None)."""
-    elapsed = robot.clock() - t0
-    final = robot.true_pose()
-    trace.add(elapsed, final, "stop", reason)
-    return elapsed, final
-
-
-def _side(ev) -> str:
-    return "+".join(s for s, on in (("left", ev.left), ("right", ev.right)) if on) or "none"
+def _cells_of(robot: Robot, cells: CellSpace | None) -> CellSpace:
+    if cells is not None:
+        return cells
+    env = getattr(robot, "env", None)
+    if env is None:
+        raise UserError(f"{type(robot).__name__} knows no environment: pass "
+                        f"cells=CellSpace(env) for the room it is in.")
+    return CellSpace(env)
 
 
 # ============================================================================ the loop
@@ -148,18 +90,20 @@ def execute(policy, robot: Robot, *, start=None, cells: CellSpace | None = None,
             goal=None, max_factor: float = 2.0, steps: int | None = None,
             epoch: int | None = None, rng: np.random.Generator | None = None,
             max_stuck: int | None = None, record_trace: bool = True,
-            on_segment=None) -> PlanRun | MixRun:
-    """Run a policy on a robot (docs/model.md §8-9): a plan's observation string, or a policy
-    mix by time-sharing.
+            on_segment=None):
+    """Run a policy on a robot (docs/model.md §8-9, §22): a plan's observation string, a
+    policy mix by time-sharing, or a feedback navigator.
 
     Parameters
     ----------
-    policy : Plan, str, PolicyMix or float
+    policy : Plan, str, PolicyMix, float or a feedback policy
         A :class:`~planners.plan.Plan` (or its text) runs its segments; a
         :class:`~planners.plan.PolicyMix` (or one angle [deg], a mix of one) runs ``steps``
-        steps in epochs. The mix's eps and r are *not* applied here: the robot's own noise
-        model perturbs its turns (build it with
-        ``bouncesim.robots.noise.noise_for_mix(mix, delta)`` for the §7 model).
+        steps in epochs. The mix's noise is *not* applied here: the robot's own noise model
+        perturbs its turns (build it with ``bouncesim.robots.noise.noise_for_mix(mix,
+        delta)``). A feedback policy (:meth:`FeedbackPlanner.policy
+        <planners.navigation.feedback.FeedbackPlanner.policy>`) chooses every turn from its
+        belief (:mod:`bouncesim.runs.feedback`).
     robot : Robot
         Its environment (``robot.env``) is the room; a robot that knows none (hardware) needs
         ``cells``.
@@ -167,7 +111,7 @@ def execute(policy, robot: Robot, *, start=None, cells: CellSpace | None = None,
         Start configuration z or pose [m, m, deg]; simulators are placed there (on hardware
         the robot is assumed to be there already). A plan needs it (its heading fixes how far
         each run of zeros drives); a mix draws it uniformly over the N configurations when
-        None (docs/model.md §9).
+        None (docs/model.md §9); a feedback policy brings its own.
     cells : CellSpace, optional
         The cell space (default: built from ``robot.env``).
     speed : float          drive speed [m/s]
@@ -175,7 +119,8 @@ def execute(policy, robot: Robot, *, start=None, cells: CellSpace | None = None,
         Distance [m] to back off after every bump before turning (0: none; the Create 2
         manual suggests about 0.01 m so the bumper does not drag on the wall).
     max_time : float, optional
-        Give up when the robot clock passes this many seconds after the start.
+        Give up when the robot clock passes this many seconds after the start (checked
+        before every drive).
 
     Plan only:
 
@@ -184,9 +129,9 @@ def execute(policy, robot: Robot, *, start=None, cells: CellSpace | None = None,
     on_segment : callable, optional
         Called with a :class:`SegmentDone` after every completed segment (progress lines).
     max_factor : float
-        A segment of n zeros may drive at most ``max_factor * (n + 2) * h`` before the run is
-        declared failed ("no bump"), and never more than the bounding-box diagonal plus h
-        (no straight line in the room is longer).
+        A segment may drive at most :func:`planners.measures.flight_limit` (``max_factor``
+        times its expected flight plus two cells, never more than the bounding-box diagonal
+        plus h) before the run is declared failed ("no bump").
 
     Mix only:
 
@@ -200,290 +145,162 @@ def execute(policy, robot: Robot, *, start=None, cells: CellSpace | None = None,
         part of the dynamics (two angles in a row bump at once; 180° turns between two
         blocked diagonal headings in a corridor exactly one robot wide repeat until the
         epoch changes the angle, just as the discrete chain does).
-    record_trace : bool     log every step (False: only start and stop)
+    record_trace : bool     log every move (False: only start and stop)
 
     Returns
     -------
-    PlanRun or MixRun
+    PlanRun, MixRun or FeedbackRun
         For a mix, a step is counted in the position cell where it starts (a forward step of
         h) or at the contact position (a bump step: the move to contact plus the turn). A bump
         within ``STEP_TOL`` of the full h completes a forward step; the robot then bumps at
         once.
     """
-    if cells is None:
-        env = getattr(robot, "env", None)
-        if env is None:
-            raise UserError(f"{type(robot).__name__} knows no environment: pass "
-                            f"cells=CellSpace(env) for the room it is in.")
-        cells = CellSpace(env)
     speed = check_speed(speed, robot)
     back_off = float(back_off)
     if back_off < 0 or not math.isfinite(back_off):
         raise UserError(f"back-off must be a non-negative distance in metres, got {back_off:g}.")
-    if isinstance(policy, (PolicyMix, int, float, np.integer, np.floating)):
-        if goal is not None:
-            raise UserError("a policy mix has no goal: it covers the room.")
-        if steps is None or epoch is None or rng is None:
-            raise UserError("a policy mix needs steps, epoch and rng.")
-        runner = _MixRunner(policy, robot, cells, start, speed, back_off, steps, epoch, rng,
-                            max_stuck, record_trace)
-    else:
-        if steps is not None or epoch is not None or max_stuck is not None:
-            raise UserError("steps, epoch and max_stuck are for policy mixes; a plan runs its "
-                            "segments.")
-        runner = _PlanRunner(policy, robot, cells, start, goal, speed, back_off, max_factor)
-        runner.on_segment = on_segment
-
+    runner = _runner(policy, robot, start, cells, goal, speed, back_off, max_factor, steps,
+                     epoch, rng, max_stuck, record_trace, on_segment, max_time)
     trace = Trace()
     t0 = robot.clock()
     trace.add(0.0, robot.true_pose(), "start", runner.label)
     reason = ""
     try:
-        reason = runner.loop(trace, t0, max_time)
+        reason = _drive(runner, robot, trace, t0, speed, max_time, record_trace)
     except RobotError as exc:
-        reason = _robot_error(robot, trace, t0, exc)
+        trace.add(robot.clock() - t0, robot.true_pose(), "error", str(exc))
+        reason = f"robot error: {exc}"
     finally:
         robot.stop()
-    elapsed, final = _stopped(robot, trace, t0, reason or runner.finished)
+    elapsed = robot.clock() - t0
+    final = robot.true_pose()
+    trace.add(elapsed, final, "stop", reason or runner.finished)
     return runner.result(reason, elapsed, final, trace)
 
 
-def _time_up(robot: Robot, t0: float, max_time: float | None) -> str:
-    """The reason to stop when the robot clock has passed ``max_time``, else ''."""
-    if max_time is not None and robot.clock() - t0 > max_time:
-        return f"time limit of {max_time:g} s exceeded"
-    return ""
+def _runner(policy, robot, start, cells, goal, speed, back_off, max_factor, steps, epoch, rng,
+            max_stuck, record_trace, on_segment, max_time):
+    """The runner of a policy: a plan's, a mix's or a feedback policy's."""
+    if isinstance(policy, FeedbackPolicy):                   # closed loop (§22)
+        if steps is not None or epoch is not None or max_stuck is not None:
+            raise UserError("steps, epoch and max_stuck are for policy mixes.")
+        return FeedbackRunner(policy, robot, start=start, goal=goal, cells=cells, speed=speed,
+                              back_off=back_off)
+    cells = _cells_of(robot, cells)
+    if isinstance(policy, (PolicyMix, int, float, np.integer, np.floating)):
+        if goal is not None:
+            raise UserError("a policy mix has no goal: it covers the room.")
+        if steps is None or epoch is None or rng is None:
+            raise UserError("a policy mix needs steps, epoch and rng.")
+        return MixRunner(policy, robot, cells, start, back_off, steps, epoch, rng, max_stuck,
+                          record_trace, max_time)
+    if steps is not None or epoch is not None or max_stuck is not None:
+        raise UserError("steps, epoch and max_stuck are for policy mixes; a plan runs its "
+                        "segments.")
+    return PlanRunner(policy, robot, cells, start, goal, back_off, max_factor, on_segment)
 
 
-# ============================================================================ plans
-class _PlanRunner:
-    """The plan half of :func:`execute` (docs/model.md §8): for every segment (n zeros,
-    angle) drive until a bump, log a deviation, back off, turn.
-    """
-
-    finished = "plan finished"
-    on_segment = None
-
-    def __init__(self, plan, robot, cells, start, goal, speed, back_off, max_factor) -> None:
-        self.plan = plan = Plan.parse(plan) if not isinstance(plan, Plan) else plan
-        self.robot, self.cells, self.speed, self.back_off = robot, cells, speed, back_off
-        self.max_factor = max_factor
-        if start is None:
-            raise UserError("a plan needs its start configuration or pose: the start heading "
-                            "fixes how far each run of zeros drives.")
-        _, self.start_pose = _resolve_pose(start, cells, "start")
-        self.k = int(cells.orientation_of(self.start_pose[2]))   # orientation of the run
-        self.goal_z, goal_pose = _resolve_pose(goal, cells, "goal")
-        if goal is not None and self.goal_z is None:
-            raise UserError(f"goal pose {goal_pose} is not in a free cell.")
-        self.goal_pose = cells.pose(self.goal_z) if self.goal_z is not None else goal_pose
-        x0, y0, x1, y1 = cells.env.bounds
-        self.cap = math.hypot(x1 - x0, y1 - y0) + cells.h
-        self.deviations: list[Deviation] = []
-        self.bumps = 0
-        self.completed = False
-        self.label = plan.exact_text()
-        place_if_simulated(robot, self.start_pose)
-
-    def _segments(self) -> list[tuple]:
-        """(zeros or None, expected flight [m] or None, angle or None) per segment: an exact
-        plan runs by its angles (its expected flights only log deviations) and ends with its
-        final drive; a step plan by its observation string (lengths from the cell space).
-        """
-        plan = self.plan
-        if not plan.is_exact:
-            return [(n, None, a) for n, a in plan.segments()]
-        segs = [(None, f, a) for f, a in zip(plan.flights_m, plan.turns)]
-        if plan.final_m > 0:
-            segs.append((None, plan.final_m, None))
-        return segs
-
-    def loop(self, trace: Trace, t0: float, max_time: float | None) -> str:
-        robot, cells, speed, h = self.robot, self.cells, self.speed, self.cells.h
-        segs = self._segments()
-        tol = h / 4 if self.plan.is_exact else h                 # deviation threshold [m]
-        for i, (zeros, flight, angle) in enumerate(segs):
-            late = _time_up(robot, t0, max_time)
+def _drive(runner, robot: Robot, trace: Trace, t0: float, speed: float,
+           max_time: float | None, record: bool) -> str:
+    """Make the robot do every move the runner yields; the run's reason ('' = finished)."""
+    moves = runner.moves(robot.true_pose())
+    answer = None
+    while True:
+        try:
+            move = moves.send(answer)
+        except StopIteration as done:
+            return done.value or ""
+        if isinstance(move, Note):
+            if record:
+                pose = move.pose if move.pose is not None else robot.true_pose()
+                trace.add(robot.clock() - t0, pose, move.event, move.detail)
+            answer = None
+            continue
+        ev, travelled = None, 0.0
+        if isinstance(move, Turn):
+            robot.turn(move.angle_deg)
+            event, detail = "turn", f"{move.angle_deg:g}"
+        elif isinstance(move, BackOff):
+            # by the clock, not drive_for: the bumper is still pressed
+            robot.drive(-speed)
+            try:
+                robot.wait(move.distance_m / speed)
+            finally:
+                robot.stop()
+            event, detail = "back_off", f"{move.distance_m:g} m"
+        else:
+            late = time_up(robot.clock() - t0, max_time)
             if late:
+                moves.close()
                 return late
-            if flight is None:
-                expected = cells.run_length(self.k, zeros)  # the step model's distance [m]
+            if isinstance(move, Fly):
+                ev = robot.drive_until_bump(speed, move.limit_m / speed)
             else:
-                expected = flight                           # the exact planner's flight [m]
-            if angle is None:                               # trailing zeros: drive and stop
-                ev = robot.drive_for(speed, expected / speed)
-                travelled = speed * ev.elapsed
-                if ev.bumped and travelled < expected - STEP_TOL:  # not just touching at the end
-                    self.bumps += 1
-                    trace.add(robot.clock() - t0, robot.true_pose(), "bump", _side(ev))
-                    if expected - travelled > tol:
-                        dev = Deviation(i, expected, travelled, "early", robot.clock() - t0)
-                        self.deviations.append(dev)
-                        trace.add(dev.t, robot.true_pose(), "deviation",
-                                  f"early: {travelled:.3f} m of {expected:.3f} m")
-                self._report(i, len(segs), travelled, ev.elapsed, ev.bumped, None)
-                continue
-            if flight is None:
-                limit = min(self.max_factor * (zeros + 2) * h, self.cap)
-            else:
-                limit = min(self.max_factor * (flight + 2 * h), self.cap)
-            ev = robot.drive_until_bump(speed, limit / speed)
-            travelled = speed * ev.elapsed
-            if not ev.bumped:
-                trace.add(robot.clock() - t0, robot.true_pose(), "no_bump",
-                          f"segment {i}: {travelled:.3f} m")
-                return f"no bump within {limit:.2f} m (segment {i + 1} of {len(segs)})"
-            self.bumps += 1
-            trace.add(robot.clock() - t0, robot.true_pose(), "bump", _side(ev))
-            if abs(travelled - expected) > tol:
-                kind = "early" if travelled < expected else "late"
-                dev = Deviation(i, expected, travelled, kind, robot.clock() - t0)
-                self.deviations.append(dev)
-                trace.add(dev.t, robot.true_pose(), "deviation",
-                          f"{kind}: {travelled:.3f} m instead of {expected:.3f} m")
-            if self.back_off > 0:
-                _back_off(robot, speed, self.back_off)
-                trace.add(robot.clock() - t0, robot.true_pose(), "back_off",
-                          f"{self.back_off:g} m")
-            robot.turn(angle)
-            self.k = int(cells.orientation_of(self.k * cells.delta_deg + angle))
-            trace.add(robot.clock() - t0, robot.true_pose(), "turn", f"{angle:g}")
-            self._report(i, len(segs), travelled, ev.elapsed, True, angle)
-        self.completed = True
-        return ""
-
-    def _report(self, i, total, travelled, seconds, bumped, turn) -> None:
-        if self.on_segment is not None:
-            self.on_segment(SegmentDone(i + 1, total, float(travelled), float(seconds),
-                                        bool(bumped), None if turn is None else float(turn)))
-
-    def result(self, reason: str, elapsed: float, final, trace: Trace) -> PlanRun:
-        cells, goal_z, goal_pose = self.cells, self.goal_z, self.goal_pose
-        success: bool | None = None
-        pos_err = head_err = None
-        if final is not None and goal_pose is not None:
-            gx, gy, gh = goal_pose
-            pos_err = math.hypot(final[0] - gx, final[1] - gy)
-            head_err = _wrap180(final[2] - gh)
-        if self.completed:
-            if goal_z is None:
-                reason = "plan finished (no goal to check)"
-            elif final is None:
-                reason = "plan finished (success unknown without a pose)"
-            else:
-                p_goal = int(cells.pk(goal_z)[0])
-                p_end = int(cells.cell_of_point([final[:2]])[0])
-                in_cell = p_end == p_goal
-                head_ok = abs(head_err) <= cells.delta_deg / 2 + 1e-9
-                success = in_cell and head_ok
-                if success:
-                    reason = "reached the goal"
-                elif not in_cell:
-                    reason = (f"ended {pos_err:.3f} m from the goal cell's centre, outside "
-                              f"the goal cell")
-                else:
-                    reason = (f"heading off by {head_err:+.1f}° (allowed ±"
-                              f"{cells.delta_deg / 2:g}°)")
-        elif goal_z is not None and final is not None:
-            success = False
-        return PlanRun(plan=self.plan, success=success, reason=reason,
-                       completed=self.completed, final_pose=final, position_error=pos_err,
-                       heading_error=head_err, deviations=tuple(self.deviations),
-                       bumps=self.bumps, elapsed=elapsed, start_pose=self.start_pose,
-                       goal_pose=goal_pose, trace=trace)
+                ev = robot.drive_for(speed, move.distance_m / speed)
+            travelled, event = speed * ev.elapsed, None
+        pose, t = robot.true_pose(), robot.clock() - t0
+        if event is not None and record:
+            trace.add(t, pose, event, detail)
+        answer = Moved(ev, travelled, pose, t)
 
 
-# ============================================================================ policy mixes
-class _MixRunner:
-    """The mix half of :func:`execute` (docs/model.md §8-9): epochs of ``epoch`` steps, each
-    with one angle drawn with probabilities α; a step drives h by the clock or until a bump,
-    and on a bump turns by the epoch's angle. Visits are counted per step.
+# ============================================================================ feedback
+def navigate_feedback(robot: Robot, env: Environment | None, start, goal: int, noise,
+                      rng: np.random.Generator, *, angles=(45.0, 90.0, 135.0),
+                      cells: CellSpace | None = None, config: FeedbackConfig | None = None,
+                      speed: float = 0.2, back_off: float = 0.0, w1: float = 1.0,
+                      w2: float = 100.0, max_bumps: int = 40, max_time: float | None = None,
+                      on_belief=None, contact="auto") -> FeedbackRun:
+    """Drive ``robot`` from ``start`` to the goal configuration by feedback (§22):
+    ``execute(FeedbackPlanner(...).policy(start, goal), robot)``.
+
+    Parameters
+    ----------
+    robot : Robot           any body with the bump-and-clock interface
+    env : Environment       the room (default ``robot.env``)
+    start : int or (x, y, heading)   start configuration z or pose [m, m, deg]; the filter
+                            starts there, simulators are placed there
+    goal : int              goal configuration z
+    noise : NoiseModel, float or None
+        The declared turn noise (the filter's motion model,
+        :func:`planners.navigation.feedback.declared_sigma`); not applied to the robot,
+        which brings its own.
+    rng : numpy.random.Generator   the filter's and the decision rule's draws
+    angles : bouncing angles Φ [deg];  w1, w2 : §15's weights
+    config : FeedbackConfig   its ``turn_sigma_deg`` is replaced by the declared noise's σ
+    speed : float [m/s];  back_off : float [m] reversed after every bump before turning
+    max_bumps : int         give up after this many bumps
+    max_time : float        give up after this many seconds of robot clock
+    on_belief : callable, optional
+        Called as ``on_belief(event, belief)`` after every filter step (``"flight"``,
+        ``"turn"``): for tests and plots.
+    contact : "auto", ContactParams or None
+        The contact rule of the filter's motion model and the plan search (§22, §23).
+        "auto" (default): ``config.contact`` when set, else the body's
+        (:func:`body_contact`: PyBullet's fitted rule for a PyBullet body, the twin's own
+        opt-in rule, else the front-half bumper); None: the front-half bumper.
+
+    Returns
+    -------
+    FeedbackRun   success as §8 (final position in the goal cell, heading within ±Δ/2)
+
+    Examples
+    --------
+    >>> import envs
+    >>> import numpy as np
+    >>> from bouncesim.robots.kinematic import KinematicRobot
+    >>> env = envs.load("lab")
+    >>> run = navigate_feedback(KinematicRobot(env), env, 8, 0, None,
+    ...                         np.random.default_rng(0), angles=(90, 135))
+    >>> run.success, run.reason, run.bumps
+    (True, 'reached the goal', 4)
     """
-
-    finished = "finished"
-
-    def __init__(self, policy_mix, robot, cells, start, speed, back_off, steps, epoch, rng,
-                 max_stuck, record_trace) -> None:
-        if not isinstance(policy_mix, PolicyMix):
-            policy_mix = PolicyMix((float(policy_mix),), (1.0,))
-        self.robot, self.cells, self.speed, self.back_off = robot, cells, speed, back_off
-        self.angles = np.asarray(policy_mix.angles, dtype=float)
-        alpha = np.asarray(policy_mix.alpha, dtype=float)
-        self.alpha = alpha / alpha.sum()
-        self.epoch = int(epoch)
-        if self.epoch < 1:
-            raise UserError(f"epoch must be at least one step, got {self.epoch}.")
-        self.steps = int(steps)
-        if self.steps < 0:
-            raise UserError(f"the step budget must be non-negative, got {self.steps}.")
-        self.max_stuck = None if max_stuck is None else int(max_stuck)
-        self.rng, self.record_trace = rng, record_trace
-        if start is None:
-            start = int(rng.integers(0, cells.N))
-        _, start_pose = _resolve_pose(start, cells, "start")
-        place_if_simulated(robot, start_pose)
-        self.counts = np.zeros(cells.P, dtype=np.int64)
-        self.known = robot.true_pose() is not None
-        self.dropped = self.bumps = self.done = 0
-        self.epoch_angles: list[float] = []
-        self.label = f"angles {list(self.angles)} alpha {list(self.alpha)}"
-
-    def loop(self, trace: Trace, t0: float, max_time: float | None) -> str:
-        robot, speed, back_off, rng = self.robot, self.speed, self.back_off, self.rng
-        angles, alpha, epoch, max_stuck = self.angles, self.alpha, self.epoch, self.max_stuck
-        record_trace, epoch_angles, counts = self.record_trace, self.epoch_angles, self.counts
-        cells = self.cells
-        h = cells.h
-
-        def count(pose) -> None:
-            if pose is None:
-                return
-            p = int(cells.cell_of_point(pose[:2])[0])
-            if p < 0:
-                self.dropped += 1
-            else:
-                counts[p] += 1
-
-        stuck = 0
-        angle = float(angles[0])
-        for s in range(self.steps):
-            late = _time_up(robot, t0, max_time)
-            if late:
-                return late
-            if s % epoch == 0:
-                angle = float(angles[rng.choice(len(angles), p=alpha)]) if len(angles) > 1 \
-                    else float(angles[0])
-                epoch_angles.append(angle)
-            pose0 = robot.true_pose()
-            ev = robot.drive_for(speed, h / speed)
-            travelled = speed * ev.elapsed
-            # the step rule (docs/model.md §9): a drive the bumper did not stop had h free
-            _, bump_step = step(travelled if ev.bumped else math.inf, h)
-            if not bump_step:
-                count(pose0)
-                stuck = 0
-                if record_trace:
-                    trace.add(robot.clock() - t0, robot.true_pose(), "step")
-            else:
-                pose_c = robot.true_pose()
-                count(pose_c)
-                self.bumps += 1
-                stuck = stuck + 1 if travelled <= STEP_TOL else 0
-                if record_trace:
-                    trace.add(robot.clock() - t0, pose_c, "bump", _side(ev))
-                if max_stuck is not None and stuck > max_stuck:
-                    self.done += 1
-                    return f"stuck: {stuck} bumps in a row without moving"
-                if back_off > 0:
-                    _back_off(robot, speed, back_off)
-                robot.turn(angle)
-                if record_trace:
-                    trace.add(robot.clock() - t0, robot.true_pose(), "turn", f"{angle:g}")
-            self.done += 1
-        return ""
-
-    def result(self, reason: str, elapsed: float, final, trace: Trace) -> MixRun:
-        return MixRun(counts=self.counts if self.known else None, dropped=self.dropped,
-                      steps=self.done, bumps=self.bumps, reason=reason or self.finished,
-                      epoch_angles=tuple(self.epoch_angles), final_pose=final,
-                      elapsed=elapsed, trace=trace)
+    env = env if env is not None else getattr(robot, "env", None)
+    if env is None:
+        raise UserError(f"{type(robot).__name__} knows no environment: pass env.")
+    cells = cells if cells is not None else CellSpace(env)
+    planner = FeedbackPlanner(cells, angles, w1, w2, noise=noise, rng=rng, contact=contact,
+                              config=config)
+    policy = planner.policy(start, goal, max_bumps=max_bumps, on_belief=on_belief)
+    return execute(policy, robot, cells=cells, speed=speed, back_off=back_off,
+                   max_time=max_time)

@@ -22,13 +22,14 @@ Layout (imports flow down this list; nothing imports upwards):
 >>> model = model_for(cs, "step")                       # or "sampled", "event"
 >>> design = design_mix(model, [90, 135], TurnNoise(eps_deg=45, r=0.9))
 >>> design.mix                                          # what bouncesim.runs.execute.execute runs
-PolicyMix(angles=(90.0, 135.0), alpha=(...), eps=45.0, r=0.9)
+PolicyMix(angles=(90.0, 135.0), alpha=(...), eps=45.0, r=0.9, sigma=0.0)
 >>> design.per_angle[0].q.shape, design.tv < 1
 ((48,), True)
 """
 
 from __future__ import annotations
 
+from ..noise import TurnNoise
 from .api import (
     MODELS,
     analyses,
@@ -39,7 +40,7 @@ from .api import (
     model_for,
     timeshared_coverage,
 )
-from .base import STATE_KINDS, AngleCoverage, CoverageModel, clear_cache, group_cells
+from .base import AngleCoverage, CoverageModel, clear_cache, group_cells
 from .event import EventModel, EventSettings, flight_steps
 from .horizon import (
     Horizon,
@@ -50,7 +51,6 @@ from .horizon import (
     steps_to_limit_each,
 )
 from .mix import MixDesign, MixFit, solve_mix
-from ..noise import TurnNoise
 from .sampled import SampledModel, SampledSettings
 from .step import StepModel, StepSettings, transition_matrix
 from .targets import SPACES, TARGET_FORMATS, TargetError, load_target, uniform_target
@@ -61,5 +61,5 @@ __all__ = ["MODELS", "AngleCoverage", "analyses", "CoverageModel", "EventModel",
            "check_model", "clear_cache", "default_settings", "design_mix", "flight_steps",
            "group_cells", "Horizon", "HorizonCoverage", "horizon_coverage", "horizon_of",
            "load_target",
-           "STATE_KINDS", "model_for", "solve_mix", "steps_to_limit", "steps_to_limit_each",
+           "model_for", "solve_mix", "steps_to_limit", "steps_to_limit_each",
            "timeshared_coverage", "transition_matrix", "uniform_target"]

@@ -34,16 +34,16 @@ from numpy.typing import ArrayLike
 from envs import UserError
 
 from ..cells import CellSpace
+from ..noise import TurnNoise
 from ..plan import PolicyMix
-from .timeshare import TimeSharedCoverage, default_threads, note_threads, timeshared
 from .base import CoverageModel
 from .event import EventModel
 from .horizon import fit_horizon_mix, horizon_of
 from .mix import MixDesign, solve_mix
-from ..noise import TurnNoise
 from .sampled import SampledModel
 from .step import StepModel
 from .targets import check_target, space_size
+from .timeshare import TimeSharedCoverage, default_threads, note_threads, timeshared
 
 __all__ = ["MODELS", "analyses", "check_model", "default_settings", "model_for", "check_angles",
            "design_mix", "timeshared_coverage"]

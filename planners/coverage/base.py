@@ -22,16 +22,12 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..cells import CellSpace
+from ..noise import NoiseView, TurnNoise
 from .markov import ChainAnalysis
 from .timeshare import DelayChain
-from ..noise import NoiseView, TurnNoise
 
-__all__ = ["STATE_KINDS", "AngleCoverage", "CoverageModel", "cached_build", "clear_cache",
+__all__ = ["AngleCoverage", "CoverageModel", "cached_build", "clear_cache",
            "group_cells"]
-
-STATE_KINDS = {"step": "configurations", "sampled": "configurations",
-               "event": "contact states (bin, heading)"}
-"""What each model's chain states (``group_sizes``, ``transient_fraction``) count."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -99,6 +95,12 @@ class CoverageModel(Protocol):
     Settings : type             its frozen settings dataclass (defaults = recommended)
     spaces : tuple of str       target spaces its ``pi`` supports ("positions" always;
                                 "configurations" when its states are the N configurations)
+    state_kind : str            what its chain states (``group_sizes``,
+                                ``transient_fraction``) count
+    steps_in_flights : bool     its steps come in flights of several steps (delays D > 1,
+                                docs/model.md §12) whose headings Gaussian noise moves off
+                                the Δ grid (§18); False: one step per transition
+    contact_rule : bool         it models the body's contact rule (docs/model.md §23)
     cs : CellSpace
     settings : Settings
     """
@@ -106,6 +108,9 @@ class CoverageModel(Protocol):
     name: ClassVar[str]
     Settings: ClassVar[type]
     spaces: ClassVar[tuple]
+    state_kind: ClassVar[str]
+    steps_in_flights: ClassVar[bool]
+    contact_rule: ClassVar[bool]
     cs: CellSpace
     settings: Any
 
@@ -117,6 +122,14 @@ class CoverageModel(Protocol):
 
     def delay_chain(self) -> DelayChain:
         """The angle-independent part as a delay chain (flights, rewards, start)."""
+
+    def bump_rate(self, cov: AngleCoverage) -> float:
+        """Bumps per counted step the model predicts for one angle's coverage ``cov``."""
+
+    @classmethod
+    def memory_estimate(cls, cells: CellSpace, angles, eps_deg: float = 0.0,
+                        settings=None):
+        """Peak memory of the model's chains (:mod:`planners.resources`)."""
 
 
 def group_cells(model: CoverageModel, cov: AngleCoverage) -> np.ndarray:

@@ -43,15 +43,16 @@ import scipy.sparse as sp
 
 from envs import UserError
 from envs.contact import contact_flights
-from envs.motion import CONTACT_GAP, ContactParams, casters, drive_distance, flight_steps, unit
+from envs.motion import ContactParams, casters, drive_distance, flight_steps, unit
 
-from ..boundary import Boundary
+from ..boundary import Boundary, bins_estimate
 from ..cells import CellSpace
-from .timeshare import DelayChain
+from ..noise import TurnNoise
+from ..resources import MemoryEstimate, pipeline
 from .base import AngleCoverage, cached_build
 from .event_flights import FlightCells, StepTable, step_table
-from ..noise import TurnNoise
 from .stationary import analyse_contact_chain
+from .timeshare import DelayChain
 
 __all__ = ["EventSettings", "EventModel", "flight_steps", "analyse_contact_chain"]
 
@@ -155,6 +156,9 @@ class EventModel:
     name: ClassVar[str] = "event"
     Settings: ClassVar[type] = EventSettings
     spaces: ClassVar[tuple] = ("positions",)
+    state_kind: ClassVar[str] = "contact states (bin, heading)"
+    steps_in_flights: ClassVar[bool] = True
+    contact_rule: ClassVar[bool] = True
     summary: ClassVar[str] = ("bump-to-bump model: exact flights between binned contact "
                               "points (the one that matches continuous motion)")
 
@@ -234,6 +238,18 @@ class EventModel:
         return fs
 
     @classmethod
+    def memory_estimate(cls, cells: CellSpace, angles, eps_deg: float = 0.0,
+                        settings=None) -> MemoryEstimate:
+        """Peak memory of the sampled flights (contact bins · K · samples, about 100 float
+        and int arrays over them) and the boundary's bin tables and cast grids, with the
+        step table.
+        """
+        bins = bins_estimate(cells.env, float(getattr(settings, "bin_length", 0.03)))
+        flights = float(bins) * cells.K * int(getattr(settings, "samples", 2))
+        return pipeline(cells, MemoryEstimate("the event coverage model",
+                                              flights * 800 + bins * 25_000))
+
+    @classmethod
     def build(cls, cs: CellSpace, settings: EventSettings) -> "EventModel":
         """The model of ``cs`` (cached per environment and settings)."""
         return cached_build(cls, cs, settings)
@@ -276,6 +292,10 @@ class EventModel:
         T = sp.csr_matrix(self._flight_set(noise.gaussian).flight @ W)
         mu = np.asarray(W.T @ self.start_pre).ravel()
         return T, mu
+
+    def bump_rate(self, cov: AngleCoverage) -> float:
+        """Bumps per step: one per flight, 1 / (mean steps per flight)."""
+        return 1.0 / float(cov.steps_per_flight)
 
     def analyse(self, angle_deg: float, noise: TurnNoise = _EXACT) -> AngleCoverage:
         """Limiting distribution over contact states and the coverage q of one angle.

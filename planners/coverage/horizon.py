@@ -44,10 +44,10 @@ from scipy.optimize import minimize
 from envs import UserError
 
 from ..metrics import tv_distance
-from .timeshare import DelayChain, TimeShared
+from ..noise import TurnNoise
 from .event_flights import StepTable
 from .mix import MixDesign, solve_mix
-from ..noise import TurnNoise
+from .timeshare import DelayChain, TimeShared
 
 __all__ = ["Horizon", "HorizonCoverage", "horizon_coverage", "horizon_of", "steps_to_limit",
            "steps_to_limit_each",
@@ -151,7 +151,7 @@ class _Recursion:
     def build(cls, model, noise: TurnNoise) -> "_Recursion":
         """The recursion of ``model`` with the flights of ``noise`` (event model: §18)."""
         cs = model.cs
-        if model.name != "event":                                 # step, sampled: D = 1
+        if not model.steps_in_flights:                    # step, sampled: D = 1
             base = model.delay_chain()
             ts = TimeShared(base)
             return cls(chain=base, ts=ts, offset=0, tailsT=sp.csr_matrix(ts.RT))
@@ -269,7 +269,7 @@ class Horizon:
         """The recursion of ``noise``'s flights (the event model casts Gaussian noise's
         flights at sub-bin headings, docs/model.md §18), built once per kind of flights.
         """
-        kind = bool(noise.gaussian) and self.model.name == "event"
+        kind = bool(noise.gaussian) and self.model.steps_in_flights
         if kind not in self._prepared:
             t0 = time.perf_counter()
             self._prepared[kind] = _Recursion.build(self.model, noise)

@@ -45,7 +45,7 @@ from scipy.sparse.linalg import LinearOperator, gmres, spilu, spsolve
 
 __all__ = ["ChainAnalysis", "closed_classes", "stationary_distributions",
            "absorption_probabilities", "absorption_matrix", "analyse_chain",
-           "analyse_run_chain", "run_ends", "check_stochastic", "sparse_solve"]
+           "analyse_run_chain", "assemble", "run_ends", "check_stochastic", "sparse_solve"]
 
 _ROW_TOL = 1e-9
 _DIRECT_MAX = 2000          # systems up to this size go straight to SuperLU
@@ -376,10 +376,13 @@ def analyse_chain(P, start=None, check: bool = True) -> ChainAnalysis:
     _, groups = closed_classes(P)
     stat = stationary_distributions(P, groups)
     a = absorption_probabilities(P, groups, start)
-    return _assemble(n, groups, stat, a)
+    return assemble(n, groups, stat, a)
 
 
-def _assemble(n, groups, stat, a) -> ChainAnalysis:
+def assemble(n, groups, stat, a) -> ChainAnalysis:
+    """The :class:`ChainAnalysis` of ``n`` states from their closed classes ``groups``, each
+    class's stationary distribution ``stat`` and the absorption weights ``a``.
+    """
     sizes = np.array([len(g) for g in groups], dtype=np.int64)
     pi = np.zeros(n)
     for g, idx in enumerate(groups):
@@ -520,4 +523,4 @@ def analyse_run_chain(succ, branch, start=None) -> ChainAnalysis:
         full[lab >= 0] /= tot[lab[lab >= 0]]
     # The groups come sorted by smallest full-state index; reorder a to match.
     a = a[[int(lab[g[0]]) for g in groups]] if groups else a
-    return _assemble(n, groups, full, a)
+    return assemble(n, groups, full, a)

@@ -12,8 +12,8 @@ from numpy.typing import ArrayLike
 from scipy.optimize import minimize
 
 from ..metrics import tv_distance
-from ..plan import PolicyMix
 from ..noise import NoiseView, TurnNoise
+from ..plan import PolicyMix
 
 __all__ = ["MixFit", "MixDesign", "solve_mix"]
 
@@ -188,9 +188,11 @@ class MixDesign(NoiseView):
 
     @property
     def mix(self) -> PolicyMix:
-        """The designed mix as the executor takes it (angles, α, ε, r)."""
+        """The designed mix as the executor takes it (angles, α and the noise designed for:
+        ε, r, σ).
+        """
         return PolicyMix(self.angles, tuple(self.alpha.tolist()), self.noise.eps_deg,
-                         self.noise.r)
+                         self.noise.r, self.noise.sigma_deg)
 
     @property
     def A(self) -> np.ndarray:

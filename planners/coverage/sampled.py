@@ -30,10 +30,11 @@ from envs import UserError
 from envs.motion import casters, drive_distance, step, unit
 
 from ..cells import CellSpace
+from ..noise import TurnNoise
+from ..resources import GEOM_NATIVE, MemoryEstimate, pipeline
+from .base import AngleCoverage, cached_build
 from .markov import analyse_chain
 from .timeshare import DelayChain
-from .base import AngleCoverage, cached_build
-from ..noise import TurnNoise
 
 __all__ = ["SampledSettings", "SampledModel"]
 
@@ -76,6 +77,9 @@ class SampledModel:
     name: ClassVar[str] = "sampled"
     Settings: ClassVar[type] = SampledSettings
     spaces: ClassVar[tuple] = ("positions",)
+    state_kind: ClassVar[str] = "configurations"
+    steps_in_flights: ClassVar[bool] = False
+    contact_rule: ClassVar[bool] = False
     summary: ClassVar[str] = ("generalized cell mapping: each configuration cell's "
                               "transitions from a lattice of exact continuous steps")
 
@@ -129,6 +133,18 @@ class SampledModel:
         self.build_seconds = time.perf_counter() - t0
 
     @classmethod
+    def memory_estimate(cls, cells: CellSpace, angles, eps_deg: float = 0.0,
+                        settings=None) -> MemoryEstimate:
+        """Peak memory of the sampled flights (N · grid² · θ samples, about 75 float and int
+        arrays over them) and their shapely points, with the step table.
+        """
+        grid = int(getattr(settings, "grid", 3))
+        nt = int(getattr(settings, "theta_samples", 2))
+        samples = float(cells.N) * grid * grid * nt
+        return pipeline(cells, MemoryEstimate("the sampled coverage model", samples * 600,
+                                              cells.P * grid * grid * GEOM_NATIVE))
+
+    @classmethod
     def build(cls, cs: CellSpace, settings: SampledSettings) -> "SampledModel":
         """The model of ``cs`` (cached per environment and settings)."""
         return cached_build(cls, cs, settings)
@@ -152,6 +168,10 @@ class SampledModel:
     def delay_chain(self) -> DelayChain:
         """One-step flights; rewards where the twin counts each sample's step; uniform start."""
         return DelayChain.stepwise(self.reward, np.full(self.cs.N, 1.0 / self.cs.N))
+
+    def bump_rate(self, cov: AngleCoverage) -> float:
+        """Bumps per step: π weighted by each configuration's bumping fraction."""
+        return float(np.asarray(cov.pi, dtype=float) @ np.asarray(self.bump_frac, dtype=float))
 
     def analyse(self, angle_deg: float, noise: TurnNoise = _EXACT) -> AngleCoverage:
         """Limiting distribution (uniform start over N) and coverage of one angle."""

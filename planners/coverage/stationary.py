@@ -20,7 +20,7 @@ from threadpoolctl import threadpool_limits
 
 from .markov import (
     ChainAnalysis,
-    _assemble,
+    assemble,
     absorption_probabilities,
     check_stochastic,
     closed_classes,
@@ -226,4 +226,4 @@ def analyse_contact_chain(T, start, aggregates=None, method: str = "krylov"
         a = absorption_probabilities(T, groups, start)
     else:
         a = np.ones(len(groups))
-    return _assemble(n, groups, stat, a)
+    return assemble(n, groups, stat, a)

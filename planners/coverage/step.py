@@ -33,6 +33,7 @@ is persistent and each cell is covered a third of the time:
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 from typing import ClassVar
@@ -43,10 +44,11 @@ import scipy.sparse as sp
 from envs import UserError
 
 from ..cells import CellSpace
+from ..noise import TurnNoise
+from ..resources import F64, I32, I64, MemoryEstimate, pipeline
+from .base import AngleCoverage
 from .markov import analyse_chain, analyse_run_chain
 from .timeshare import DelayChain
-from .base import AngleCoverage
-from ..noise import TurnNoise
 
 __all__ = ["StepSettings", "StepModel", "transition_matrix"]
 
@@ -123,6 +125,9 @@ class StepModel:
     name: ClassVar[str] = "step"
     Settings: ClassVar[type] = StepSettings
     spaces: ClassVar[tuple] = ("positions", "configurations")
+    state_kind: ClassVar[str] = "configurations"
+    steps_in_flights: ClassVar[bool] = False
+    contact_rule: ClassVar[bool] = False
     summary: ClassVar[str] = ("the paper's chain over configuration cells, snapped to cell "
                               "centres after every step")
 
@@ -130,9 +135,32 @@ class StepModel:
     settings: StepSettings = field(default_factory=StepSettings)
 
     @classmethod
+    def memory_estimate(cls, cells: CellSpace, angles, eps_deg: float = 0.0,
+                        settings=None) -> MemoryEstimate:
+        """Peak memory of one angle's chain (they are built one after another): the run
+        chain over N states and its bump rows (B bumps × the turns of ±ε), with the step
+        table (:func:`planners.resources.pipeline`).
+        """
+        N, K = cells.N, cells.K
+        e = abs(float(eps_deg)) / cells.delta_deg if math.isfinite(float(eps_deg)) else 0.0
+        turns = min(K, 2 * int(round(e)) + 1)
+        fwd = vars(cells).get("forward")
+        B = N if fwd is None else int((fwd < 0).sum())
+        per_state = 26 * I64         # run chain: succ, end, bindex, prefix sums (x7), pi ...
+        per_entry = 3 * I64 + 2 * (I32 + F64) + I64   # bump rows: parts, COO, CSR, Cc
+        return pipeline(cells, MemoryEstimate(
+            "the coverage chain", N * per_state + B * turns * per_entry, 0.0,
+            N * F64 * (1 + len(tuple(angles)))))
+
+    @classmethod
     def build(cls, cs: CellSpace, settings: StepSettings) -> "StepModel":
         """The model of ``cs`` (nothing to precompute beyond ``cs.forward``)."""
         return cls(cs, settings)
+
+    def bump_rate(self, cov: AngleCoverage) -> float:
+        """Bumps per step: π summed over the configurations whose step is a bump."""
+        bump = (np.asarray(self.cs.forward) < 0).astype(float)
+        return float(np.asarray(cov.pi, dtype=float) @ bump)
 
     def analyse(self, angle_deg: float, noise: TurnNoise = _EXACT) -> AngleCoverage:
         """Persistent groups, limiting distribution (uniform start over the N

@@ -47,7 +47,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.stats import binomtest
@@ -57,13 +57,16 @@ from envs.contact import advance, contact_flights, glancing
 from envs.motion import BUMP_RANGE, ContactParams, casters, drive_distance, unit
 
 from ..cells import CellSpace
+from ..measures import flight_limit, in_goal
 from ..noise import TurnNoise
-from .exact import ExactNavigator, ExactRoute
 from ..plan import Plan
+from ..resources import MemoryEstimate
+from .base import Route, check_config
+from .exact import ExactNavigator
 
 __all__ = ["DEFAULT_SLACK", "DEFAULT_PARTICLES", "MAX_CANDIDATES", "W2_FACTORS", "Estimate",
-           "ReliableNavigator", "ReliableRoute", "Rollout", "draw_turns", "estimate",
-           "plan_cost", "rollout", "wilson"]
+           "ReliableNavigator", "Rollout", "draw_turns", "estimate", "plan_cost", "rollout",
+           "wilson"]
 
 DEFAULT_SLACK = 150.0
 """Cost slack of the candidates (w1 units): at w2 = 100 one more change of angle and up to
@@ -168,12 +171,6 @@ def draw_turns(noise, plan: Plan, n: int, rng: np.random.Generator,
     return out
 
 
-def _wrap180(d: np.ndarray) -> np.ndarray:
-    w = np.fmod(d, 360.0)
-    w = np.where(w > 180.0, w - 360.0, w)
-    return np.where(w <= -180.0, w + 360.0, w)
-
-
 def rollout(cells: CellSpace, plan: Plan, start: int, goal: int, turns: np.ndarray, *,
             speed: float = 0.2, max_factor: float = 2.0,
             contact: ContactParams | None = None) -> Rollout:
@@ -202,9 +199,6 @@ def rollout(cells: CellSpace, plan: Plan, start: int, goal: int, turns: np.ndarr
     if turns.shape[1:] != (plan.bumps,):
         raise ValueError(f"turns must have shape (n, {plan.bumps}), got {turns.shape}.")
     caster = casters(cells.env)[0]
-    h = cells.h
-    x0, y0, x1, y1 = cells.env.bounds
-    cap = math.hypot(x1 - x0, y1 - y0) + h
     sx, sy, sh = cells.pose(int(start))
     pos = np.tile([sx, sy], (n, 1))
     head = np.full(n, sh)
@@ -212,7 +206,7 @@ def rollout(cells: CellSpace, plan: Plan, start: int, goal: int, turns: np.ndarr
     contacts = np.full((n, plan.bumps, 2), np.nan)
     k = int(cells.orientation_of(sh))
     if plan.is_exact:
-        limits = [min(max_factor * (f + 2 * h), cap) for f in plan.flights_m]
+        limits = [flight_limit(cells, max_factor, flight_m=f) for f in plan.flights_m]
         final = float(plan.final_m)
     else:
         limits, final = [], 0.0
@@ -220,7 +214,7 @@ def rollout(cells: CellSpace, plan: Plan, start: int, goal: int, turns: np.ndarr
             if angle is None:
                 final = cells.run_length(k, zeros)
             else:
-                limits.append(min(max_factor * (zeros + 2) * h, cap))
+                limits.append(flight_limit(cells, max_factor, zeros=zeros))
                 k = int(cells.orientation_of(k * cells.delta_deg + angle))
     for j, limit in enumerate(limits):
         u = unit(head)
@@ -243,12 +237,8 @@ def rollout(cells: CellSpace, plan: Plan, start: int, goal: int, turns: np.ndarr
         pos = pos + np.minimum(D, budget)[:, None] * u
         if contact is not None:
             pos = _ruled_final(caster, pos, u, D, budget, alive, contact)
-    p_goal = int(cells.pk(int(goal))[0])
-    g_head = cells.pose(int(goal))[2]
-    in_cell = cells.cell_of_point(pos) == p_goal
-    head_ok = np.abs(_wrap180(head - g_head)) <= cells.delta_deg / 2 + 1e-9
     poses = np.column_stack([pos, head])
-    return Rollout(poses, alive, alive & in_cell & head_ok, contacts)
+    return Rollout(poses, alive, alive & in_goal(cells, goal, pos, head), contacts)
 
 
 def _ruled_flight(caster, pos, u, D, reach, alive, contact):
@@ -313,49 +303,16 @@ def plan_cost(plan: Plan, h: float, w1: float, w2: float) -> float:
     return w1 * travel + sum(bumps)
 
 
-@dataclass(frozen=True)
-class ReliableRoute(ExactRoute):
-    """An exact route chosen for reliability (docs/model.md §21).
-
-    Attributes (besides :class:`~planners.navigation.exact.ExactRoute`'s; ``cost`` is at the user's
-    weights)
-    ----------
-    p_success : float           success probability from an independent particle set
-    p_success_ci : (lo, hi)     its Wilson interval
-    candidates : int            candidates ranked
-    chosen : int                the chosen plan's rank by cost among them (0: the cheapest)
-    p_exact : float             the exact planner's own plan's estimate on the selection set
-    exact_cost : float          the exact planner's own plan's cost
-    particles : int             particles per estimate
-    noise : str                 the noise model planned for
-    """
-
-    p_success: float = float("nan")
-    p_success_ci: tuple = (float("nan"), float("nan"))
-    candidates: int = 0
-    chosen: int = 0
-    p_exact: float = float("nan")
-    exact_cost: float = float("nan")
-    particles: int = 0
-    noise: str = ""
-
-    def to_json(self) -> dict:
-        """:meth:`ExactRoute.to_json` plus planner 'reliable', p_success, p_success_ci,
-        candidates, chosen, p_exact, exact_cost, particles and noise.
-        """
-        out = super().to_json()
-        out.update({"planner": "reliable", "p_success": round(self.p_success, 6),
-                    "p_success_ci": [round(v, 6) for v in self.p_success_ci],
-                    "candidates": self.candidates, "chosen": self.chosen,
-                    "p_exact": round(self.p_exact, 6),
-                    "exact_cost": round(float(self.exact_cost), 9),
-                    "particles": self.particles, "noise": self.noise})
-        return out
-
-
 class ReliableNavigator:
-    """The most reliable of the near-optimal exact plans (docs/model.md §21), with the shape
-    of :class:`~planners.navigation.exact.ExactNavigator` (``plan(start, goal)``).
+    """The most reliable of the near-optimal exact plans (``"reliable"``, docs/model.md §21).
+
+    Its :class:`~planners.navigation.base.Route` has the exact plan's fields (``cost`` at the
+    user's weights) and these extras: ``p_success`` (success probability from an independent
+    particle set), ``p_success_ci`` (its Wilson interval), ``candidates`` (candidates
+    ranked), ``chosen`` (the chosen plan's rank by cost among them, 0: the cheapest),
+    ``p_exact`` (the exact planner's own plan's estimate on the selection set),
+    ``exact_cost`` (its cost), ``particles`` (per estimate) and ``noise`` (the noise planned
+    for).
 
     Parameters
     ----------
@@ -404,12 +361,16 @@ class ReliableNavigator:
         self.slack, self.particles = float(slack), int(particles)
         self.max_candidates, self.rng, self.confidence = int(max_candidates), rng, confidence
 
+    name = "reliable"
+    needs = frozenset({"noise", "rng", "contact"})
+    closed_loop = False
+
     @property
     def angles(self) -> tuple:
         """Bouncing angles Φ [deg]."""
         return self.exact.angles
 
-    def candidates(self, start: int, goal: int) -> list[ExactRoute]:
+    def candidates(self, start: int, goal: int) -> list[Route]:
         """The exact planner's plan first, then every plan within ``slack`` of the cheapest
         of each search (:meth:`ExactNavigator.plans`), by cost at the user's weights,
         duplicates dropped, at most ``max_candidates``; costs are at the user's weights.
@@ -425,8 +386,7 @@ class ReliableNavigator:
         h = self.cells.h
         rest = sorted((plan_cost(p, h, self.w1, self.w2), i, r)
                       for i, (p, r) in enumerate(pool.items()))
-        out = [first] + [ExactRoute(r.start, r.goal, r.plan, c, r.poses)
-                         for c, _, r in rest]
+        out = [first] + [replace(r, cost=c) for c, _, r in rest]
         return out[:self.max_candidates]
 
     def rank(self, routes: list, start: int, goal: int) -> np.ndarray:
@@ -439,13 +399,13 @@ class ReliableNavigator:
                                   contact=self.contact).successes
                          for r in routes])
 
-    def plan(self, start: int, goal: int) -> ReliableRoute | None:
+    def plan(self, start: int, goal: int) -> Route | None:
         """The most reliable candidate from ``start`` to ``goal`` (None when the exact
         planner has no plan); ties go to the cheaper plan. Its ``p_success`` is estimated
         again on an independent particle set (the selection's maximum is biased upward).
         """
-        s = self.exact._check(start, "start")
-        g = self.exact._check(goal, "goal")
+        s = check_config(self.cells, start, "start")
+        g = check_config(self.cells, goal, "goal")
         routes = self.candidates(s, g)
         if not routes:
             return None
@@ -454,8 +414,24 @@ class ReliableNavigator:
         r = routes[best]
         est = estimate(self.cells, r.plan, s, g, self.noise, self.particles, self.rng,
                        self.confidence, contact=self.contact)
-        return ReliableRoute(r.start, r.goal, r.plan, r.cost, r.poses, p_success=est.p,
-                             p_success_ci=est.ci, candidates=len(routes), chosen=best,
-                             p_exact=float(wins[0]) / self.particles,
-                             exact_cost=routes[0].cost, particles=self.particles,
-                             noise=str(self.noise))
+        extras = {"p_success": est.p, "p_success_ci": est.ci, "candidates": len(routes),
+                  "chosen": best, "p_exact": float(wins[0]) / self.particles,
+                  "exact_cost": float(routes[0].cost), "particles": self.particles,
+                  "noise": str(self.noise)}
+        return replace(r, planner=self.name, extras=extras)
+
+    def policy(self, start: int, goal: int) -> Plan | None:
+        """The plan :func:`bouncesim.runs.execute.execute` runs (None: no plan)."""
+        route = self.plan(start, goal)
+        return None if route is None else route.plan
+
+    @classmethod
+    def memory_estimate(cls, cells: CellSpace, angles, particles: int = DEFAULT_PARTICLES,
+                        max_candidates: int = MAX_CANDIDATES) -> MemoryEstimate:
+        """Peak memory of one query: the exact planner's single query (one search per
+        weight factor, one after another) and the particle rollouts of the candidates (a
+        few float arrays per particle and bump).
+        """
+        base = ExactNavigator.memory_estimate(cells, angles)
+        return MemoryEstimate("the reliable planner's search and particles",
+                              base.traced + 64.0 * particles * (max_candidates + 8))

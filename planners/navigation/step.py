@@ -16,58 +16,39 @@ from __future__ import annotations
 
 from collections import OrderedDict
 from collections.abc import Iterable
-from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
 from scipy.sparse.csgraph import dijkstra
 
-from envs import UserError
-
 from ..cells import CellSpace
+from ..measures import step_flights
 from ..plan import Plan
-from ..resources import DEFAULT_MAX_MEMORY, check_memory, parse_memory, search_bytes
+from ..resources import (
+    BOOL,
+    DEFAULT_MAX_MEMORY,
+    F64,
+    HEAP_NATIVE,
+    I32,
+    I64,
+    MemoryEstimate,
+    check_memory,
+    parse_memory,
+    pipeline,
+)
+from .base import Route, check_config
 from .roadmap import Roadmap
 
-__all__ = ["AllPairs", "Navigator", "Route"]
+__all__ = ["AllPairs", "Navigator", "SEARCH_CACHE", "all_pairs_bytes", "roadmap_bytes",
+           "search_bytes"]
 
-
-@dataclass(frozen=True)
-class Route:
-    """A shortest plan from one configuration to another.
-
-    Attributes
-    ----------
-    start, goal : int      configuration indices z
-    plan : Plan            the observation string
-    cost : float           total weight (w1 per step and same-angle bump, w2 per angle change)
-    path : tuple of int    configurations visited, start first and goal last
-    """
-
-    start: int
-    goal: int
-    plan: Plan
-    cost: float
-    path: tuple
-
-    @property
-    def angles_used(self) -> int:
-        """Number of distinct bouncing angles in the plan."""
-        return self.plan.angles_used
-
-    def to_json(self) -> dict:
-        """The route as a JSON-ready dict (plan as a label list and as text, cost, path)."""
-        return {"start": self.start, "goal": self.goal, "plan": self.plan.to_list(),
-                "plan_text": str(self.plan), "cost": _num(self.cost),
-                "angles_used": self.angles_used, "path": list(self.path)}
-
-
-def _num(x: float):
-    return int(x) if float(x).is_integer() else float(x)
+SEARCH_CACHE = 64
+"""Single-source searches a :class:`Navigator` keeps for repeated starts (default)."""
 
 
 class Navigator:
-    """Plans on the layered roadmap of an environment's cell space.
+    """The paper's step-model planner (``"step"``): plans on the layered roadmap of an
+    environment's cell space (docs/model.md §6).
 
     Parameters
     ----------
@@ -82,12 +63,17 @@ class Navigator:
         :mod:`planners.resources`.
     """
 
+    name = "step"
+    needs = frozenset()
+    closed_loop = False
+
     def __init__(self, cells: CellSpace, angles: Iterable[float], w1: float = 1.0,
-                 w2: float = 100.0, cache: int = 64, max_memory=DEFAULT_MAX_MEMORY) -> None:
+                 w2: float = 100.0, cache: int = SEARCH_CACHE,
+                 max_memory=DEFAULT_MAX_MEMORY) -> None:
         self.cells = cells
         self.roadmap = Roadmap(cells, tuple(angles), w1, w2)
-        est = check_memory(cells, self.roadmap.angles, task="plan", searches=1,
-                           max_memory=max_memory)
+        est = check_memory(cells, self.memory_estimate(cells, self.roadmap.angles, searches=1),
+                           what="planning", max_memory=max_memory)
         if max_memory is not None:    # keep only as many cached searches as the limit allows
             per = search_bytes(cells.N, self.roadmap.m).traced
             spare = parse_memory(max_memory) - est.total
@@ -99,16 +85,6 @@ class Navigator:
     def angles(self) -> tuple:
         """The bouncing angles Φ [deg] of the roadmap's layers."""
         return self.roadmap.angles
-
-    def _check(self, z, what: str) -> int:
-        try:
-            zi = int(z)
-        except (TypeError, ValueError, OverflowError):
-            raise UserError(f"{what} {z!r} is not a configuration index.") from None
-        if not 0 <= zi < self.cells.N:
-            raise UserError(f"{what} {zi} is out of range: configurations are 0 to "
-                            f"{self.cells.N - 1}.")
-        return zi
 
     def _search(self, start: int) -> tuple[np.ndarray, np.ndarray]:
         hit = self._cache.get(start)
@@ -125,11 +101,16 @@ class Navigator:
 
     def plan(self, start: int, goal: int) -> Route | None:
         """The minimum-weight plan from configuration ``start`` to ``goal``, or None."""
-        s, g = self._check(start, "start"), self._check(goal, "goal")
+        s, g = check_config(self.cells, start, "start"), check_config(self.cells, goal, "goal")
         if s == g:
-            return Route(s, g, Plan(()), 0.0, (s,))
+            return _route(self.cells, s, g, (), 0.0, (s,))
         dist, pred = self._search(s)
         return _route_from_tree(self.roadmap, s, g, dist, pred)
+
+    def policy(self, start: int, goal: int) -> Plan | None:
+        """The plan :func:`bouncesim.runs.execute.execute` runs (None: no plan)."""
+        route = self.plan(start, goal)
+        return None if route is None else route.plan
 
     def all_pairs(self, max_memory=DEFAULT_MAX_MEMORY) -> AllPairs:
         """Algorithm 2: every ordered pair, one Dijkstra per source (in one C call).
@@ -137,8 +118,25 @@ class Navigator:
         Refuses (:class:`envs.UserError`) when the estimated peak memory exceeds
         ``max_memory`` bytes (or a size such as ``"2G"``; None: no limit).
         """
-        check_memory(self.cells, self.angles, task="allpairs", max_memory=max_memory)
+        check_memory(self.cells, self.memory_estimate(self.cells, self.angles, "allpairs"),
+                     what="all pairs", max_memory=max_memory)
         return AllPairs(self.roadmap)
+
+    @classmethod
+    def memory_estimate(cls, cells: CellSpace, angles, task: str = "plan",
+                        searches: int = 1) -> MemoryEstimate:
+        """Peak memory of planning (``task="plan"``: the step table, the roadmap and up to
+        ``searches`` cached single-source searches) or of all pairs (``"allpairs"``), from
+        the sizes alone (:func:`planners.resources.pipeline` of :func:`roadmap_bytes`, then
+        :func:`search_bytes` or :func:`all_pairs_bytes`).
+        """
+        N, m = cells.N, max(1, len(tuple(angles)))
+        road = roadmap_bytes(N, m, vars(cells).get("forward"))
+        if task == "plan":
+            return pipeline(cells, road, search_bytes(N, m, searches))
+        if task != "allpairs":
+            raise ValueError(f"task must be 'plan' or 'allpairs', got {task!r}.")
+        return pipeline(cells, road, all_pairs_bytes(N, m))
 
 
 class AllPairs:
@@ -230,7 +228,7 @@ class AllPairs:
         """The plan for the pair (i, j), rebuilt from the stored predecessor trees."""
         i, j = int(i), int(j)
         if i == j:
-            return Route(i, j, Plan(()), 0.0, (i,))
+            return _route(self.roadmap.cells, i, j, (), 0.0, (i,))
         return _route_from_tree(self.roadmap, i, j, self._dist[i], self._pred[i])
 
     def histogram(self) -> np.ndarray:
@@ -264,7 +262,18 @@ def _route_from_tree(rm: Roadmap, s: int, g: int, dist: np.ndarray, pred: np.nda
     nodes.reverse()
     labels = rm.labels_of_path(nodes)
     path = tuple(int(z) for z in rm.config_of(nodes))
-    return Route(s, g, Plan(tuple(labels)), float(d[b]), path)
+    return _route(rm.cells, s, g, tuple(labels), float(d[b]), path)
+
+
+def _route(cells: CellSpace, s: int, g: int, labels: tuple, cost: float, path: tuple) -> Route:
+    """The step planner's :class:`Route`: the plan with the step model's run lengths as its
+    flights (rounded to 1e-9 m) and the cell-centre pose of every configuration on its path.
+    """
+    plan = Plan(labels)
+    flights, final = step_flights(cells, s, plan)
+    plan = Plan.with_flights(plan, [round(f, 9) for f in flights], round(final, 9), "step")
+    poses = tuple(cells.pose(z) for z in path)
+    return Route(s, g, plan, cost, poses, "step", path)
 
 
 def _popcount(x: np.ndarray) -> np.ndarray:
@@ -274,3 +283,46 @@ def _popcount(x: np.ndarray) -> np.ndarray:
         count += (x & np.uint64(1)).astype(np.int64)
         x >>= np.uint64(1)
     return count
+
+
+# ---------------------------------------------------------------- memory (bytes)
+def roadmap_bytes(N: int, m: int, forward=None) -> MemoryEstimate:
+    """``Roadmap.graph``: E edges in row/col/weight parts, concatenated, COO, CSR."""
+    E = _edges(N, m, forward)
+    per = (3 * I64              # the rows, cols, vals parts
+           + 3 * I64            # concatenated
+           + 2 * I32 + F64     # scipy's COO (int32 indices)
+           + I32 + F64)        # the CSR matrix
+    nodes = (m + 1) * N
+    return MemoryEstimate("the roadmap", E * per, 0.0,
+                          E * (I32 + F64) + (nodes + 1) * I32)
+
+
+def search_bytes(N: int, m: int, searches: int = 1) -> MemoryEstimate:
+    """Single-source Dijkstra runs kept by ``Navigator`` (distances float64, predecessors
+    int32 per node; the heap is native).
+    """
+    nodes = (m + 1) * N
+    return MemoryEstimate("the searches", searches * nodes * (F64 + I32),
+                          nodes * HEAP_NATIVE)
+
+
+def all_pairs_bytes(N: int, m: int) -> MemoryEstimate:
+    """``AllPairs``: the multi-source Dijkstra's (N, (m + 1) N) distances and predecessors,
+    then the pointer jumping's per-(source, layer node) arrays.
+    """
+    nodes = (m + 1) * N
+    M = m * N
+    traced = (N * nodes * (F64 + I32)                   # dist, pred
+              + N * M * (I64 + 3 * BOOL                 # parent, has_parent, bump, pred < 0
+                         + I64 + BOOL + I32            # anc, mask, depth
+                         + I64 + BOOL                   # live, isin
+                         + 2 * I32))                     # pred % N % P
+    return MemoryEstimate("all pairs", traced, nodes * HEAP_NATIVE)
+
+
+def _edges(N: int, m: int, forward=None) -> float:
+    if forward is None:                   # before the step table: every z steps or bumps
+        return float(N) * max(2 * m, m * m + m)
+    B = int((forward < 0).sum())
+    return 2.0 * m * (N - B) + (m * m + m) * B

@@ -51,7 +51,7 @@ from planners.plan import PolicyMix
 from ..noise import NoiseModel, NoNoise, noise_for_mix
 from .bumper import read_bumper
 from .fastforward import DEFAULT_FAST_FORWARD, Coaster, FastForward
-from .robot import _SETTLE_STEPS, PyBulletRobot
+from .robot import SETTLE_STEPS, PyBulletRobot
 
 __all__ = ["PyBulletBatch", "BatchRun", "BATCH_PHYSICS", "ROBOT_GROUP", "ROBOT_MASK"]
 
@@ -366,7 +366,7 @@ class PyBulletBatch:
             if n > 0:
                 yield n
             self._wheels(body, 0.0, 0.0)
-            n = wait_steps(_SETTLE_STEPS * dt)
+            n = wait_steps(SETTLE_STEPS * dt)
             if n > 0:
                 yield n
             if out["turns"] is not None:

@@ -39,7 +39,8 @@ from .bumper import CONTACT_TOLERANCE, contact_bearing, read_bumper
 from .video import Recorder, check_record_format
 from .walls import WALL_THICKNESS, convex_pieces, wall_pieces
 
-__all__ = ["PyBulletRobot", "DEFAULT_SPEED", "DEFAULT_TURN_SPEED", "DEFAULT_TIME_STEP"]
+__all__ = ["PyBulletRobot", "DEFAULT_SPEED", "DEFAULT_TURN_SPEED", "DEFAULT_TIME_STEP",
+           "import_pybullet"]
 
 DEFAULT_SPEED = 0.2
 """Default forward speed [m/s]: 3 mm of travel per 15 ms bumper poll, so a bump is caught
@@ -59,7 +60,7 @@ _CASTER_RADIUS = 0.01       # [m]
 _CASTER_OFFSET = 0.13       # caster/skid distance ahead of / behind the axle [m]
 _CASTER_GAP = 0.001         # casters hang this far above the floor at rest [m]
 _MESH_MARGIN = 1e-4         # collision margin of the wall prisms [m]
-_SETTLE_STEPS = 2
+SETTLE_STEPS = 2
 
 
 # ---------------------------------------------------------------------------- the robot
@@ -81,7 +82,8 @@ def _quiet_stdout():
         os.close(saved)
 
 
-def _import_pybullet():
+def import_pybullet():
+    """The pybullet module; one sentence naming the extra to install when it is missing."""
     try:
         import pybullet
     except ImportError:
@@ -219,7 +221,7 @@ class PyBulletRobot(Robot):
             self.recorder = Recorder(self._record, self._record_every * self.time_step,
                                      int(record_width), self.env.bounds, _WALL_HEIGHT)
 
-        p = self._p = _import_pybullet()
+        p = self._p = import_pybullet()
         if self.gui:
             # Without a display PyBullet's GUI ends the whole process: check first.
             if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY")
@@ -488,7 +490,7 @@ class PyBulletRobot(Robot):
         self._set_wheels(-v, v)
         self.wait(n * self.time_step)
         self.stop()
-        self.wait(_SETTLE_STEPS * self.time_step)
+        self.wait(SETTLE_STEPS * self.time_step)
 
     def _turn_by_encoders(self, angle_deg: float) -> None:
         """Turn until the encoder heading change reaches the target, polling every sensor
@@ -515,7 +517,7 @@ class PyBulletRobot(Robot):
             self._set_wheels(-sign * v, sign * v)
             self.wait(period)
         self.stop()
-        self.wait(_SETTLE_STEPS * self.time_step)
+        self.wait(SETTLE_STEPS * self.time_step)
 
     # ------------------------------------------------------------------ simulation only
     def place(self, x: float, y: float, heading_deg: float) -> None:

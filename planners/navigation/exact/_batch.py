@@ -24,6 +24,7 @@ tree (and by every batch of starts): :class:`FlightTable`.
 from __future__ import annotations
 
 import heapq
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -31,7 +32,7 @@ from envs.contact import contact_flights
 
 from ._chords import chords
 
-__all__ = ["FlightTable", "search_many"]
+__all__ = ["FlightTable", "SearchArrays", "search_many"]
 
 _IMPROVE = 1e-9          # a new arrival replaces a state's pose when cheaper by this
 
@@ -105,7 +106,7 @@ class FlightTable:
         if miss.any():
             key, inv = np.unique(parent[miss] * self.nav.m + b[miss], return_inverse=True)
             pn, bn = np.divmod(key, self.nav.m)
-            k = (self.k.a[pn] + self.nav._steps[bn]) % self.nav.cells.K
+            k = (self.k.a[pn] + self.nav.steps[bn]) % self.nav.cells.K
             ids = self._find(self.land.a[pn], k)
             self.child.a[pn, bn] = ids
             out[miss] = ids[inv.reshape(-1)]
@@ -140,7 +141,7 @@ class FlightTable:
         pos = np.asarray(pos, dtype=float).reshape(-1, 2)
         k = np.asarray(k, dtype=np.int64)
         ids = np.arange(self.n, self.n + len(k))
-        D, u = nav._flights(pos, k)
+        D, u = nav.flights(pos, k)
         land, clock = pos + D[:, None] * u, D
         if nav.contact is not None:                       # glancing contacts slide on
             fl = contact_flights(nav.caster, pos, u, D, nav.contact)
@@ -155,7 +156,7 @@ class FlightTable:
         self.goal_cost.extend(w1 * t / h)
         self.goal_t.extend(t)
         lb = nav.boundary.bin_of(land)
-        k2 = (k[:, None] + nav._steps[None]) % K
+        k2 = (k[:, None] + nav.steps[None]) % K
         self.child_state.extend((lb[:, None] * K + k2) * m + np.arange(m)[None])
         self.child.reserve(len(k))
         self.pos.extend(pos)
@@ -166,16 +167,43 @@ class FlightTable:
         return ids
 
 
+@dataclass(frozen=True, eq=False)
+class SearchArrays:
+    """The trees of a search from B starts (one index space of B·(S + 1) states: source i
+    owns states i·(S + 1) … i·(S + 1) + S, the last one its start).
+
+    Attributes
+    ----------
+    cost : (B·(S + 1),) float   cost of every state (inf: not reached)
+    pred : (B·(S + 1),) int     predecessor state (−1: none); None without ``tree``
+    pos : (B·(S + 1), 2) float  exact pose [m] of each settled state; None without ``tree``
+    flight : (B·(S + 1),) float clock length [m] of each settled state's flight; None
+                                without ``tree``
+    used : (B·(S + 1),) int     bit mask of the angles used on the way to each state
+    gcost : (B, N) float        cost of the best arrival at every goal configuration
+    gstate : (B, N) int         the state whose flight makes that arrival (−1: none)
+    gt : (B, N) float           [m] along that flight: the final drive
+    """
+
+    cost: np.ndarray
+    pred: np.ndarray | None
+    pos: np.ndarray | None
+    flight: np.ndarray | None
+    used: np.ndarray
+    gcost: np.ndarray
+    gstate: np.ndarray
+    gt: np.ndarray
+
+
 def search_many(nav, starts: np.ndarray, table: FlightTable | None = None,
-                tree: bool = True) -> tuple:
+                tree: bool = True) -> SearchArrays:
     """The search from several starts at once (independent trees, one index space: source i
     owns states i·(S + 1) … i·(S + 1) + S, the last one its start). One cost band of all
     trees is settled per round (every state cheaper than the smallest unsettled cost plus the
     smallest edge weight is final); the flights come from ``table`` (a new one if None).
 
-    Returns ``(cost, pred, pos, flight, used, gcost, gstate, gt, [])`` as
-    :meth:`planners.navigation.exact.ExactNavigator._search`; with ``tree`` False, ``pred``, ``pos``
-    and ``flight`` are None (all pairs needs the goal arrivals and angle masks only).
+    Returns the :class:`SearchArrays`; with ``tree`` False, ``pred``, ``pos`` and ``flight``
+    are None (all pairs needs the goal arrivals and angle masks only).
     """
     K, m, N = nav.cells.K, nav.m, nav.cells.N
     table = FlightTable(nav) if table is None else table
@@ -273,5 +301,5 @@ def search_many(nav, starts: np.ndarray, table: FlightTable | None = None,
         ok = done
         pos[ok] = table.pos.a[node[ok]]
         flight[ok] = table.clock.a[node[ok]]
-    return (cost, pred, pos, flight, used, gcost.reshape(B, N), gstate.reshape(B, N),
-            gt.reshape(B, N), [])
+    return SearchArrays(cost, pred, pos, flight, used, gcost.reshape(B, N),
+                        gstate.reshape(B, N), gt.reshape(B, N))

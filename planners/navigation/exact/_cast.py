@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from envs.motion import WallCaster, _cast_scalar
+from envs.motion import WallCaster, cast_scalar
 
 __all__ = ["HeadingCaster"]
 
@@ -54,7 +54,7 @@ class HeadingCaster:
         A = caster.A
         d = caster.e * caster.L[:, None]                      # B − A
         V = caster.vertices
-        sides, verts = caster._side_list, caster._vert_list
+        sides, verts = caster.side_list, caster.vert_list
         self.sides: list = [[] for _ in units]
         self.verts: list = [[] for _ in units]
         chunk = max(1, 1_000_000 // (len(A) + len(V)))    # cells per block of the tests
@@ -74,7 +74,7 @@ class HeadingCaster:
         c = self.caster
         if 0 <= i < self.nx and 0 <= j < self.ny:
             f = j * self.nx + i
-            return _cast_scalar(self.sides[k][f], self.verts[k][f], c.r, c._r2, c._graze,
+            return cast_scalar(self.sides[k][f], self.verts[k][f], c.r, c.r2, c.graze,
                                 x, y, ux, uy)
         return c.cast_one(x, y, ux, uy)
 

@@ -33,7 +33,7 @@ def chords(cells: CellSpace, pos, u, dist):
     u = np.asarray(u, dtype=float).reshape(-1, 2)
     dist = np.asarray(dist, dtype=float).reshape(-1)
     h = cells.h
-    origin = _origin(cells)
+    origin = cells.origin
     rel = pos - origin
     ts = [np.zeros((len(pos), 1)), dist[:, None]]
     for ax in (0, 1):
@@ -63,10 +63,3 @@ def chords(cells: CellSpace, pos, u, dist):
     best = h / 2 - off.max(axis=1)
     return fi, cell, t, best
 
-
-def _origin(cells: CellSpace) -> np.ndarray:
-    o = getattr(cells, "_exact_origin", None)
-    if o is None:
-        o = np.asarray(cells.env.origin, dtype=float)
-        cells.__dict__["_exact_origin"] = o
-    return o

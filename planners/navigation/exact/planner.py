@@ -55,73 +55,26 @@ from envs import UserError
 from envs.contact import slide_on
 from envs.motion import BUMP_RANGE, ContactParams, casters, drive_distance
 
+from ...boundary import Boundary, bins_estimate
 from ...cells import CellSpace
-from ...boundary import Boundary
-from ._batch import FlightTable, search_many
-from ._cast import HeadingCaster
-from ._chords import _origin, chords
 from ...plan import Plan
+from ...resources import DEFAULT_MAX_MEMORY, MemoryEstimate, check
+from ..base import Route, check_angles, check_config, check_weights
+from ._batch import FlightTable, SearchArrays, search_many
+from ._cast import HeadingCaster
+from ._chords import chords
 
-__all__ = ["ExactNavigator", "ExactRoute", "ExactAllPairs", "ExactSearch", "chords",
-           "step_flights"]
+__all__ = ["ExactNavigator", "ExactAllPairs", "ExactSearch"]
 
 _IMPROVE = 1e-9          # a new arrival replaces a state's pose when cheaper by this
 _BATCH_BYTES = 4e8       # all pairs: the search arrays of one batch of starts [bytes]
+# memory estimate (bytes): per contact bin (Boundary's tables, the scalar copies), per state
+# of one search (cost, pred, pos, flight, used), per distinct flight of the all-pairs table,
+# the culled casts' fine grid cells per heading (at most 64 x 64) and one list of them
+_PER_BIN, _PER_STATE, _PER_FLIGHT = 400, 48, 400
+_FINE_CELLS, _LIST_BYTES = 64 * 64, 2 * 120
 
 
-@dataclass(frozen=True)
-class ExactRoute:
-    """An exact plan from one configuration to another (a :class:`planners.navigation.Route`
-    with the exact poses).
-
-    Attributes
-    ----------
-    start, goal : int      configuration indices z
-    plan : Plan            exact plan (angles, flights_m, final_m)
-    cost : float           w1·(travel / h) + w1 per same-angle bump + w2 per angle change
-    poses : tuple of (x [m], y [m], heading [deg])
-        The start pose, then the exact pose after every bump and turn, then the final pose.
-    """
-
-    start: int
-    goal: int
-    plan: Plan
-    cost: float
-    poses: tuple
-
-    @property
-    def angles_used(self) -> int:
-        """Number of distinct bouncing angles in the plan."""
-        return self.plan.angles_used
-
-    def to_json(self) -> dict:
-        """JSON-ready dict: the :class:`~planners.navigation.Route` fields (``path`` holds the
-        poses) plus planner, angles, flights_m and final_m.
-        """
-        out = {"start": self.start, "goal": self.goal}
-        out.update(self.plan.to_json())
-        out.update({"cost": round(float(self.cost), 9), "angles_used": self.angles_used,
-                    "path": [[round(float(v), 9) for v in p] for p in self.poses]})
-        return out
-
-
-def step_flights(cells: CellSpace, start: int, plan: Plan) -> tuple[list, float]:
-    """The expected flights [m] of a step-model plan (docs/model.md §8): the length of the
-    run of zeros before every bump, and of the trailing run, from the start heading.
-    """
-    k = int(cells.pk(start)[1])
-    flights, final = [], 0.0
-    for zeros, angle in plan.segments():
-        length = cells.run_length(k, zeros)
-        if angle is None:
-            final = length
-        else:
-            flights.append(length)
-            k = int(cells.orientation_of(k * cells.delta_deg + angle))
-    return flights, final
-
-
-# ============================================================================ the search
 @dataclass(eq=False)
 class ExactSearch:
     """One uniform-cost search from a start configuration (the settled tree).
@@ -166,21 +119,18 @@ class ExactNavigator:
         bumps (the front-half bumper).
     """
 
+    name = "exact"
+    needs = frozenset({"contact"})
+    closed_loop = False
+
     def __init__(self, cells: CellSpace, angles: Iterable[float], w1: float = 1.0,
                  w2: float = 100.0, bin_length: float | None = None,
                  min_depth: float = 1e-3, contact: ContactParams | None = None) -> None:
         self.cells = cells
-        angles = tuple(float(a) for a in angles)
-        if not angles:
-            raise UserError("the exact planner needs at least one bouncing angle.")
-        steps = [cells.angle_steps(a) for a in angles]
-        if len(set(steps)) != len(steps):
-            raise UserError(f"the bouncing angles {list(angles)} repeat an angle.")
-        for name, w in (("w1", w1), ("w2", w2)):
-            if not (math.isfinite(w) and w > 0):
-                raise UserError(f"{name} must be a positive number, got {w}.")
-        self.angles, self.w1, self.w2 = angles, float(w1), float(w2)
-        self._steps = np.asarray(steps, dtype=np.int64)
+        self.angles = check_angles(cells, angles, "the exact planner")
+        self.w1, self.w2 = check_weights(w1, w2)
+        self.steps = np.asarray([cells.angle_steps(a) for a in self.angles], dtype=np.int64)
+        """Each angle in orientation steps (angle / Δ)."""
         self.bin_length = cells.h / 4 if bin_length is None else float(bin_length)
         self.min_depth = float(min_depth)
         self.caster = casters(cells.env)[0]
@@ -202,20 +152,23 @@ class ExactNavigator:
         return HeadingCaster(self.caster, self.cells.units, self.cells.h / 2)
 
     @cached_property
-    def _scalar_boundary(self) -> tuple:
+    def scalar_boundary(self) -> tuple:
+        """The boundary's segments, candidate lists and bin tables as plain Python lists
+        (for :meth:`bin_of_point`); built on first use.
+        """
         bd = self.boundary
         segs = [tuple(v) for v in np.column_stack(
             [bd.A, bd.B - bd.A, bd.seg_len ** 2, bd.seg_len, bd.seg_s0, bd.seg_ring]).tolist()]
-        cand = [[int(c) for c in row if c >= 0] for row in bd._cand.tolist()]
+        cand = [[int(c) for c in row if c >= 0] for row in bd.candidates.tolist()]
         return segs, cand, bd.ring_bin_length.tolist(), bd.ring_bins.tolist(), \
             bd.ring_first_bin.tolist()
 
-    def _bin_of_scalar(self, x: float, y: float) -> int:
+    def bin_of_point(self, x: float, y: float) -> int:
         """:meth:`Boundary.bin_of` for one point in plain Python (the nearest candidate
         segment of the point's fine grid cell; far points go to the vectorised lookup).
         """
         bd = self.boundary
-        segs, cand, blen, nbins, first = self._scalar_boundary
+        segs, cand, blen, nbins, first = self.scalar_boundary
         i = min(max(int((x - bd.x0) / bd.g), 0), bd.nx - 1)
         j = min(max(int((y - bd.y0) / bd.g), 0), bd.ny - 1)
         best, arc, ring = math.inf, 0.0, -1
@@ -234,17 +187,7 @@ class ExactNavigator:
         """Contact states (bin × heading × angle), without the start."""
         return self.boundary.n_bins * self.cells.K * self.m
 
-    def _check(self, z, what: str) -> int:
-        try:
-            zi = int(z)
-        except (TypeError, ValueError, OverflowError):
-            raise UserError(f"{what} {z!r} is not a configuration index.") from None
-        if not 0 <= zi < self.cells.N:
-            raise UserError(f"{what} {zi} is out of range: configurations are 0 to "
-                            f"{self.cells.N - 1}.")
-        return zi
-
-    def _flights(self, pos, k):
+    def flights(self, pos, k):
         """Exact flight lengths [m] from poses ``pos`` at orientations ``k`` (the twin's
         drive: no motion when the bumper is already pressed, else the cast less CONTACT_GAP).
         """
@@ -264,12 +207,11 @@ class ExactNavigator:
         """
         if goal is not None:
             return self._search_one(int(start), int(goal), float(slack))
-        out = self._search(np.array([int(start)]))
-        gcost, gstate, gt = out[5:8]
-        reached = np.flatnonzero(np.isfinite(gcost[0]))
-        goals = {int(z): (float(gcost[0, z]), int(gstate[0, z]), float(gt[0, z]))
+        out = self.search_from(np.array([int(start)]))
+        reached = np.flatnonzero(np.isfinite(out.gcost[0]))
+        goals = {int(z): (float(out.gcost[0, z]), int(out.gstate[0, z]), float(out.gt[0, z]))
                  for z in reached}
-        return ExactSearch(*out[:5], goals, out[8])
+        return ExactSearch(out.cost, out.pred, out.pos, out.flight, out.used, goals, [])
 
     def _search_one(self, start: int, goal: int, slack: float) -> ExactSearch:
         """A* from one start to one goal, one state at a time (heapq, scalar ray casts):
@@ -282,13 +224,13 @@ class ExactNavigator:
         S = self.n_states
         w1, w2 = self.w1, self.w2
         first_bump = w1 if m == 1 else min(w1, w2)
-        steps = self._steps.tolist()
+        steps = self.steps.tolist()
         units = [tuple(float(v) for v in u) for u in cs.units]
         gp, gk = (int(v) for v in cs.pk(goal))
-        glo = _origin(cs) + cs.cells_ij[gp] * h
+        glo = cs.origin + cs.cells_ij[gp] * h
         gx0, gy0, gx1, gy1 = float(glo[0]), float(glo[1]), float(glo[0] + h), \
             float(glo[1] + h)
-        bin_of = self._bin_of_scalar
+        bin_of = self.bin_of_point
         cast = self._heading_caster.cast_one
 
         def bound(x: float, y: float) -> float:
@@ -350,19 +292,19 @@ class ExactNavigator:
         goals = {goal: best_arrival} if math.isfinite(best) else {}
         return ExactSearch(cost, pred, pos, flight, used, goals, arrivals)
 
-    def _search(self, starts: np.ndarray, table: FlightTable | None = None,
-                tree: bool = True) -> tuple:
+    def search_from(self, starts: np.ndarray, table: FlightTable | None = None,
+                    tree: bool = True) -> SearchArrays:
         """The search from several starts at once (independent trees, one index space:
         source i owns states i·(S + 1) … i·(S + 1) + S, the last one its start). One cost
         band of all trees is settled per round (every state cheaper than the smallest
         unsettled cost plus the smallest edge weight is final); every distinct flight is
-        cast once, in a table shared by the trees (:func:`planners.navigation.exact._batch.search_many`).
+        cast once, in a table shared by the trees (``_batch.search_many``).
         """
         return search_many(self, starts, table, tree)
 
     # ------------------------------------------------------------------ routes
     def _route(self, tree: ExactSearch, start: int, goal: int, c: float, state: int,
-               final: float) -> ExactRoute:
+               final: float) -> Route:
         S, m, cs = self.n_states, self.m, self.cells
         chain = [state]
         while chain[-1] != S:
@@ -381,23 +323,29 @@ class ExactNavigator:
         x, y = tree.pos[state] + final * u
         poses.append((float(x), float(y), float(s_k * cs.delta_deg)))
         plan = Plan.exact(turns, flights, final, cs.h)
-        return ExactRoute(start, goal, plan, c, tuple(poses))
+        return Route(start, goal, plan, c, tuple(poses), self.name)
 
-    def plan(self, start: int, goal: int) -> ExactRoute | None:
+    def plan(self, start: int, goal: int) -> Route | None:
         """The minimum-cost exact plan from configuration ``start`` to ``goal``, or None."""
-        s, g = self._check(start, "start"), self._check(goal, "goal")
+        s, g = check_config(self.cells, start, "start"), check_config(self.cells, goal, "goal")
         if s == g:
-            return ExactRoute(s, g, Plan((), (), 0.0, "exact"), 0.0, (self.cells.pose(s),))
+            return Route(s, g, Plan((), (), 0.0, "exact"), 0.0, (self.cells.pose(s),),
+                         self.name)
         tree = self.search(s, g)
         if g not in tree.goals:
             return None
         return self._route(tree, s, g, *tree.goals[g])
 
-    def plans(self, start: int, goal: int, slack: float) -> list[ExactRoute]:
+    def policy(self, start: int, goal: int) -> Plan | None:
+        """The plan :func:`bouncesim.runs.execute.execute` runs (None: no plan)."""
+        route = self.plan(start, goal)
+        return None if route is None else route.plan
+
+    def plans(self, start: int, goal: int, slack: float) -> list[Route]:
         """Every exact plan within ``slack`` of the cheapest, cheapest first: one per final
         state and goal arrival (the candidates a reliability layer ranks).
         """
-        s, g = self._check(start, "start"), self._check(goal, "goal")
+        s, g = check_config(self.cells, start, "start"), check_config(self.cells, goal, "goal")
         if s == g:
             return [self.plan(s, g)]
         tree = self.search(s, g, slack=float(slack))
@@ -407,16 +355,43 @@ class ExactNavigator:
         rows = sorted(a for a in tree.arrivals if a[3] == g and a[0] <= best + slack)
         return [self._route(tree, s, g, c, st, t) for c, st, t, _ in rows]
 
-    def all_pairs(self, max_memory=None, progress=None) -> ExactAllPairs:
+    def all_pairs(self, max_memory=DEFAULT_MAX_MEMORY, progress=None) -> ExactAllPairs:
         """Every ordered pair: one full search per start, as many starts at a time as fit in
         about 0.4 GB (the analogue of Algorithm 2; every distinct flight is cast once for
-        all starts). ``max_memory`` is accepted for the shape of
-        :meth:`planners.navigation.Navigator.all_pairs` (the search keeps about 14 bytes per
-        contact state and start of a batch, and the flight table about 0.4 kB per distinct
-        flight: 0.6 GB peak on ``complex``, all 1464 starts in one batch);
-        ``progress(done, total)`` is called after every batch.
+        all starts). Refuses (:class:`envs.UserError`, before searching) when
+        :meth:`memory_estimate` exceeds ``max_memory`` bytes (or a size such as ``"2G"``;
+        None: no limit); ``progress(done, total)`` is called after every batch.
         """
+        check(self.memory_estimate(self.cells, self.angles, task="allpairs"), max_memory,
+              f"exact all pairs in {self.cells.env.name} with N = {self.cells.N} "
+              "configurations")
         return ExactAllPairs(self, progress=progress)
+
+    @classmethod
+    def memory_estimate(cls, cells: CellSpace, angles, task: str = "plan",
+                        bin_length: float | None = None) -> MemoryEstimate:
+        """Peak memory of a single query (``task="plan"``) or of all pairs
+        (``"allpairs"``), from the sizes alone (nothing is built): the contact bins
+        (about the C-space perimeter / bin length), the search's arrays per contact state
+        (S = bins · K · m), the culled casts' per-heading tables, and for all pairs the
+        batch of starts (about 0.4 GB at most) and the flight table (about 0.4 kB per
+        distinct flight, at most one per contact state and its m turns).
+        """
+        bins = bins_estimate(cells.env, cells.h / 4 if bin_length is None else bin_length)
+        m, K = max(1, len(tuple(angles))), cells.K
+        S = bins * K * m
+        casts = K * _FINE_CELLS * _LIST_BYTES                 # HeadingCaster's lists
+        base = bins * _PER_BIN + casts
+        if task == "plan":
+            return MemoryEstimate("the exact planner's search", base + S * _PER_STATE)
+        if task != "allpairs":
+            raise ValueError(f"task must be 'plan' or 'allpairs', got {task!r}.")
+        N = cells.N
+        per_start = 14 * (S + 1) + 24 * N
+        batch = min(N, max(1, int(_BATCH_BYTES // per_start)))
+        table = min(S * m, N * S) * _PER_FLIGHT
+        return MemoryEstimate("the exact planner's all pairs",
+                              base + batch * per_start * 2 + table + N * N * 9)
 
 
 class ExactAllPairs:
@@ -441,11 +416,10 @@ class ExactAllPairs:
         table = FlightTable(nav)                 # every distinct flight cast once, for all
         for lo in range(0, N, batch):
             starts = np.arange(lo, min(N, lo + batch))
-            out = nav._search(starts, table, tree=False)
-            gcost, gstate = out[5], out[6]
-            ok = np.isfinite(gcost)
-            W[lo:lo + len(starts)][ok] = gcost[ok]
-            used[lo:lo + len(starts)][ok] = bits[out[4][gstate[ok]]]
+            out = nav.search_from(starts, table, tree=False)
+            ok = np.isfinite(out.gcost)
+            W[lo:lo + len(starts)][ok] = out.gcost[ok]
+            used[lo:lo + len(starts)][ok] = bits[out.used[out.gstate[ok]]]
             if progress is not None:
                 progress(lo + len(starts), N)
         idx = np.arange(N)
@@ -458,7 +432,7 @@ class ExactAllPairs:
         """Number of configurations N."""
         return self.nav.cells.N
 
-    def route(self, i: int, j: int) -> ExactRoute | None:
+    def route(self, i: int, j: int) -> Route | None:
         """The plan for the pair (i, j) (searched again: the same tree, the same plan)."""
         return self.nav.plan(i, j)
 

@@ -1,12 +1,14 @@
 """Feedback navigation (docs/model.md §22): a particle filter over bump poses
-(:mod:`.filter`), plans from a pose (:mod:`.search`) and the decision rule
-(:mod:`.navigator`).
+(:mod:`.filter`), plans from a pose (:mod:`.search`), the decision rule (:mod:`.navigator`)
+and the registry's planner with the policy that the run loop executes (:mod:`.planner`).
 """
 
 from __future__ import annotations
 
 from .filter import SIDES, FeedbackConfig, FlightUpdate, ParticleFilter, side_of
 from .navigator import Candidate, FeedbackNavigator, final_drive, goal_intervals
+from .planner import FeedbackPlanner, FeedbackPolicy, declared_sigma
 
-__all__ = ["Candidate", "FeedbackConfig", "FeedbackNavigator", "FlightUpdate",
-           "ParticleFilter", "SIDES", "final_drive", "goal_intervals", "side_of"]
+__all__ = ["Candidate", "FeedbackConfig", "FeedbackNavigator", "FeedbackPlanner",
+           "FeedbackPolicy", "FlightUpdate", "ParticleFilter", "SIDES", "declared_sigma",
+           "final_drive", "goal_intervals", "side_of"]

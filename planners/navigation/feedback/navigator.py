@@ -5,7 +5,7 @@ The robot senses only what a bump-and-clock robot has: the duration of every fli
 (distance = commanded speed × time) and which side of the bumper closed. This module turns
 those readings into a belief over the robot's pose and the belief into the next bouncing
 angle and the final drive. It is pure (numpy, scipy, the motion layer and the exact planner);
-the loop that drives a robot is :func:`bouncesim.navigate.navigate_feedback`.
+the loop that drives a robot is :func:`bouncesim.runs.execute.navigate_feedback`.
 
 - :class:`ParticleFilter` (in :mod:`planners.navigation.feedback.filter`, re-exported): n weighted
   poses (x [m], y [m], heading [deg]). A turn by φ adds φ plus a draw of the declared turn
@@ -58,6 +58,8 @@ import numpy as np
 from envs.motion import unit
 
 from ...cells import CellSpace
+from ...measures import heading_ok
+from ..base import check_config
 from ..exact import ExactNavigator
 from .filter import (
     SIDES,
@@ -108,8 +110,7 @@ def goal_intervals(pos, heading_deg, D, cell_box, goal_heading_deg: float, delta
         zero = c == 0
         lo = np.where(zero, np.where(inside, lo, np.inf), np.maximum(lo, np.minimum(t0, t1)))
         hi = np.where(zero, np.where(inside, hi, -np.inf), np.minimum(hi, np.maximum(t0, t1)))
-    dh = (np.asarray(heading_deg, dtype=float) - goal_heading_deg + 180.0) % 360.0 - 180.0
-    ok = (lo <= hi) & (np.abs(dh) <= delta_deg / 2)
+    ok = (lo <= hi) & heading_ok(heading_deg, goal_heading_deg, delta_deg)
     lands = ok & (hi >= np.asarray(D) - 1e-9)
     if slides is not None:
         lands &= ~np.asarray(slides, dtype=bool)
@@ -157,7 +158,7 @@ def final_drive(pos, heading_deg, D, w, cell_box, goal_heading_deg: float, delta
     t = np.minimum(cand[:, None], D[None])                       # (C, n) travelled
     end = pos[None] + t[..., None] * u[None]
     depth = half - np.abs(end - centre).max(axis=2)
-    good = (np.abs((head - goal_heading_deg + 180.0) % 360.0 - 180.0) <= delta_deg / 2)[None]
+    good = heading_ok(head, goal_heading_deg, delta_deg)[None]
     inside = good & (depth >= 0)
     if slides is not None:
         inside &= ~(np.asarray(slides, dtype=bool)[None] & (cand[:, None] > D[None]))
@@ -207,12 +208,12 @@ class FeedbackNavigator:
                  w1: float = 1.0, w2: float = 100.0) -> None:
         self.cells, self.cfg = cells, config if config is not None else FeedbackConfig()
         self.nav = ExactNavigator(cells, angles, w1, w2, contact=self.cfg.contact)
-        self.goal = self.nav._check(goal, "goal")
+        self.goal = check_config(cells, goal, "goal")
         gp, self.gk = (int(v) for v in cells.pk(self.goal))
         lo = np.asarray(cells.env.origin, dtype=float) + cells.cells_ij[gp] * cells.h
         self.box = (float(lo[0]), float(lo[1]), float(lo[0] + cells.h), float(lo[1] + cells.h))
         self.goal_heading = self.gk * cells.delta_deg
-        _ = self.nav._scalar_boundary           # build the contact bins now, not at a bump
+        _ = self.nav.scalar_boundary            # build the contact bins now, not at a bump
         self.walls = ScalarWalls(self.nav.caster)
         self.guide = cost_to_go(self).tolist() if self.cfg.guided and not self.cfg.reference \
             else None

@@ -43,7 +43,7 @@ from envs.motion import (
     APPROACH_MIN,
     BUMP_RANGE,
     GRAZE_TOL,
-    _cast_scalar,
+    cast_scalar,
     drive_distance,
     unit,
 )
@@ -243,15 +243,15 @@ def search(fnav, x: float, y: float, heading_deg: float, slack: float,
     r, r2, graze = walls.r, walls.r2, walls.graze
 
     def cast_some(px, py, ux, uy, sides, verts):      # the motion layer's scalar cast
-        return _cast_scalar(sides, verts, r, r2, graze, px, py, ux, uy)
+        return cast_scalar(sides, verts, r, r2, graze, px, py, ux, uy)
     w1, w2 = nav.w1, nav.w2
     first_bump = w1 if m == 1 else min(w1, w2)
-    steps = nav._steps.tolist()
+    steps = nav.steps.tolist()
     gx0, gy0, gx1, gy1 = fnav.box
     half = nav.min_depth / 2
     sx0, sy0, sx1, sy1 = gx0 + half, gy0 + half, gx1 - half, gy1 - half
     gk, gp = fnav.gk, int(cs.pk(fnav.goal)[0])
-    bin_of, angles, min_depth = nav._bin_of_scalar, nav.angles, nav.min_depth
+    bin_of, angles, min_depth = nav.bin_of_point, nav.angles, nav.min_depth
     hyp, k_h = math.hypot, w1 / h
     contact, caster = fnav.cfg.contact, nav.caster
     # a first contact with cos b above this closes the bumper: no slide (the margin keeps
@@ -339,10 +339,10 @@ def search_reference(fnav, x: float, y: float, heading_deg: float, slack: float,
     k0, units, plus, minus, guard = _setup(fnav, heading_deg)
     w1, w2 = nav.w1, nav.w2
     first_bump = w1 if m == 1 else min(w1, w2)
-    steps = nav._steps.tolist()
+    steps = nav.steps.tolist()
     gx0, gy0, gx1, gy1 = fnav.box
     gk, gp = fnav.gk, int(cs.pk(fnav.goal)[0])
-    cast, bin_of = nav.caster.cast_one, nav._bin_of_scalar
+    cast, bin_of = nav.caster.cast_one, nav.bin_of_point
 
     def bound(px: float, py: float) -> float:
         return w1 / h * math.hypot(max(gx0 - px, px - gx1, 0.0), max(gy0 - py, py - gy1, 0.0))
@@ -403,7 +403,7 @@ def cost_to_go(fnav, fracs=(0.25, 0.75)) -> np.ndarray:
     cs, nav = fnav.cells, fnav.nav
     bd, K, m, h = nav.boundary, cs.K, nav.m, cs.h
     nb, w1, w2 = bd.n_bins, nav.w1, nav.w2
-    steps = nav._steps
+    steps = nav.steps
     gk, gp = fnav.gk, int(cs.pk(fnav.goal)[0])
     S = nb * K * m
     best = np.full((nb, K, m), np.inf)

@@ -1,0 +1,217 @@
+"""Feedback navigation on any body (docs/model.md §22): the runner of a
+:class:`~planners.navigation.feedback.FeedbackPolicy` in the one run loop, and its record.
+
+The runner uses only the bump-and-clock interface of :class:`bouncesim.robots.base.Robot`
+(through :func:`bouncesim.runs.execute.execute`), so it runs unchanged on the kinematic twin,
+PyBullet, the Create 2 and its emulator, and on a user's own body. After every bump the filter
+(:class:`planners.navigation.feedback.ParticleFilter`) takes the flight's distance (speed ×
+elapsed time) and bumper side, and the navigator
+(:class:`planners.navigation.feedback.FeedbackNavigator`) picks the next bouncing angle; after
+the last turn it picks the final drive that puts the most belief mass in the goal cell, and
+makes it when enough of the belief ends there (``FeedbackConfig.final_min``; else it flies
+on). Simulators are placed at the start and their true pose is logged and used for the
+success check only.
+
+The front door is :func:`bouncesim.runs.execute.navigate_feedback`.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from envs import UserError
+from envs.motion import PYBULLET_CONTACT, STEP_TOL, ContactParams
+from planners.cells import CellSpace
+from planners.measures import flight_cap
+from planners.navigation.feedback import ParticleFilter
+from planners.plan import Plan
+
+from ..robots.base import Robot
+from .moves import BackOff, Drive, Fly, Note, Turn
+from .results import PlanRun
+from .runners import place_if_simulated, plan_result, side_text
+from .trace import Trace
+
+__all__ = ["FeedbackRun", "FeedbackRunner", "body_contact"]
+
+
+@dataclass(frozen=True)
+class FeedbackRun(PlanRun):
+    """A :class:`~bouncesim.runs.results.PlanRun` of a feedback run; ``plan`` is the plan
+    that was executed (its angles, the measured flights and the final drive).
+
+    Extra attributes
+    ----------------
+    decision_ms : tuple of float   wall time of each decision [ms] (filter update after the
+                                   bump, planning, scoring, the turn, and the final drive's
+                                   choice)
+    decision_cpu_ms : tuple of float   the same in CPU time of this process [ms] (what a
+                                   decision costs on a machine not shared with others)
+    updates : tuple of FlightUpdate   the filter's record of every bump
+    p_success : tuple of float     the chosen plan's estimated success at each decision
+    no_plan : int                  decisions where no particle's pose had a plan (a random
+                                   angle was turned)
+    """
+
+    decision_ms: tuple = ()
+    decision_cpu_ms: tuple = ()
+    updates: tuple = ()
+    p_success: tuple = ()
+    no_plan: int = 0
+
+    @property
+    def reinits(self) -> int:
+        """Bumps after which the belief was re-initialised (no particle fitted)."""
+        return sum(1 for u in self.updates if u.reinit)
+
+    def to_json(self) -> dict:
+        """:meth:`PlanRun.to_json` plus the planner, decision times [ms], re-initialisations
+        and the estimated success of every decision.
+        """
+        out = super().to_json()
+        out.update({"planner": "feedback",
+                    "decision_ms": [round(float(v), 3) for v in self.decision_ms],
+                    "max_decision_ms": round(max(self.decision_ms, default=0.0), 3),
+                    "decision_cpu_ms": [round(float(v), 3) for v in self.decision_cpu_ms],
+                    "reinits": self.reinits, "no_plan": self.no_plan,
+                    "p_success": [round(float(v), 4) for v in self.p_success]})
+        return out
+
+
+def body_contact(robot) -> ContactParams | None:
+    """The contact rule (docs/model.md §23) a body declares, as ``validate --contact auto``
+    takes it: a PyBullet body has ``envs.motion.PYBULLET_CONTACT``; a body with a
+    ``contact`` attribute that is a :class:`~envs.motion.ContactParams` (the twin made with
+    ``contact=`` or ``glance_deg=``) has that one; any other body (the twin by default, the
+    Create 2 and its emulator, a user's own) the front-half bumper (None).
+    """
+    if type(robot).__module__.startswith("bouncesim.robots.pybullet"):
+        return PYBULLET_CONTACT
+    rule = getattr(robot, "contact", None)
+    return rule if isinstance(rule, ContactParams) else None
+
+
+class FeedbackRunner:
+    """The runner of a :class:`~planners.navigation.feedback.FeedbackPolicy` (§22): decide,
+    turn, fly, update the belief, back off, and so on, until the final drive.
+    """
+
+    finished = "plan finished"
+
+    def __init__(self, policy, robot: Robot, *, start=None, goal=None,
+                 cells: CellSpace | None = None, speed: float, back_off: float) -> None:
+        planner = policy.planner
+        self.policy, self.planner = policy, planner
+        if cells is not None and cells is not planner.cells and \
+                cells.env is not planner.cells.env:
+            raise UserError("the feedback policy was planned for another cell space.")
+        cs = self.cells = planner.cells
+        if goal is not None and int(goal) != policy.goal:
+            raise UserError(f"the feedback policy goes to {policy.goal}, not to {goal}.")
+        start = policy.start if policy.start is not None else start
+        if start is None:
+            raise UserError("a feedback run needs its start configuration or pose.")
+        if planner.rng is None:
+            raise UserError("the feedback planner needs an rng (a numpy Generator).")
+        if isinstance(start, (int, np.integer)):
+            self.start_pose = cs.pose(int(start))
+        else:
+            self.start_pose = tuple(float(v) for v in start)
+        self.speed, self.back_off, self.rng = speed, float(back_off), planner.rng
+        self.contact = planner.resolved(body_contact(robot))
+        self.fnav = planner.navigator(policy.goal, self.contact)
+        self.cfg = self.fnav.cfg
+        self.goal_pose = cs.pose(policy.goal)
+        place_if_simulated(robot, self.start_pose)      # hardware: a person placed the robot
+        self.belief = ParticleFilter(cs.env, self.cfg, self.rng, start=self.start_pose)
+        self.label = f"feedback to {policy.goal}"
+        self.turns, self.flights, self.final = [], [], 0.0
+        self.decision_ms, self.decision_cpu, self.updates, self.p_succ = [], [], [], []
+        self.no_plan, self.completed = 0, False
+
+    def moves(self, pose):
+        """The run's moves from the true start ``pose`` (a generator; its value: the
+        reason the run ended, '' when the policy finished).
+        """
+        fnav, belief, cfg, rng = self.fnav, self.belief, self.cfg, self.rng
+        turns, flights, on_belief = self.turns, self.flights, self.policy.on_belief
+        cap, rest = flight_cap(self.cells), ()
+        tick, cpu, at_start = time.perf_counter(), time.process_time(), True
+
+        def note_decision() -> None:
+            self.decision_ms.append(1e3 * (time.perf_counter() - tick))
+            self.decision_cpu.append(1e3 * (time.process_time() - cpu))
+
+        while True:
+            shift = (fnav.heading_offset(belief) if cfg.correct_heading and not at_start
+                     else 0.0)
+            cands = fnav.choose(belief, rng, keep=rest, bumped=not at_start, shift=shift)
+            if cands:
+                best = cands[0]
+                self.p_succ.append(best.p_success)
+            else:
+                self.no_plan += 1
+                best = None
+            todo = list(best.angles) if best is not None else [float(rng.choice(fnav.nav.angles))]
+            if not todo:                       # already on the final flight (or in the cell)
+                self.final, _ = fnav.final(belief.pos, belief.heading, belief.weights)
+                note_decision()
+                if flights and len(flights) > len(turns):
+                    self.final += flights.pop()     # the flight into the cell ends the plan
+                if self.final > 0:
+                    yield Drive(self.final)
+                self.completed = True
+                return ""
+            if not at_start:
+                angle = float(todo.pop(0)) - shift
+                yield Turn(angle)
+                belief.turn(angle)
+                turns.append(angle)
+                if on_belief is not None:
+                    on_belief("turn", belief)
+            rest = tuple(todo)
+            if not todo and best is not None:  # the last turn: the final drive
+                self.final, mass = fnav.final(belief.pos, belief.heading, belief.weights)
+                if fnav.stops(mass, last=len(flights) >= self.policy.max_bumps - 1):
+                    # else (too little belief mass stops in the cell, §22): fly on
+                    note_decision()
+                    if self.final > 0:
+                        res = yield Drive(self.final)
+                        ev = res.event
+                        if ev.bumped and res.travelled < self.final - STEP_TOL:
+                            yield Note("bump", side_text(ev), res.pose)
+                    self.completed = True
+                    return ""
+            if not at_start:
+                note_decision()
+            if len(flights) >= self.policy.max_bumps:
+                return f"gave up after {self.policy.max_bumps} bumps"
+            res = yield Fly(cap)
+            ev, d = res.event, res.travelled
+            if not ev.bumped:
+                yield Note("no_bump", f"{d:.3f} m", res.pose)
+                return f"no bump within {cap:.2f} m"
+            yield Note("bump", side_text(ev), res.pose)
+            tick, cpu = time.perf_counter(), time.process_time()
+            flights.append(d)
+            self.updates.append(belief.flight(d, ev.left, ev.right))
+            if on_belief is not None:
+                on_belief("flight", belief)
+            if self.back_off > 0:
+                yield BackOff(self.back_off)
+                belief.back_off(self.back_off)
+            at_start = False
+
+    def result(self, reason: str, elapsed: float, final, trace: Trace) -> FeedbackRun:
+        """The run's record from the loop's ending (reason, clock [s], final pose)."""
+        flights = self.flights[:len(self.turns)]
+        plan = Plan.exact(self.turns, flights, self.final, self.cells.h, planner="feedback")
+        return plan_result(self.cells, plan, self.policy.goal, self.goal_pose, self.completed,
+                           reason, final, elapsed, (), len(self.updates), self.start_pose,
+                           trace, cls=FeedbackRun, decision_ms=tuple(self.decision_ms),
+                           decision_cpu_ms=tuple(self.decision_cpu),
+                           updates=tuple(self.updates), p_success=tuple(self.p_succ),
+                           no_plan=self.no_plan)
