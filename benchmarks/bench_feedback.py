@@ -39,9 +39,9 @@ import time
 import numpy as np
 
 import envs
-from bouncesim.runs.execute import navigate_feedback
 from bouncesim.robots.kinematic import KinematicRobot
 from bouncesim.robots.noise import GaussianNoise
+from bouncesim.runs.execute import navigate_feedback
 from envs.motion import PYBULLET_CONTACT
 from planners.cells import CellSpace
 from planners.navigation.exact import ExactNavigator

@@ -28,8 +28,9 @@ threads from the start. Then the ``steps_to_limit`` report of the angles and the
 resumes the kept runs, with the CLI's defaults (cap 10⁷ steps, 60 s per policy). Wall and
 CPU seconds, the load average, and whether α and the q_T columns agree bitwise all three
 ways. ``--threads N`` fixes the thread count of the ways that use threads (default: the idle
-cores by the load average, :func:`planners.coverage.timeshare.default_threads`); ``--now-only`` times
-only the CLI's way, without the report (for the speed goal: build + limits + q_T).
+cores by the load average, :func:`planners.coverage.timeshare.default_threads`);
+``--now-only`` times only the CLI's way, without the report (for the speed goal: build +
+limits + q_T).
 """
 
 from __future__ import annotations

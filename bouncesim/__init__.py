@@ -91,8 +91,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs only; at run time __getattr__ im
     from .robots.base import Robot
     from .robots.factory import make_robot
     from .robots.noise import noise_for_mix, parse_noise
-    from .runs.execute import execute
-    from .runs.execute import navigate_feedback
+    from .runs.execute import execute, navigate_feedback
     from .runs.trace import Trace
 
 

@@ -64,6 +64,7 @@ from envs import Environment, UserError
 from envs.motion import flight_steps, unit
 from planners.cells import CellSpace
 from planners.coverage.targets import load_target, uniform_target
+from planners.measures import heading_ok
 from planners.metrics import tv_distance
 
 from .robots.base import CREATE2
@@ -100,8 +101,7 @@ def flight_reaches(start_xy, end_xy, heading_deg: float, cells: CellSpace, goal:
     False
     """
     p, k = (int(v) for v in cells.pk(int(goal)))
-    off = math.remainder(float(heading_deg) - k * cells.delta_deg, 360.0)
-    if abs(off) > cells.delta_deg / 2 + 1e-9:
+    if not heading_ok(heading_deg, k * cells.delta_deg, cells.delta_deg):
         return False
     h = cells.h
     cx, cy = cells.centres[p]

@@ -143,9 +143,9 @@ def draw_route(ax: Axes, cells: Any, path: Sequence, color: str = "#1f77b4",
 
     ``path`` holds configuration indices z (a step-model route,
     :attr:`planners.navigation.Route.path`: drawn through the cell centres) or poses
-    (x [m], y [m], heading [deg]) (an exact route, :attr:`planners.navigation.exact.ExactRoute.poses`:
-    the bump points themselves). With ``markers`` the start is marked red and the goal green,
-    with legend entries ``start`` and ``goal``.
+    (x [m], y [m], heading [deg]) (a route over exact poses,
+    :attr:`planners.navigation.Route.poses`: the bump points themselves). With ``markers``
+    the start is marked red and the goal green, with legend entries ``start`` and ``goal``.
     """
     pts = np.asarray(path, dtype=float)
     if pts.ndim == 1:

@@ -20,7 +20,7 @@ from shapely.geometry import Polygon
 
 from .environment import Environment
 from .errors import UserError
-from .raster import OccupancyMap, largest_part, clean, hausdorff_to_raster, read_map, trace
+from .raster import OccupancyMap, clean, hausdorff_to_raster, largest_part, read_map, trace
 
 __all__ = ["ImportReport", "build_env", "env_json", "import_map", "snap", "suggest_cell_size"]
 

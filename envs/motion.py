@@ -50,8 +50,8 @@ from .environment import Environment
 from .errors import UserError
 
 __all__ = ["WallCaster", "LocalCaster", "casters", "unit", "unit_rad", "drive_distance",
-           "step", "flight_steps", "grid_index", "cast_scalar", "CONTACT_GAP", "BUMP_RANGE", "STEP_TOL",
-           "APPROACH_MIN", "GRAZE_TOL"]
+           "step", "flight_steps", "grid_index", "cast_scalar", "CONTACT_GAP", "BUMP_RANGE",
+           "STEP_TOL", "APPROACH_MIN", "GRAZE_TOL", "CENTRE_ZONE_DEG"]
 
 CONTACT_GAP = 1e-9
 """[m] a drive stops this far (along the ray) short of the exact contact."""
@@ -64,6 +64,10 @@ APPROACH_MIN = 1e-12
 """a side is approached only when u . n exceeds this [1/m of travel]."""
 GRAZE_TOL = 1e-7
 """[m] a corner is hit only when the ray passes closer than r - this."""
+CENTRE_ZONE_DEG = 10.0
+"""[deg] a contact within ± this of straight ahead closes both bumper switches; further left
+(right) only the left (right) one (the twin's and PyBullet's bumper sides, and what the
+feedback filter expects)."""
 _APPROACH_MIN = APPROACH_MIN
 _GRAZE_TOL = GRAZE_TOL
 

@@ -30,7 +30,7 @@ import pandas as pd
 import shapely
 from shapely.geometry import Polygon, box
 
-from envs.raster import largest_part, clean, trace
+from envs.raster import clean, largest_part, trace
 from experiments.common import experiment_parser, output_dir, write_config
 from experiments.example_map import room
 

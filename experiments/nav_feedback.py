@@ -32,11 +32,10 @@ import numpy as np
 import pandas as pd
 
 import envs
-from bouncesim.runs.execute import navigate_feedback
 from bouncesim.plots import save_figure
 from bouncesim.robots import make_robot
 from bouncesim.robots.noise import GaussianNoise
-from bouncesim.runs.execute import execute
+from bouncesim.runs.execute import execute, navigate_feedback
 from envs.motion import PYBULLET_CONTACT
 from planners.cells import CellSpace
 from planners.navigation.exact import ExactNavigator

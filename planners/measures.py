@@ -24,7 +24,7 @@ Examples
 False
 >>> round(flight_cap(cs), 4)                        # the 3.06 m x 2.04 m room's diagonal + h
 4.0177
->>> round(flight_limit(cs, 2.0, zeros=3), 9), flight_limit(cs, 2.0, flight_m=0.5)  # 2·(n+2)·h
+>>> round(flight_limit(cs, 2.0, zeros=3), 9), round(flight_limit(cs, 2.0, flight_m=0.5), 9)
 (3.4, 2.36)
 """
 
@@ -121,20 +121,21 @@ def flight_limit(cells: CellSpace, max_factor: float, *, zeros: int | None = Non
     return min(want, flight_cap(cells))
 
 
-def step_flights(cells: CellSpace, start: int, plan) -> tuple[list, float]:
+def step_flights(cells: CellSpace, plan, k0: int) -> tuple[list, float]:
     """The expected flights [m] of a step-model plan (docs/model.md §8): the length of the
-    run of zeros before every bump, and of the trailing run, from the start configuration's
-    heading (:meth:`planners.cells.CellSpace.run_length`: n·h along an axis, n·√2·h along a
-    diagonal at K = 8).
+    run of zeros before every bump, and of the trailing run, from start orientation ``k0``
+    (:meth:`planners.cells.CellSpace.run_length`: n·h along an axis, n·√2·h along a
+    diagonal at K = 8; the orientation after each bump is the previous one turned by its
+    angle).
 
     >>> import envs
     >>> from planners.cells import CellSpace
     >>> from planners.plan import Plan
     >>> cs = CellSpace(envs.load("lab"))
-    >>> step_flights(cs, 8, Plan.parse("90° 90° 00000000 90° 90°"))
+    >>> step_flights(cs, Plan.parse("90° 90° 00000000 90° 90°"), 0)   # configuration 8: east
     ([0.0, 0.0, 2.72, 0.0], 0.0)
     """
-    k = int(cells.pk(int(start))[1])
+    k = int(k0)
     flights, final = [], 0.0
     for zeros, angle in plan.segments():
         length = cells.run_length(k, zeros)

@@ -300,7 +300,8 @@ _KINDS = {"": "none", "none": "none", "off": "none", "exact": "none",
 
 
 def parse_noise_spec(text) -> NoiseSpec:
-    """The one noise-spec grammar (case and spaces ignored):
+    """A noise spec in the one grammar, parsed (case and spaces ignored).
+
 
     - ``none`` (also ``off``, ``exact`` or empty): exact turns;
     - ``gauss:SIGMA`` (also ``gauss:sigma=SIGMA``; ``gaussian``, ``normal``): Gaussian turn

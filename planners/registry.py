@@ -1,10 +1,10 @@
 """Registry helpers shared by both wings (:data:`planners.navigation.PLANNERS`,
 :data:`planners.coverage.MODELS`): a name checked once, with "did you mean".
 
->>> check_name("planner", "exat", ("step", "exact", "reliable"))
+>>> check_name("planner", "exat", ("step", "exact"))
 Traceback (most recent call last):
 ...
-envs.errors.UserError: unknown planner 'exat'; did you mean 'exact'? (planners: step, exact, reliable)
+envs.errors.UserError: unknown planner 'exat'; did you mean 'exact'? (planners: step, exact)
 """
 
 from __future__ import annotations

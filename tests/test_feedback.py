@@ -1,4 +1,4 @@
-"""Feedback navigation (planners/navigation/feedback/, bouncesim/runs/feedback.py; docs/model.md §22).
+"""Feedback navigation (planners/navigation/feedback/, bouncesim/runs/feedback.py; §22).
 
 Evidence: hand-computed filter updates and final drives in a rectangle; the pose planner
 against the exact planner (§15, an independent search over the same states); the filter's
@@ -15,11 +15,9 @@ import numpy as np
 import pytest
 
 import envs
-from bouncesim.runs.execute import navigate_feedback
-from planners.navigation.feedback import declared_sigma
 from bouncesim.robots.kinematic import KinematicRobot
 from bouncesim.robots.noise import GaussianNoise, SteppedNoise
-from bouncesim.runs.execute import execute
+from bouncesim.runs.execute import execute, navigate_feedback
 from envs import Environment
 from planners.cells import CellSpace
 from planners.navigation.exact import ExactNavigator
@@ -27,6 +25,7 @@ from planners.navigation.feedback import (
     FeedbackConfig,
     FeedbackNavigator,
     ParticleFilter,
+    declared_sigma,
     final_drive,
     goal_intervals,
 )

@@ -13,10 +13,10 @@ import math
 import numpy as np
 import pytest
 
-from bouncesim.runs.execute import navigate_feedback
-from bouncesim.runs.feedback import body_contact
 from bouncesim.robots.kinematic import KinematicRobot
 from bouncesim.robots.noise import GaussianNoise
+from bouncesim.runs.execute import navigate_feedback
+from bouncesim.runs.feedback import body_contact
 from envs import Environment
 from envs.motion import PYBULLET_CONTACT, ContactParams
 from planners.cells import CellSpace

@@ -14,7 +14,7 @@ from bouncesim.cli import main
 from planners import resources as res
 from planners.cells import CellSpace
 from planners.coverage import MODELS, TurnNoise, clear_cache, default_settings, model_for
-from planners.navigation import ExactNavigator, Navigator
+from planners.navigation import Navigator
 from planners.navigation.step import all_pairs_bytes, roadmap_bytes, search_bytes
 
 from .conftest import room

@@ -61,6 +61,7 @@ from envs.contact import advance, closes_bumper, front_contacts, glancing, leg_l
 # are re-exported here under their old names.
 from envs.motion import (  # noqa: F401
     BUMP_RANGE,
+    CENTRE_ZONE_DEG,
     CONTACT_GAP,
     STEP_TOL,
     ContactParams,
@@ -81,8 +82,6 @@ from .noise import NoiseModel, NoNoise, noise_and_rng, noise_for_mix
 __all__ = ["WallCaster", "LocalCaster", "casters", "KinematicRobot", "KinematicBatch",
            "BatchCoverage", "unit", "CONTACT_GAP", "BUMP_RANGE", "STEP_TOL", "CENTRE_ZONE_DEG"]
 
-CENTRE_ZONE_DEG = 10.0
-"""[deg] contacts within ±this of straight ahead close both bumper switches."""
 _EXACT = NoNoise()
 _SCALAR_MAX = 8          # batches up to this size cast robot by robot in plain Python
 

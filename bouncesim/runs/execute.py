@@ -65,7 +65,7 @@ from planners.plan import PolicyMix
 
 from ..robots.base import Robot, RobotError
 from .feedback import FeedbackRun, FeedbackRunner
-from .moves import BackOff, Fly, Moved, Note, Turn
+from .moves import BackOff, Drive, Fly, Moved, Note, Turn
 from .results import Deviation, MixRun, PlanRun, SegmentDone
 from .runners import MixRunner, PlanRunner, check_speed, place_if_simulated, time_up
 from .trace import Trace
@@ -210,38 +210,40 @@ def _drive(runner, robot: Robot, trace: Trace, t0: float, speed: float,
             move = moves.send(answer)
         except StopIteration as done:
             return done.value or ""
-        if isinstance(move, Note):
-            if record:
-                pose = move.pose if move.pose is not None else robot.true_pose()
-                trace.add(robot.clock() - t0, pose, move.event, move.detail)
-            answer = None
-            continue
-        ev, travelled = None, 0.0
-        if isinstance(move, Turn):
+        kind = type(move)
+        if kind is Drive or kind is Fly:
+            if max_time is not None:
+                late = time_up(robot.clock() - t0, max_time)
+                if late:
+                    moves.close()
+                    return late
+            if kind is Fly:
+                ev = robot.drive_until_bump(speed, move.limit_m / speed)
+            else:
+                ev = robot.drive_for(speed, move.distance_m / speed)
+            answer = Moved(ev, speed * ev.elapsed, robot.true_pose(), robot.clock() - t0)
+        elif kind is Turn:
             robot.turn(move.angle_deg)
-            event, detail = "turn", f"{move.angle_deg:g}"
-        elif isinstance(move, BackOff):
+            answer = Moved(None, 0.0, robot.true_pose(), robot.clock() - t0)
+            if record:
+                trace.add(answer.t, answer.pose, "turn", f"{move.angle_deg:g}")
+        elif kind is BackOff:
             # by the clock, not drive_for: the bumper is still pressed
             robot.drive(-speed)
             try:
                 robot.wait(move.distance_m / speed)
             finally:
                 robot.stop()
-            event, detail = "back_off", f"{move.distance_m:g} m"
+            answer = Moved(None, 0.0, robot.true_pose(), robot.clock() - t0)
+            if record:
+                trace.add(answer.t, answer.pose, "back_off", f"{move.distance_m:g} m")
+        elif kind is Note:
+            if record:
+                pose = move.pose if move.pose is not None else robot.true_pose()
+                trace.add(robot.clock() - t0, pose, move.event, move.detail)
+            answer = None
         else:
-            late = time_up(robot.clock() - t0, max_time)
-            if late:
-                moves.close()
-                return late
-            if isinstance(move, Fly):
-                ev = robot.drive_until_bump(speed, move.limit_m / speed)
-            else:
-                ev = robot.drive_for(speed, move.distance_m / speed)
-            travelled, event = speed * ev.elapsed, None
-        pose, t = robot.true_pose(), robot.clock() - t0
-        if event is not None and record:
-            trace.add(t, pose, event, detail)
-        answer = Moved(ev, travelled, pose, t)
+            raise TypeError(f"a runner yielded {move!r}, not a move.")
 
 
 # ============================================================================ feedback

@@ -13,45 +13,42 @@ it reads into the moves with :class:`Note` (bumps, deviations, steps).
 - :class:`Turn`: turn in place by ``angle_deg`` (CCW positive);
 - :class:`BackOff`: reverse ``distance_m`` by the clock (the bumper is still pressed);
 - :class:`Note`: no motion, a row of the trace.
+
+They are named tuples (cheap to make: a coverage run makes one per step).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from typing import NamedTuple
 
 __all__ = ["BackOff", "Drive", "Fly", "Move", "Moved", "Note", "Turn"]
 
 
-@dataclass(frozen=True)
-class Fly:
+class Fly(NamedTuple):
     """Drive until a bump; the run gives up after ``limit_m`` [m] without one."""
 
     limit_m: float
 
 
-@dataclass(frozen=True)
-class Drive:
+class Drive(NamedTuple):
     """Drive ``distance_m`` [m] by the clock and stop (a bump stops it early)."""
 
     distance_m: float
 
 
-@dataclass(frozen=True)
-class Turn:
+class Turn(NamedTuple):
     """Turn in place by ``angle_deg`` [deg], counter-clockwise positive."""
 
     angle_deg: float
 
 
-@dataclass(frozen=True)
-class BackOff:
+class BackOff(NamedTuple):
     """Reverse ``distance_m`` [m] by the clock after a bump, before turning."""
 
     distance_m: float
 
 
-@dataclass(frozen=True)
-class Note:
+class Note(NamedTuple):
     """A trace row: ``event`` and ``detail``, at ``pose`` (default: the robot's true pose)."""
 
     event: str
@@ -62,8 +59,7 @@ class Note:
 Move = Fly | Drive | Turn | BackOff | Note
 
 
-@dataclass(frozen=True)
-class Moved:
+class Moved(NamedTuple):
     """What the loop sends back after a move.
 
     Attributes

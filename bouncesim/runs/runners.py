@@ -15,7 +15,7 @@ import numpy as np
 from envs import UserError
 from envs.motion import STEP_TOL, step
 from planners.cells import CellSpace
-from planners.measures import flight_limit, goal_check, wrap180
+from planners.measures import flight_limit, goal_check, step_flights, wrap180
 from planners.plan import Plan, PolicyMix
 
 from ..robots.base import Robot
@@ -98,7 +98,7 @@ class PlanRunner:
             raise UserError("a plan needs its start configuration or pose: the start heading "
                             "fixes how far each run of zeros drives.")
         _, self.start_pose = resolve_pose(start, cells, "start")
-        self.k = int(cells.orientation_of(self.start_pose[2]))   # orientation of the run
+        self.k = int(cells.orientation_of(self.start_pose[2]))   # the start's orientation
         self.goal_z, goal_pose = resolve_pose(goal, cells, "goal")
         if goal is not None and self.goal_z is None:
             raise UserError(f"goal pose {goal_pose} is not in a free cell.")
@@ -110,13 +110,16 @@ class PlanRunner:
         place_if_simulated(robot, self.start_pose)
 
     def _segments(self) -> list[tuple]:
-        """(zeros or None, expected flight [m] or None, angle or None) per segment: an exact
-        plan runs by its angles (its expected flights only log deviations) and ends with its
-        final drive; a step plan by its observation string (lengths from the cell space).
+        """(zeros or None, expected flight [m], angle or None) per segment: an exact plan runs
+        by its angles (its expected flights only log deviations) and ends with its final
+        drive; a step plan by its observation string (its runs' lengths from the start
+        heading: :func:`planners.measures.step_flights`).
         """
         plan = self.plan
         if not plan.is_exact:
-            return [(n, None, a) for n, a in plan.segments()]
+            flights, final = step_flights(self.cells, plan, self.k)
+            lengths = iter([*flights, final])
+            return [(n, next(lengths), a) for n, a in plan.segments()]
         segs = [(None, f, a) for f, a in zip(plan.flights_m, plan.turns)]
         if plan.final_m > 0:
             segs.append((None, plan.final_m, None))
@@ -129,11 +132,7 @@ class PlanRunner:
         cells, h = self.cells, self.cells.h
         segs = self._segments()
         tol = h / 4 if self.plan.is_exact else h                 # deviation threshold [m]
-        for i, (zeros, flight, angle) in enumerate(segs):
-            if flight is None:
-                expected = cells.run_length(self.k, zeros)  # the step model's distance [m]
-            else:
-                expected = flight                           # the exact planner's flight [m]
+        for i, (zeros, expected, angle) in enumerate(segs):
             if angle is None:                               # trailing zeros: drive and stop
                 res = yield Drive(expected)
                 ev, travelled = res.event, res.travelled
@@ -147,10 +146,10 @@ class PlanRunner:
                                    res.pose)
                 self._report(i, len(segs), travelled, ev.elapsed, ev.bumped, None)
                 continue
-            if flight is None:
+            if zeros is not None:
                 limit = flight_limit(cells, self.max_factor, zeros=zeros)
             else:
-                limit = flight_limit(cells, self.max_factor, flight_m=flight)
+                limit = flight_limit(cells, self.max_factor, flight_m=expected)
             res = yield Fly(limit)
             ev, travelled = res.event, res.travelled
             if not ev.bumped:
@@ -167,7 +166,6 @@ class PlanRunner:
             if self.back_off > 0:
                 yield BackOff(self.back_off)
             yield Turn(angle)
-            self.k = int(cells.orientation_of(self.k * cells.delta_deg + angle))
             self._report(i, len(segs), travelled, ev.elapsed, True, angle)
         self.completed = True
         return ""
@@ -273,6 +271,7 @@ class MixRunner:
         rng, record, h, t = self.rng, self.record_trace, self.cells.h, 0.0
         stuck = 0
         angle = float(angles[0])
+        forward = Drive(h)                          # one move object for every step
         for s in range(self.steps):
             late = time_up(t, self.max_time)        # before the epoch's draw, not after it
             if late:
@@ -281,7 +280,7 @@ class MixRunner:
                 angle = float(angles[rng.choice(len(angles), p=alpha)]) if len(angles) > 1 \
                     else float(angles[0])
                 self.epoch_angles.append(angle)
-            res = yield Drive(h)
+            res = yield forward
             ev, t = res.event, res.t
             # the step rule (docs/model.md §9): a drive the bumper did not stop had h free
             _, bump_step = step(res.travelled if ev.bumped else math.inf, h)

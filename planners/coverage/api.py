@@ -111,8 +111,8 @@ def analyses(model: CoverageModel, angles, noise: TurnNoise = _EXACT,
              also: Iterable[Callable[[], Any]] = ()) -> Iterator:
     """Every angle's :meth:`analyse`, in order: the first alone (it builds what the angles
     share, e.g. the event model's Gaussian flights), the others on
-    :func:`~planners.coverage.timeshare.default_threads` threads (scipy's products and solves release
-    the GIL); the same results as one after the other.
+    :func:`~planners.coverage.timeshare.default_threads` threads (scipy's products and solves
+    release the GIL); the same results as one after the other.
 
     ``also``: more work (calls without arguments, e.g. the horizon runs of
     :meth:`~planners.coverage.horizon.Horizon.tasks`) done on the same threads, from the

@@ -7,8 +7,8 @@ flights, rewards) and then answers for any bouncing angle and :class:`TurnNoise`
 - :meth:`CoverageModel.analyse`: the angle's chain, its limiting distribution and the
   predicted step-sampled coverage q over the P position cells (docs/model.md §7, §9);
 - :meth:`CoverageModel.turn_matrix` and :meth:`CoverageModel.delay_chain`: the model as a
-  delay chain (:mod:`planners.coverage.timeshare`), so a policy mix run in epochs (docs/model.md §8) is
-  predicted the same way for every model.
+  delay chain (:mod:`planners.coverage.timeshare`), so a policy mix run in epochs
+  (docs/model.md §8) is predicted the same way for every model.
 """
 
 from __future__ import annotations

@@ -12,7 +12,8 @@ cell-centre headings θ_k and every turn φ + δ is a multiple of Δ).
 The definition is docs/model.md §10; its measured accuracy ``docs/model_continuous.md``.
 :class:`EventSettings` (bin length, samples per bin); the contact bins are
 :class:`planners.boundary.Boundary`'s (the C-space rings cut into bins, point → (ring, arc
-length)); :class:`EventModel` (flights, step rewards and start built once; :meth:`EventModel.analyse`: one angle's chain, limit and coverage q).
+length)); :class:`EventModel` (flights, step rewards and start built once;
+:meth:`EventModel.analyse`: one angle's chain, limit and coverage q).
 
 Examples
 --------

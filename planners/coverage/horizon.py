@@ -4,8 +4,8 @@
 docs/model.md §7 predicts the *limiting* coverage. On a map whose rooms exchange the robot
 rarely the limit can be days of driving away; a user who runs the robot for T steps wants
 the expected fraction of *those* T steps spent in each cell. This module computes it with
-the model's own dynamics, step by step, through the delay chain of :mod:`planners.coverage.timeshare`
-(a horizon is one run of T steps from the start, no fixed point):
+the model's own dynamics, step by step, through the delay chain of
+:mod:`planners.coverage.timeshare` (a horizon is one run of T steps from the start, no fixed point):
 
 - :class:`Horizon`: a model's delay chain extended for horizons: per-step rewards, so that a
   flight cut by T counts only the steps made before T, and (event model) the first flights

@@ -20,8 +20,8 @@ from threadpoolctl import threadpool_limits
 
 from .markov import (
     ChainAnalysis,
-    assemble,
     absorption_probabilities,
+    assemble,
     check_stochastic,
     closed_classes,
     stationary_distributions,

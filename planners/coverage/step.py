@@ -106,7 +106,8 @@ class StepSettings:
     method : {"runs", "matrix"}
         ``"runs"`` (default) solves the chain censored to the bump cells and expands it
         exactly along the forward runs (:func:`planners.coverage.markov.analyse_run_chain`);
-        ``"matrix"`` analyses the full N × N matrix (:func:`planners.coverage.markov.analyse_chain`).
+        ``"matrix"`` analyses the full N × N matrix
+        (:func:`planners.coverage.markov.analyse_chain`).
         Both give the same numbers; "runs" is several times faster on fine grids.
     """
 

@@ -1,8 +1,8 @@
 """Plans chosen for reliability under turn noise (docs/model.md §21).
 
-The exact planner (:mod:`planners.navigation.exact`, docs/model.md §15) returns the cheapest plan; with
-rotation noise an open-loop plan misses its goal when the heading errors of its turns carry
-the robot off course. This layer lists the near-optimal exact plans
+The exact planner (:mod:`planners.navigation.exact`, docs/model.md §15) returns the cheapest
+plan; with rotation noise an open-loop plan misses its goal when the heading errors of its
+turns carry the robot off course. This layer lists the near-optimal exact plans
 (:meth:`ExactNavigator.plans`, every goal arrival within a cost ``slack`` of the cheapest),
 estimates each one's success probability by propagating a seeded particle set through the
 exact flights of the motion layer (:mod:`envs.motion`, vectorised over particles), and
@@ -57,7 +57,7 @@ from envs.contact import advance, contact_flights, glancing
 from envs.motion import BUMP_RANGE, ContactParams, casters, drive_distance, unit
 
 from ..cells import CellSpace
-from ..measures import flight_limit, in_goal
+from ..measures import flight_limit, in_goal, step_flights
 from ..noise import TurnNoise
 from ..plan import Plan
 from ..resources import MemoryEstimate
@@ -209,13 +209,9 @@ def rollout(cells: CellSpace, plan: Plan, start: int, goal: int, turns: np.ndarr
         limits = [flight_limit(cells, max_factor, flight_m=f) for f in plan.flights_m]
         final = float(plan.final_m)
     else:
-        limits, final = [], 0.0
-        for zeros, angle in plan.segments():
-            if angle is None:
-                final = cells.run_length(k, zeros)
-            else:
-                limits.append(flight_limit(cells, max_factor, zeros=zeros))
-                k = int(cells.orientation_of(k * cells.delta_deg + angle))
+        limits = [flight_limit(cells, max_factor, zeros=zeros)
+                  for zeros, angle in plan.segments() if angle is not None]
+        final = step_flights(cells, plan, k)[1]
     for j, limit in enumerate(limits):
         u = unit(head)
         t = caster.cast(pos, u)
@@ -418,7 +414,8 @@ class ReliableNavigator:
                   "chosen": best, "p_exact": float(wins[0]) / self.particles,
                   "exact_cost": float(routes[0].cost), "particles": self.particles,
                   "noise": str(self.noise)}
-        return replace(r, planner=self.name, extras=extras)
+        return replace(r, plan=replace(r.plan, planner=self.name), planner=self.name,
+                       extras=extras)
 
     def policy(self, start: int, goal: int) -> Plan | None:
         """The plan :func:`bouncesim.runs.execute.execute` runs (None: no plan)."""

@@ -270,7 +270,7 @@ def _route(cells: CellSpace, s: int, g: int, labels: tuple, cost: float, path: t
     flights (rounded to 1e-9 m) and the cell-centre pose of every configuration on its path.
     """
     plan = Plan(labels)
-    flights, final = step_flights(cells, s, plan)
+    flights, final = step_flights(cells, plan, int(cells.pk(s)[1]))
     plan = Plan.with_flights(plan, [round(f, 9) for f in flights], round(final, 9), "step")
     poses = tuple(cells.pose(z) for z in path)
     return Route(s, g, plan, cost, poses, "step", path)

@@ -9,21 +9,20 @@ from __future__ import annotations
 
 import math
 
+from envs.motion import CENTRE_ZONE_DEG
+from planners.measures import wrap180
+
 __all__ = ["CONTACT_TOLERANCE", "BUMP_CENTRE_DEG", "contact_bearing", "read_bumper"]
 
 CONTACT_TOLERANCE = 1e-3
 """A contact point within this distance [m] closes the bumper."""
-BUMP_CENTRE_DEG = 10.0
+BUMP_CENTRE_DEG = CENTRE_ZONE_DEG
 """Contacts within ± this angle [deg] of straight ahead close both switches."""
 
 
-def _wrap_deg(a: float) -> float:
-    return (a + 180.0) % 360.0 - 180.0
-
-
 def contact_bearing(pos, x: float, y: float, yaw_deg: float) -> float:
-    """Bearing [deg] in [−180, 180) of the point ``pos`` seen from (x, y) heading ``yaw_deg``."""
-    return _wrap_deg(math.degrees(math.atan2(pos[1] - y, pos[0] - x)) - yaw_deg)
+    """Bearing [deg] in (−180, 180] of the point ``pos`` seen from (x, y) heading ``yaw_deg``."""
+    return wrap180(math.degrees(math.atan2(pos[1] - y, pos[0] - x)) - yaw_deg)
 
 
 def read_bumper(p, body: int, wall_set: frozenset, arc_deg: float, kw: dict,

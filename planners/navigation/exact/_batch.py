@@ -1,7 +1,7 @@
 """The exact planner's search from many starts at once (docs/model.md §15, all pairs).
 
-Every tree of :meth:`planners.navigation.exact.ExactNavigator.search` keeps, per state, the exact pose
-of its best arrival; the flight from that pose depends on the pose and the heading only,
+Every tree of :meth:`planners.navigation.exact.ExactNavigator.search` keeps, per state, the
+exact pose of its best arrival; the flight from that pose depends on the pose and the heading only,
 not on the start. On ``complex`` the 1464 starts settle 6.0 M states but only 0.34 M
 distinct (pose, heading) pairs, so the flights are cast once, in a table shared by every
 tree (and by every batch of starts): :class:`FlightTable`.

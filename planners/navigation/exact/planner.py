@@ -69,10 +69,12 @@ __all__ = ["ExactNavigator", "ExactAllPairs", "ExactSearch"]
 _IMPROVE = 1e-9          # a new arrival replaces a state's pose when cheaper by this
 _BATCH_BYTES = 4e8       # all pairs: the search arrays of one batch of starts [bytes]
 # memory estimate (bytes): per contact bin (Boundary's tables, the scalar copies), per state
-# of one search (cost, pred, pos, flight, used), per distinct flight of the all-pairs table,
-# the culled casts' fine grid cells per heading (at most 64 x 64) and one list of them
-_PER_BIN, _PER_STATE, _PER_FLIGHT = 400, 48, 400
-_FINE_CELLS, _LIST_BYTES = 64 * 64, 2 * 120
+# of one search (cost, pred, pos, flight, used, the heap), per distinct flight of the
+# all-pairs table (its arrays, index and goal arrivals, grown by doubling), the culled casts'
+# two lists per heading and fine grid cell; the all-pairs table holds about 3-26 distinct
+# flights per contact state (measured on lab and complex at K = 8 and 72)
+_PER_BIN, _PER_STATE, _PER_FLIGHT, _LIST_BYTES = 400, 64, 600, 2 * 200
+_FLIGHTS_PER_STATE = 30
 
 
 @dataclass(eq=False)
@@ -374,14 +376,17 @@ class ExactNavigator:
         (``"allpairs"``), from the sizes alone (nothing is built): the contact bins
         (about the C-space perimeter / bin length), the search's arrays per contact state
         (S = bins · K · m), the culled casts' per-heading tables, and for all pairs the
-        batch of starts (about 0.4 GB at most) and the flight table (about 0.4 kB per
-        distinct flight, at most one per contact state and its m turns).
+        batch of starts (about 0.4 GB at most, twice for its temporaries), the flight table
+        (about 0.6 kB per distinct flight, about 30 per contact state at most on the maps
+        measured) and the N × N results.
         """
         bins = bins_estimate(cells.env, cells.h / 4 if bin_length is None else bin_length)
         m, K = max(1, len(tuple(angles))), cells.K
         S = bins * K * m
-        casts = K * _FINE_CELLS * _LIST_BYTES                 # HeadingCaster's lists
-        base = bins * _PER_BIN + casts
+        x0, y0, x1, y1 = cells.env.bounds
+        g = max(cells.h / 2, max(x1 - x0, y1 - y0) / 64)   # HeadingCaster's fine grid
+        fine = math.ceil((x1 - x0) / g) * math.ceil((y1 - y0) / g)
+        base = bins * _PER_BIN + K * fine * _LIST_BYTES
         if task == "plan":
             return MemoryEstimate("the exact planner's search", base + S * _PER_STATE)
         if task != "allpairs":
@@ -389,7 +394,7 @@ class ExactNavigator:
         N = cells.N
         per_start = 14 * (S + 1) + 24 * N
         batch = min(N, max(1, int(_BATCH_BYTES // per_start)))
-        table = min(S * m, N * S) * _PER_FLIGHT
+        table = min(_FLIGHTS_PER_STATE * S, N * S) * _PER_FLIGHT
         return MemoryEstimate("the exact planner's all pairs",
                               base + batch * per_start * 2 + table + N * N * 9)
 

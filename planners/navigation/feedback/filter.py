@@ -16,7 +16,14 @@ from scipy.special import ndtr
 
 from envs import Environment, UserError
 from envs.contact import contact_flights
-from envs.motion import BUMP_RANGE, ContactParams, casters, drive_distance, unit
+from envs.motion import (
+    BUMP_RANGE,
+    CENTRE_ZONE_DEG,
+    ContactParams,
+    casters,
+    drive_distance,
+    unit,
+)
 
 __all__ = ["FeedbackConfig", "FlightUpdate", "ParticleFilter", "side_of", "flights", "landings",
            "SIDES"]
@@ -74,7 +81,7 @@ class FeedbackConfig:
     sigma_floor_deg: float = 0.0
     dist_sigma_m: float = 0.01
     dist_sigma_rel: float = 0.01
-    centre_zone_deg: float = 10.0
+    centre_zone_deg: float = CENTRE_ZONE_DEG
     side_blur_deg: float = 1.0
     side_floor: float = 0.02
     consistent_z: float = 5.0

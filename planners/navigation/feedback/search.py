@@ -11,8 +11,8 @@ expansion and the same floating-point arithmetic, so they return the same plans:
   can stop a flight within ``BUMP_RANGE``, so the knife-edge guard's two casts (heading
   ± g) run over them alone. What a pose and heading lead to is computed once per search. A
   flight at the goal's heading is cut into chords (the numpy
-  :func:`~planners.navigation.exact._chords.chords`) only when it meets the goal cell shrunk by half the
-  minimum depth (no arrival is possible otherwise).
+  :func:`~planners.navigation.exact.chords`) only when it meets the goal cell shrunk by half
+  the minimum depth (no arrival is possible otherwise).
 - :func:`search_reference`, the straightforward one (every cast over every wall, chords
   whenever the flight's bounding box meets the goal cell): the tests and
   ``benchmarks/bench_feedback.py`` check :func:`search` against it.
