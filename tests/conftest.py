@@ -2,10 +2,24 @@
 
 from __future__ import annotations
 
+import tracemalloc
+
 import numpy as np
 import pytest
 
 from envs import Environment
+
+
+def traced_peak(fn) -> int:
+    """Peak bytes traced by tracemalloc while fn runs, above what was allocated before."""
+    tracemalloc.start()
+    try:
+        tracemalloc.reset_peak()
+        before = tracemalloc.get_traced_memory()[0]
+        fn()
+        return tracemalloc.get_traced_memory()[1] - before
+    finally:
+        tracemalloc.stop()
 
 
 def room(cols: int, rows: int, obstacles=(), K: int = 8, h: float = 0.34,

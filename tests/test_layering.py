@@ -57,12 +57,26 @@ def _modules(root: Path = ROOT) -> dict[str, Path]:
 
 def _imports(name: str, path: Path, modules: dict) -> list[tuple[str, int]]:
     """(imported dotted name, line) of every import in the module, resolved where it is ours."""
-    is_pkg = path.name == "__init__.py"
-    package = name if is_pkg else name.rpartition(".")[0]
     found = []
+    for node, mod, attr in _import_nodes(name, path):
+        sub = f"{mod}.{attr}"
+        found.append((sub if attr and sub in modules else mod, node.lineno))
+    return found
+
+
+def _package(name: str, path: Path) -> str:
+    return name if path.name == "__init__.py" else name.rpartition(".")[0]
+
+
+def _import_nodes(name: str, path: Path):
+    """(node, imported module, imported attribute or None) of every import in the module,
+    relative imports resolved.
+    """
+    package = _package(name, path)
     for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
         if isinstance(node, ast.Import):
-            found += [(a.name, node.lineno) for a in node.names]
+            for a in node.names:
+                yield node, a.name, None
         elif isinstance(node, ast.ImportFrom):
             if node.level:
                 base = package.split(".")
@@ -71,9 +85,7 @@ def _imports(name: str, path: Path, modules: dict) -> list[tuple[str, int]]:
             else:
                 mod = node.module or ""
             for a in node.names:
-                sub = f"{mod}.{a.name}"
-                found.append((sub if sub in modules else mod, node.lineno))
-    return found
+                yield node, mod, a.name
 
 
 def import_graph(root: Path = ROOT):
@@ -211,35 +223,22 @@ def private_imports(root: Path = ROOT) -> list[str]:
     modules = _modules(root)
     problems = []
     for name, path in sorted(modules.items()):
-        own_pkg = name if path.name == "__init__.py" else name.rpartition(".")[0]
-        for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
-            if isinstance(node, ast.ImportFrom):
-                if node.level:
-                    base = own_pkg.split(".")
-                    base = base[:len(base) - (node.level - 1)]
-                    mod = ".".join(base + ([node.module] if node.module else []))
-                else:
-                    mod = node.module or ""
-                targets = [(mod, a.name) for a in node.names]
-            elif isinstance(node, ast.Import):
-                targets = [(a.name, None) for a in node.names]
-            else:
+        own_pkg = _package(name, path)
+        for node, mod, attr in _import_nodes(name, path):
+            if mod.split(".")[0] not in PACKAGES:
                 continue
-            for mod, attr in targets:
-                if mod.split(".")[0] not in PACKAGES:
-                    continue
-                full = f"{mod}.{attr}" if attr and f"{mod}.{attr}" in modules else mod
-                parts = full.split(".")
-                for i, part in enumerate(parts):
-                    if part.startswith("_") and not part.startswith("__"):
-                        pkg = ".".join(parts[:i])
-                        if not (own_pkg == pkg or own_pkg.startswith(pkg + ".")):
-                            problems.append(f"{name} imports the private module {full} "
-                                            f"(line {node.lineno})")
-                        break
-                if attr and full == mod and attr.startswith("_") and not attr.startswith("__"):
-                    problems.append(f"{name} imports the private name {mod}.{attr} "
-                                    f"(line {node.lineno})")
+            full = f"{mod}.{attr}" if attr and f"{mod}.{attr}" in modules else mod
+            parts = full.split(".")
+            for i, part in enumerate(parts):
+                if part.startswith("_") and not part.startswith("__"):
+                    pkg = ".".join(parts[:i])
+                    if not (own_pkg == pkg or own_pkg.startswith(pkg + ".")):
+                        problems.append(f"{name} imports the private module {full} "
+                                        f"(line {node.lineno})")
+                    break
+            if attr and full == mod and attr.startswith("_") and not attr.startswith("__"):
+                problems.append(f"{name} imports the private name {mod}.{attr} "
+                                f"(line {node.lineno})")
     return problems
 
 

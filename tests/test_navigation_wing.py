@@ -6,7 +6,6 @@ front door, the same Route JSON and the same execute(), against the planners' ow
 from __future__ import annotations
 
 import json
-import tracemalloc
 
 import numpy as np
 import pytest
@@ -30,6 +29,8 @@ from planners.navigation import (
     make_planner,
 )
 from planners.plan import Plan
+
+from .conftest import traced_peak
 
 LAB = CellSpace(envs.load("lab"))
 ANGLES = (90, 135)
@@ -157,17 +158,6 @@ def test_make_planner_errors_are_one_sentence():
     assert "repeat an angle" in one(lambda: make_planner("feedback", LAB, (90, 90)))
 
 
-def _traced_peak(fn) -> int:
-    tracemalloc.start()
-    try:
-        tracemalloc.reset_peak()
-        before = tracemalloc.get_traced_memory()[0]
-        fn()
-        return tracemalloc.get_traced_memory()[1] - before
-    finally:
-        tracemalloc.stop()
-
-
 @pytest.mark.parametrize("name", ["lab", "fig1"])
 def test_exact_memory_estimates_bound_what_it_allocates(name):
     # single queries within a factor 2 either way; all pairs never under by more than 20 %,
@@ -176,11 +166,11 @@ def test_exact_memory_estimates_bound_what_it_allocates(name):
     _ = cs.centres
     angles = (45, 90, 135)
     nav = ExactNavigator(cs, angles)
-    plan = _traced_peak(lambda: nav.plan(0, cs.N - 1))
+    plan = traced_peak(lambda: nav.plan(0, cs.N - 1))
     est = ExactNavigator.memory_estimate(cs, angles).total
     assert plan / 2 <= est <= 2 * plan
     nav = ExactNavigator(cs, angles)
-    pairs = _traced_peak(lambda: nav.all_pairs(max_memory=None))
+    pairs = traced_peak(lambda: nav.all_pairs(max_memory=None))
     est = ExactNavigator.memory_estimate(cs, angles, task="allpairs").total
     assert 0.8 * pairs <= est <= 4 * pairs
 

@@ -17,19 +17,7 @@ from planners.coverage import MODELS, TurnNoise, clear_cache, default_settings, 
 from planners.navigation import Navigator
 from planners.navigation.step import all_pairs_bytes, roadmap_bytes, search_bytes
 
-from .conftest import room
-
-
-def traced_peak(fn) -> int:
-    """Peak bytes traced by tracemalloc while fn runs, above what was allocated before."""
-    tracemalloc.start()
-    try:
-        tracemalloc.reset_peak()
-        before = tracemalloc.get_traced_memory()[0]
-        fn()
-        return tracemalloc.get_traced_memory()[1] - before
-    finally:
-        tracemalloc.stop()
+from .conftest import room, traced_peak
 
 
 def within(est: float, measured: float, factor: float = 2.0) -> bool:

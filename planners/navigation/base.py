@@ -28,14 +28,18 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any, ClassVar, Protocol, runtime_checkable
+
+import numpy as np
 
 from envs import UserError
 
 from ..cells import CellSpace
 from ..plan import Plan
 
-__all__ = ["NEEDS", "Planner", "Route", "check_angles", "check_config", "check_weights"]
+__all__ = ["NEEDS", "PairTable", "Planner", "Route", "check_angles", "check_config",
+           "check_weights"]
 
 NEEDS = ("noise", "rng", "contact")
 """What a planner may need besides the map, the angles and the weights: the turn noise it
@@ -155,6 +159,34 @@ class Planner(Protocol):
         """What :func:`bouncesim.runs.execute.execute` runs from ``start`` to ``goal``: the
         route's plan (None when there is none), or a closed-loop policy.
         """
+
+
+class PairTable:
+    """What every all-pairs result shares (:class:`~planners.navigation.AllPairs`,
+    :class:`~planners.navigation.ExactAllPairs`): ``weights`` (N, N) float, −1 where
+    unreachable, 0 on the diagonal; ``angles_used`` (N, N) int8, −1 where unreachable or
+    i == j; ``m`` the number of bouncing angles.
+    """
+
+    weights: np.ndarray
+    angles_used: np.ndarray
+    m: int
+
+    @property
+    def N(self) -> int:
+        """Number of configurations N."""
+        return int(self.weights.shape[0])
+
+    def histogram(self) -> np.ndarray:
+        """Counts of plans by number of angles used (0..m) over reachable pairs i != j."""
+        used = self.angles_used[self.angles_used >= 0]
+        return np.bincount(used, minlength=self.m + 1)
+
+    @cached_property
+    def reachable_fraction(self) -> float:
+        """Fraction of the ordered pairs (i ≠ j) with a plan."""
+        N = self.N
+        return float((self.weights[~np.eye(N, dtype=bool)] >= 0).mean()) if N > 1 else 1.0
 
 
 # ---------------------------------------------------------------- shared argument checks

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 from collections import OrderedDict
 from collections.abc import Iterable
-from functools import cached_property
 
 import numpy as np
 from scipy.sparse.csgraph import dijkstra
@@ -36,7 +35,7 @@ from ..resources import (
     parse_memory,
     pipeline,
 )
-from .base import Route, check_config
+from .base import PairTable, Route, check_config
 from .roadmap import Roadmap
 
 __all__ = ["AllPairs", "Navigator", "SEARCH_CACHE", "all_pairs_bytes", "roadmap_bytes",
@@ -139,7 +138,7 @@ class Navigator:
         return pipeline(cells, road, all_pairs_bytes(N, m))
 
 
-class AllPairs:
+class AllPairs(PairTable):
     """All-pairs shortest plans (Algorithm 2) from one multi-source Dijkstra call.
 
     Attributes
@@ -175,6 +174,7 @@ class AllPairs:
         used[~reach | eye] = -1
         nlab[~reach] = -1
         nlab[eye] = 0
+        self.m = m
         self.weights = W
         self.angles_used = used
         self.n_labels = nlab
@@ -219,28 +219,12 @@ class AllPairs:
             live = live[(anc[live] % width) != sink]
         return mask.reshape(N, width), depth.reshape(N, width)
 
-    @property
-    def N(self) -> int:
-        """Number of configurations N."""
-        return self.roadmap.N
-
     def route(self, i: int, j: int) -> Route | None:
         """The plan for the pair (i, j), rebuilt from the stored predecessor trees."""
         i, j = int(i), int(j)
         if i == j:
             return _route(self.roadmap.cells, i, j, (), 0.0, (i,))
         return _route_from_tree(self.roadmap, i, j, self._dist[i], self._pred[i])
-
-    def histogram(self) -> np.ndarray:
-        """Counts of plans by number of angles used (0..m) over reachable pairs i != j."""
-        used = self.angles_used[self.angles_used >= 0]
-        return np.bincount(used, minlength=self.roadmap.m + 1)
-
-    @cached_property
-    def reachable_fraction(self) -> float:
-        """Fraction of the ordered pairs (i ≠ j) with a plan."""
-        N = self.N
-        return float((self.weights[~np.eye(N, dtype=bool)] >= 0).mean()) if N > 1 else 1.0
 
 
 def _route_from_tree(rm: Roadmap, s: int, g: int, dist: np.ndarray, pred: np.ndarray

@@ -59,7 +59,7 @@ from ...boundary import Boundary, bins_estimate
 from ...cells import CellSpace
 from ...plan import Plan
 from ...resources import DEFAULT_MAX_MEMORY, MemoryEstimate, check
-from ..base import Route, check_angles, check_config, check_weights
+from ..base import PairTable, Route, check_angles, check_config, check_weights
 from ._batch import FlightTable, SearchArrays, search_many
 from ._cast import HeadingCaster
 from ._chords import chords
@@ -399,7 +399,7 @@ class ExactNavigator:
                               base + batch * per_start * 2 + table + N * N * 9)
 
 
-class ExactAllPairs:
+class ExactAllPairs(PairTable):
     """All-pairs exact plans: weights and angles used (one full search per start).
 
     Attributes
@@ -430,24 +430,8 @@ class ExactAllPairs:
         idx = np.arange(N)
         W[idx, idx] = 0.0
         used[idx, idx] = -1
-        self.weights, self.angles_used = W, used
-
-    @property
-    def N(self) -> int:
-        """Number of configurations N."""
-        return self.nav.cells.N
+        self.weights, self.angles_used, self.m = W, used, nav.m
 
     def route(self, i: int, j: int) -> Route | None:
         """The plan for the pair (i, j) (searched again: the same tree, the same plan)."""
         return self.nav.plan(i, j)
-
-    def histogram(self) -> np.ndarray:
-        """Counts of plans by number of angles used (0..m) over reachable pairs i != j."""
-        u = self.angles_used[self.angles_used >= 0]
-        return np.bincount(u, minlength=self.nav.m + 1)
-
-    @cached_property
-    def reachable_fraction(self) -> float:
-        """Fraction of the ordered pairs (i ≠ j) with a plan."""
-        N = self.N
-        return float((self.weights[~np.eye(N, dtype=bool)] >= 0).mean()) if N > 1 else 1.0
