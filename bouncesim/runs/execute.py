@@ -159,8 +159,8 @@ def execute(policy, robot: Robot, *, start=None, cells: CellSpace | None = None,
     back_off = float(back_off)
     if back_off < 0 or not math.isfinite(back_off):
         raise UserError(f"back-off must be a non-negative distance in metres, got {back_off:g}.")
-    runner = _runner(policy, robot, start, cells, goal, speed, back_off, max_factor, steps,
-                     epoch, rng, max_stuck, record_trace, on_segment, max_time)
+    runner = _runner(policy, robot, start, cells, goal, back_off, max_factor, steps, epoch, rng,
+                     max_stuck, record_trace, on_segment, max_time)
     trace = Trace()
     t0 = robot.clock()
     trace.add(0.0, robot.true_pose(), "start", runner.label)
@@ -178,13 +178,13 @@ def execute(policy, robot: Robot, *, start=None, cells: CellSpace | None = None,
     return runner.result(reason, elapsed, final, trace)
 
 
-def _runner(policy, robot, start, cells, goal, speed, back_off, max_factor, steps, epoch, rng,
+def _runner(policy, robot, start, cells, goal, back_off, max_factor, steps, epoch, rng,
             max_stuck, record_trace, on_segment, max_time):
     """The runner of a policy: a plan's, a mix's or a feedback policy's."""
     if isinstance(policy, FeedbackPolicy):                   # closed loop (§22)
         if steps is not None or epoch is not None or max_stuck is not None:
             raise UserError("steps, epoch and max_stuck are for policy mixes.")
-        return FeedbackRunner(policy, robot, start=start, goal=goal, cells=cells, speed=speed,
+        return FeedbackRunner(policy, robot, start=start, goal=goal, cells=cells,
                               back_off=back_off)
     cells = _cells_of(robot, cells)
     if isinstance(policy, (PolicyMix, int, float, np.integer, np.floating)):
@@ -193,7 +193,7 @@ def _runner(policy, robot, start, cells, goal, speed, back_off, max_factor, step
         if steps is None or epoch is None or rng is None:
             raise UserError("a policy mix needs steps, epoch and rng.")
         return MixRunner(policy, robot, cells, start, back_off, steps, epoch, rng, max_stuck,
-                          record_trace, max_time)
+                         record_trace, max_time)
     if steps is not None or epoch is not None or max_stuck is not None:
         raise UserError("steps, epoch and max_stuck are for policy mixes; a plan runs its "
                         "segments.")

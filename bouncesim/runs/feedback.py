@@ -102,7 +102,7 @@ class FeedbackRunner:
     finished = "plan finished"
 
     def __init__(self, policy, robot: Robot, *, start=None, goal=None,
-                 cells: CellSpace | None = None, speed: float, back_off: float) -> None:
+                 cells: CellSpace | None = None, back_off: float = 0.0) -> None:
         planner = policy.planner
         self.policy, self.planner = policy, planner
         if cells is not None and cells is not planner.cells and \
@@ -120,7 +120,7 @@ class FeedbackRunner:
             self.start_pose = cs.pose(int(start))
         else:
             self.start_pose = tuple(float(v) for v in start)
-        self.speed, self.back_off, self.rng = speed, float(back_off), planner.rng
+        self.back_off, self.rng = float(back_off), planner.rng
         self.contact = planner.resolved(body_contact(robot))
         self.fnav = planner.navigator(policy.goal, self.contact)
         self.cfg = self.fnav.cfg
