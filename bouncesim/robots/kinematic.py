@@ -80,7 +80,11 @@ from .base import CREATE2, BumpEvent, Robot, RobotSpec
 from .noise import NoiseModel, NoNoise, noise_and_rng, noise_for_mix
 
 __all__ = ["WallCaster", "LocalCaster", "casters", "KinematicRobot", "KinematicBatch",
-           "BatchCoverage", "unit", "CONTACT_GAP", "BUMP_RANGE", "STEP_TOL", "CENTRE_ZONE_DEG"]
+           "BatchCoverage", "unit", "CONTACT_GAP", "BUMP_RANGE", "STEP_TOL", "CENTRE_ZONE_DEG",
+           "SIDE_RULES"]
+
+SIDE_RULES = ("touched", "nearest")
+"""How a twin's bumper switches read a contact (:class:`KinematicRobot`'s ``side_rule``)."""
 
 _EXACT = NoNoise()
 _SCALAR_MAX = 8          # batches up to this size cast robot by robot in plain Python
@@ -117,6 +121,15 @@ class KinematicRobot(Robot):
         μ = 0 (80 matches the PyBullet robot's arc). Not together with ``contact``.
     spec : RobotSpec, optional
         Body figures; default the Create 2 with the environment's radius.
+    side_rule : {"touched", "nearest"}
+        How the bumper's two switches read a contact. "touched" (default, docs/model.md §8):
+        every wall feature touched within ``BUMP_RANGE`` presses the switches its bearing β
+        selects (left when β >= −10°, right when β <= 10°: in a corner both often close).
+        "nearest": the wall point nearest the robot's centre decides, its bearing within
+        ±10° closing both switches, further left the left one, further right the right one
+        (a body whose switches read one wall point: in a corner, or after sliding along a
+        wall, it reports one side where "touched" reports both). The navigators must not
+        depend on which.
 
     Notes
     -----
@@ -129,8 +142,12 @@ class KinematicRobot(Robot):
     def __init__(self, env: Environment, noise: NoiseModel | None = None, rng=None, *,
                  turn_speed: float = 0.1, turn: str = "clock",
                  spec: RobotSpec | None = None, glance_deg: float | None = None,
-                 contact: ContactParams | None = None) -> None:
+                 contact: ContactParams | None = None, side_rule: str = "touched") -> None:
         self.env = env
+        if side_rule not in SIDE_RULES:
+            raise UserError(f"side_rule must be one of {', '.join(SIDE_RULES)}, got "
+                            f"{side_rule!r}.")
+        self.side_rule = side_rule
         self.noise, self.rng = noise_and_rng(noise, rng)
         self.spec = spec if spec is not None else replace(CREATE2, radius=env.robot_radius)
         if not 0 < turn_speed <= self.spec.max_wheel_speed:
@@ -205,13 +222,31 @@ class KinematicRobot(Robot):
         self._speed = 0.0
 
     def bumper(self) -> tuple[bool, bool]:
-        """(left, right) switches: closed by a contact within the bumper arc."""
+        """(left, right) switches: closed by a contact within the bumper arc (read by
+        ``side_rule``).
+        """
+        touched = [c for c in front_contacts(self.local, self._x, self._y, self._ux, self._uy)
+                   if closes_bumper(c[0], self.contact)]
+        if self.side_rule == "nearest" and touched:
+            beta = self._nearest_wall_bearing()
+            return bool(beta >= -CENTRE_ZONE_DEG), bool(beta <= CENTRE_ZONE_DEG)
         left = right = False
-        for beta, *_ in front_contacts(self.local, self._x, self._y, self._ux, self._uy):
-            if closes_bumper(beta, self.contact):
-                left |= beta >= -CENTRE_ZONE_DEG
-                right |= beta <= CENTRE_ZONE_DEG
+        for beta, *_ in touched:
+            left |= beta >= -CENTRE_ZONE_DEG
+            right |= beta <= CENTRE_ZONE_DEG
         return bool(left), bool(right)
+
+    def _nearest_wall_bearing(self) -> float:
+        """Bearing [deg] of the wall point nearest the centre, + to the left (ties: the
+        first wall segment).
+        """
+        c = self.caster
+        p = np.array([self._x, self._y])
+        lam = np.clip(((p - c.A) * c.e).sum(1), 0.0, c.L)
+        q = c.A + lam[:, None] * c.e
+        wx, wy = q[int(np.argmin(np.hypot(*(q - p).T)))] - p
+        return math.degrees(math.atan2(self._ux * wy - self._uy * wx,
+                                       self._ux * wx + self._uy * wy))
 
     def clock(self) -> float:
         """Simulated time [s] since the robot was built."""
