@@ -62,17 +62,24 @@ def test_flight_reading_picks_the_heading_by_distance_and_side(d, left, right, h
     assert np.allclose(pf.pos, [2 - 0.17, y], atol=1e-8)
 
 
-def test_no_particle_fits_reinitialises_around_the_previous_belief():
+def test_a_reading_no_particle_fits_mixes_in_a_component_around_the_belief():
     # every particle says 1.33 m; the robot bumped after 1.415 m with the wall on its right
-    # (heading +20°): stage 1 widens the headings (σ = 10°); the posterior mean is pulled
-    # toward the prior's 0° by σ_θ²/(σ_θ² + 10²) with the reading's σ_θ ≈ 0.024 m /
-    # (0.009 m/°) ≈ 2.7°, i.e. to about 18.6°
-    pf = ParticleFilter(RECT, FeedbackConfig(particles=200), np.random.default_rng(1),
+    # (heading +20°): 3.5 σ_d off and the wrong side for the belief, a surprising reading.
+    # A component around the belief with headings widened (σ = 10°) is mixed in, and it
+    # takes most of the posterior (the belief has lost track), but the belief is not thrown
+    # away. Within the component the headings are pulled toward the prior's 0° by
+    # σ_θ²/(σ_θ² + 10²) with the reading's σ_θ ≈ 0.024 m / (0.009 m/°) ≈ 2.7°, i.e. to
+    # about 18.6°; its mirror image at −18.6° (the left wall, the side misread) keeps the
+    # small share p_side / 2 / (1 − p_side) ≈ 2.6 % of it.
+    pf = ParticleFilter(RECT, FeedbackConfig(particles=400), np.random.default_rng(1),
                         start=(0.5, 1.0, 0.0))
     up = pf.flight(1.33 / math.cos(math.radians(20)), False, True)
-    assert up.consistent == 0 and up.reinit == 1
+    assert up.consistent == 0 and up.reinit == 1 and up.lost and 0.5 < up.mixed < 1
     heads = (pf.heading + 180) % 360 - 180
-    assert abs(np.average(heads, weights=pf.weights) - 18.6) < 1.5
+    kept, right, mirror = np.abs(heads) <= 1e-9, heads > 5, heads < -5
+    assert 0 < pf.weights[kept].sum() < 0.5            # the old belief keeps its share
+    assert pf.weights[mirror].sum() < 0.1 * pf.weights[right].sum()
+    assert abs(np.average(heads[right], weights=pf.weights[right]) - 18.6) < 1.5
 
 
 def test_goal_intervals_and_final_drive_by_hand():

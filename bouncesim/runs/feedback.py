@@ -193,11 +193,15 @@ class FeedbackRunner:
             ev, d = res.event, res.travelled
             if not ev.bumped:
                 yield Note("no_bump", f"{d:.3f} m", res.pose)
-                return f"no bump within {cap:.2f} m"
-            yield Note("bump", side_text(ev), res.pose)
+                if cfg.p_miss <= 0:
+                    return f"no bump within {cap:.2f} m"
+            else:
+                yield Note("bump", side_text(ev), res.pose)
             tick, cpu = time.perf_counter(), time.process_time()
             flights.append(d)
-            self.updates.append(belief.flight(d, ev.left, ev.right))
+            # a drive that read no bump within the cap: a missed bump (docs/model.md §22)
+            self.updates.append(belief.flight(d, ev.left, ev.right) if ev.bumped
+                                else belief.missed(d))
             if on_belief is not None:
                 on_belief("flight", belief)
             if self.back_off > 0:

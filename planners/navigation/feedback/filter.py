@@ -48,8 +48,24 @@ class FeedbackConfig:
     centre_zone_deg : float    [deg] contacts within ± this of the heading close both
                                switches (the twin's ``CENTRE_ZONE_DEG``)
     side_blur_deg : float      [deg] width of the soft side boundary
-    side_floor : float         probability of any reading whatever the bearing
-    consistent_z : float       a particle fits a reading within this many σ_d
+    p_side : float             the declared rate of wrong bumper-side readings: a reading is
+                               one of the two others with this probability (a real bumper's
+                               switches in a corner are no more predictable than either
+                               convention); no side reading can zero the belief
+    p_phantom : float          the declared rate of phantom bumps: the bumper closes with no
+                               wall, the robot stopped mid-flight (the reading is uniform
+                               over the flight, the side any of the three)
+    p_miss : float             the declared rate of missed bumps: the robot pushed on
+                               against the wall until the drive's timeout
+    p_lost : float             prior probability that the belief has lost track at a
+                               reading: the weight of the re-initialised component mixed in
+                               (the posterior's share is p_lost·m_r / ((1 − p_lost)·m_b +
+                               p_lost·m_r), m the readings' marginal likelihoods)
+    surprise : float           a re-initialised component is tried only when the belief's
+                               marginal likelihood of a reading is below this fraction of
+                               the best possible one
+    consistent_z : float       a particle counts as fitting a reading (reported, not used to
+                               weigh) within this many σ_d and with the side it predicts
     resample_ess : float       resample when ESS < this · n
     reinit_sigma_deg : float   [deg] heading spread of the local re-initialisation
     votes : int                poses planned from after every bump
@@ -83,7 +99,11 @@ class FeedbackConfig:
     dist_sigma_rel: float = 0.01
     centre_zone_deg: float = CENTRE_ZONE_DEG
     side_blur_deg: float = 1.0
-    side_floor: float = 0.02
+    p_side: float = 0.05
+    p_phantom: float = 0.01
+    p_miss: float = 0.01
+    p_lost: float = 0.01
+    surprise: float = 0.01
     consistent_z: float = 5.0
     resample_ess: float = 0.5
     reinit_sigma_deg: float = 10.0
@@ -105,8 +125,8 @@ class FeedbackConfig:
             if int(v) != v or v < 1:
                 raise UserError(f"feedback {name} must be a positive whole number, got {v}.")
         for name in ("turn_sigma_deg", "sigma_floor_deg", "dist_sigma_m", "dist_sigma_rel", "slack",
-                     "centre_zone_deg", "side_blur_deg", "side_floor", "reinit_sigma_deg",
-                     "margin_m", "edge_guard"):
+                     "centre_zone_deg", "side_blur_deg", "reinit_sigma_deg", "margin_m",
+                     "edge_guard"):
             v = float(getattr(self, name))
             if not (math.isfinite(v) and v >= 0):
                 raise UserError(f"feedback {name} must be a non-negative number, got {v}.")
@@ -114,6 +134,15 @@ class FeedbackConfig:
             raise UserError("feedback dist_sigma_m must be positive.")
         if not 0 <= self.final_min <= 1:
             raise UserError("feedback final_min must lie in [0, 1].")
+        for name in ("p_side", "p_phantom", "p_miss", "p_lost", "surprise"):
+            v = float(getattr(self, name))
+            if not 0 <= v < 1:
+                raise UserError(f"feedback {name} must lie in [0, 1), got {v}.")
+        if self.p_side > 2 / 3:
+            raise UserError("feedback p_side above 2/3 would make a wrong side likelier than "
+                            "the right one.")
+        if self.p_phantom + self.p_miss >= 1:
+            raise UserError("feedback p_phantom + p_miss must stay below 1.")
         if not 0 < self.resample_ess <= 1:
             raise UserError("feedback resample_ess must lie in (0, 1].")
         if self.contact is not None and not isinstance(self.contact, ContactParams):
@@ -206,7 +235,8 @@ def _side_probs(beta, cfg: FeedbackConfig) -> np.ndarray:
     """(n, 3) probability of each reading of :data:`SIDES` given the touched features'
     bearings (n, F) [deg] (NaN: not touched): a feature at bearing β closes the left switch
     when β >= −zone and the right one when β <= zone (the twin's rule), blurred by a normal
-    CDF of width ``side_blur_deg``; then mixed with ``side_floor``.
+    CDF of width ``side_blur_deg``; then a wrong reading with probability ``p_side``, spread
+    evenly over the two others: (1 − p_side)·p + p_side·(1 − p)/2.
     """
     s = max(cfg.side_blur_deg, 1e-9)
     z = cfg.centre_zone_deg
@@ -214,23 +244,30 @@ def _side_probs(beta, cfg: FeedbackConfig) -> np.ndarray:
         left = np.nan_to_num(np.nanmax(ndtr((beta + z) / s), axis=1, initial=0.0))
         right = np.nan_to_num(np.nanmax(ndtr((z - beta) / s), axis=1, initial=0.0))
     p = np.column_stack([left * right, left * (1 - right), (1 - left) * right])
-    p /= np.maximum(p.sum(1, keepdims=True), 1e-300)
-    return (1 - cfg.side_floor) * p + cfg.side_floor / 3
+    total = p.sum(1, keepdims=True)
+    p = np.where(total > 0, p / np.maximum(total, 1e-300), 1.0 / 3)    # nothing touched
+    return (1 - cfg.p_side) * p + cfg.p_side * (1 - p) / 2
 
 
 # ============================================================================ the filter
 @dataclass(frozen=True)
 class FlightUpdate:
-    """What one flight reading did to the belief.
+    """What one flight reading did to the belief, and the filter's health after it.
 
     Attributes
     ----------
     distance : float     the reading [m]
-    side : str           one of :data:`SIDES`
-    consistent : int     particles that fitted the reading before any re-initialisation
-    reinit : int         0: none; 1: local (headings widened); 2: global
+    side : str           one of :data:`SIDES`, or "missed" (no bump before the timeout)
+    consistent : int     particles that fitted the reading (within ``consistent_z`` σ_d and
+                         with the side they predict), before any re-initialisation
+    reinit : int         0: no re-initialised component mixed in; 1: one drawn around the
+                         previous belief (headings widened); 2: one drawn over the room
     ess : float          effective sample size after the update (before resampling)
     resampled : bool
+    loglik : float       log of the reading's marginal likelihood under the belief before
+                         it (the mean of every particle's likelihood, weighted) [log 1/m]
+    mixed : float        the re-initialised component's share of the posterior (0: none)
+    lost : bool          that share is above one half: the belief had lost track
     """
 
     distance: float
@@ -239,6 +276,9 @@ class FlightUpdate:
     reinit: int
     ess: float
     resampled: bool
+    loglik: float = 0.0
+    mixed: float = 0.0
+    lost: bool = False
 
 
 class ParticleFilter:
@@ -297,63 +337,137 @@ class ParticleFilter:
         """Predict a reverse drive of ``distance`` [m] (the executor's back-off)."""
         self.pos = self.pos - float(distance) * unit(self.heading)
 
+    def _sigma_d(self, d: float) -> float:
+        return self.cfg.dist_sigma_m + self.cfg.dist_sigma_rel * d
+
     def _loglik(self, d: float, side: int, D, beta):
-        sd = self.cfg.dist_sigma_m + self.cfg.dist_sigma_rel * d
+        """Per particle: (log-likelihood of a bump reading of ``d`` [m] and ``side``, log of
+        its phantom-bump part, fits): a real bump at the particle's contact (Gaussian
+        distance, the side model with its ``p_side``), with weight 1 − p_phantom − p_miss;
+        or a phantom bump (p_phantom: the distance uniform over the flight, any side).
+        """
+        cfg = self.cfg
+        sd = self._sigma_d(d)
         z = (d - D) / sd
-        ps = _side_probs(beta, self.cfg)[:, side]
-        ok = (np.abs(z) <= self.cfg.consistent_z) & (ps > self.cfg.side_floor)
-        return -0.5 * z * z + np.log(ps), ok
+        ps = _side_probs(beta, cfg)
+        p_read = ps[:, side]
+        real = (math.log1p(-(cfg.p_phantom + cfg.p_miss)) - 0.5 * z * z
+                - math.log(sd * math.sqrt(2 * math.pi)) + np.log(p_read))
+        with np.errstate(divide="ignore"):
+            ghost = np.where(d < D, math.log(cfg.p_phantom / 3) - np.log(np.maximum(D, 1e-12)),
+                             -np.inf) if cfg.p_phantom > 0 else np.full(len(D), -np.inf)
+        ll = np.logaddexp(real, ghost)
+        ok = (np.abs(z) <= cfg.consistent_z) & (p_read >= ps.max(axis=1) - 1e-12)
+        return ll, ghost, ok
+
+    def _best_loglik(self, d: float) -> float:
+        """The largest log-likelihood any pose can give a bump reading of ``d`` [m]."""
+        sd = self._sigma_d(d)
+        return (math.log1p(-(self.cfg.p_phantom + self.cfg.p_miss)) + math.log1p(-self.cfg.p_side)
+                - math.log(sd * math.sqrt(2 * math.pi)))
 
     def flight(self, distance: float, left: bool, right: bool) -> FlightUpdate:
         """Update with one flight that ended in a bump after ``distance`` [m] with the
-        bumper reading (left, right): every particle flies to its exact contact.
+        bumper reading (left, right) (docs/model.md §22): every particle flies to its exact
+        contact, or with the declared phantom-bump rate stops where the reading says; no
+        reading zeroes the belief. When the reading is surprising (its marginal likelihood
+        below ``surprise`` × the best possible), a re-initialised component is mixed in with
+        the share Bayes gives it under the prior ``p_lost``.
         """
         d, side = float(distance), side_of(left, right)
         D, end, beta, _, _ = landings(self.caster, self.pos, self.heading, self.cfg.contact)
-        ll, ok = self._loglik(d, side, D, beta)
+        ll, ghost, ok = self._loglik(d, side, D, beta)
         ok &= self.w > 0
-        consistent, stage = int(ok.sum()), 0
-        if consistent:
-            with np.errstate(divide="ignore"):
-                logw = np.log(self.w) + ll
-            pos, head = end, self.heading
-            logw = np.where(ok, logw, -np.inf)
-        else:
-            stage, pos, head, logw = self._reinit(d, side)
+        stop = self.pos + np.minimum(d, D)[:, None] * unit(self.heading)
+        phantom = np.log(self.rng.random(self.n)) < ghost - ll      # which branch it took
+        pos = np.where(phantom[:, None], stop, end)
+        return self._posterior(d, SIDES[side], ll, pos, int(ok.sum()),
+                               lambda p, h: self._loglik(d, side, *self._cast(p, h))[0])
+
+    def missed(self, distance: float) -> FlightUpdate:
+        """Update with a drive that read no bump for ``distance`` [m] (the timeout): with the
+        declared rate ``p_miss`` the robot missed its bump and pushed on against the wall,
+        where it is now; a particle whose flight is longer stopped mid-flight, as a drive
+        does. The reading is nearly uninformative; it never zeroes the belief.
+        """
+        d = float(distance)
+        D, end, _, _, _ = landings(self.caster, self.pos, self.heading, self.cfg.contact,
+                                   bearings=False)
+        ll = self._missed_loglik(d, D)
+        pos = np.where((D <= d)[:, None], end, self.pos + d * unit(self.heading))
+        return self._posterior(d, "missed", ll, pos, self.n,
+                               lambda p, h: self._missed_loglik(d, self._cast(p, h)[0]))
+
+    def _missed_loglik(self, d: float, D) -> np.ndarray:
+        cfg = self.cfg
+        return np.where(D <= d, math.log(max(cfg.p_miss, 1e-300)),
+                        math.log1p(-(cfg.p_phantom + cfg.p_miss)))
+
+    def _cast(self, pos, head):
+        D, _, beta, _, _ = landings(self.caster, pos, head, self.cfg.contact)
+        return D, beta
+
+    def _posterior(self, d: float, side: str, ll, pos, consistent: int, recovery_ll):
+        """Weigh by ``ll``, mix in a re-initialised component when the reading is surprising,
+        resample when the ESS is low; the :class:`FlightUpdate`.
+        """
+        with np.errstate(divide="ignore"):
+            logw = np.log(self.w) + ll
+        top = float(logw.max())
+        log_mb = top + math.log(float(np.exp(logw - top).sum()))      # Σ w·L
+        head, stage, mixed = self.heading, 0, 0.0
+        best = self._best_loglik(d) if side != "missed" else 0.0
+        if self.cfg.p_lost > 0 and log_mb < best + math.log(self.cfg.surprise):
+            rec = self._recovery(recovery_ll, best + math.log(self.cfg.surprise))
+            if rec is not None:
+                stage, rpos, rhead, rll = rec
+                log_mr = float(np.logaddexp.reduce(rll)) - math.log(len(rll))
+                a = math.log1p(-self.cfg.p_lost) + log_mb
+                b = math.log(self.cfg.p_lost) + log_mr
+                mixed = float(np.exp(b - np.logaddexp(a, b)))
+                # the belief's posterior with weight 1 − mixed, the component's with mixed
+                logw = np.concatenate([logw - log_mb + math.log1p(-mixed) if mixed < 1
+                                       else np.full(len(logw), -np.inf),
+                                       rll - float(np.logaddexp.reduce(rll))
+                                       + math.log(max(mixed, 1e-300))])
+                pos = np.vstack([pos, rpos])
+                head = np.concatenate([head, rhead])
         w = np.exp(logw - logw.max())
         w /= w.sum()
-        self.pos, self.heading, self.w = pos, head, w
+        self.pos, self.heading, self.w = pos, head % 360.0, w
         ess = self.ess
         resampled = ess < self.cfg.resample_ess * self.n or len(w) != self.cfg.particles
         if resampled:
             self.resample(self.cfg.particles)
-        return FlightUpdate(d, SIDES[side], consistent, stage, ess, resampled)
+        return FlightUpdate(d, side, consistent, stage, ess, resampled, log_mb, mixed,
+                            mixed > 0.5)
 
-    def _reinit(self, d: float, side: int):
-        """No particle fits: widen the headings of the previous belief (stage 1), else
-        draw poses uniformly over the free space and all headings (stage 2).
+    def _recovery(self, loglik, fits: float):
+        """A re-initialised component for a surprising reading: ``4n`` poses around the
+        belief with headings widened by ``reinit_sigma_deg`` (stage 1); if none of them
+        explains the reading (log-likelihood at least ``fits``), ``8n`` poses uniform over
+        the free space and all headings (stage 2). Returns (stage, landing poses, headings,
+        log-likelihoods), or None when the room has no free space.
         """
         n = self.cfg.particles
         idx = self.rng.choice(self.n, size=4 * n, p=self.w)
+        head0 = self.heading[idx] + self.rng.normal(0.0, self.cfg.reinit_sigma_deg, 4 * n)
         pos0 = self.pos[idx]
-        head0 = (self.heading[idx] + self.rng.normal(0.0, self.cfg.reinit_sigma_deg, 4 * n))
-        D, end, beta, _, _ = landings(self.caster, pos0, head0, self.cfg.contact)
-        ll, ok = self._loglik(d, side, D, beta)
-        if ok.any():
-            return 1, end, head0 % 360.0, np.where(ok, ll, -np.inf)
-        x0, y0, x1, y1 = self.env.bounds
-        pts = np.empty((0, 2))
-        for _ in range(50):
-            cand = self.rng.uniform([x0, y0], [x1, y1], size=(16 * n, 2))
-            pts = np.vstack([pts, cand[self.env.points_free(cand)]])
-            if len(pts) >= 8 * n:
-                break
-        if len(pts) == 0:
-            raise UserError(f"{self.env.name} has no free space for the robot.")
-        head = self.rng.uniform(0.0, 360.0, len(pts))
-        D, end, beta, _, _ = landings(self.caster, pts, head, self.cfg.contact)
-        ll, ok = self._loglik(d, side, D, beta)
-        return 2, end, head, np.where(ok, ll, -np.inf) if ok.any() else ll
+        ll, stage = loglik(pos0, head0), 1
+        if float(ll.max()) < fits:
+            x0, y0, x1, y1 = self.env.bounds
+            pts = np.empty((0, 2))
+            for _ in range(50):
+                cand = self.rng.uniform([x0, y0], [x1, y1], size=(16 * n, 2))
+                pts = np.vstack([pts, cand[self.env.points_free(cand)]])
+                if len(pts) >= 8 * n:
+                    break
+            if len(pts) == 0:
+                return None
+            pos0, head0 = pts, self.rng.uniform(0.0, 360.0, len(pts))
+            ll, stage = loglik(pos0, head0), 2
+        D, end, _, _, _ = landings(self.caster, pos0, head0, self.cfg.contact, bearings=False)
+        return stage, end, head0 % 360.0, ll
 
     def resample(self, n: int | None = None) -> None:
         """Systematic resampling to ``n`` equally weighted particles (default: as many)."""
