@@ -54,6 +54,8 @@ class FeedbackRun(PlanRun):
     p_success : tuple of float     the chosen plan's estimated success at each decision
     no_plan : int                  decisions where no particle's pose had a plan (a random
                                    angle was turned)
+    bumps_to_localize : int or None  bumps until the belief had localized (0 for a known
+                                   start; None: it never did)
     """
 
     decision_ms: tuple = ()
@@ -61,6 +63,7 @@ class FeedbackRun(PlanRun):
     updates: tuple = ()
     p_success: tuple = ()
     no_plan: int = 0
+    bumps_to_localize: int | None = 0
 
     @property
     def reinits(self) -> int:
@@ -77,6 +80,8 @@ class FeedbackRun(PlanRun):
                     "max_decision_ms": round(max(self.decision_ms, default=0.0), 3),
                     "decision_cpu_ms": [round(float(v), 3) for v in self.decision_cpu_ms],
                     "reinits": self.reinits, "no_plan": self.no_plan,
+                    "bumps_to_localize": self.bumps_to_localize,
+                    "lost": sum(1 for u in self.updates if u.lost),
                     "p_success": [round(float(v), 4) for v in self.p_success]})
         return out
 
@@ -112,11 +117,11 @@ class FeedbackRunner:
         if goal is not None and int(goal) != policy.goal:
             raise UserError(f"the feedback policy goes to {policy.goal}, not to {goal}.")
         start = policy.start if policy.start is not None else start
-        if start is None:
-            raise UserError("a feedback run needs its start configuration or pose.")
         if planner.rng is None:
             raise UserError("the feedback planner needs an rng (a numpy Generator).")
-        if isinstance(start, (int, np.integer)):
+        if start is None:                       # unknown: the body starts wherever it is
+            self.start_pose = None
+        elif isinstance(start, (int, np.integer)):
             self.start_pose = cs.pose(int(start))
         else:
             self.start_pose = tuple(float(v) for v in start)
@@ -126,8 +131,12 @@ class FeedbackRunner:
         self.cfg = self.fnav.cfg
         self.goal_pose = cs.pose(policy.goal)
         place_if_simulated(robot, self.start_pose)      # hardware: a person placed the robot
-        self.belief = ParticleFilter(cs.env, self.cfg, self.rng, start=self.start_pose)
-        self.label = f"feedback to {policy.goal}"
+        self.belief = ParticleFilter(cs.env, self.cfg, self.rng, start=self.start_pose,
+                                     region=policy.region)
+        self.localizing = self.start_pose is None
+        self.bumps_to_localize = None if self.localizing else 0
+        self.label = f"feedback to {policy.goal}" + (" from an unknown start"
+                                                      if self.localizing else "")
         self.turns, self.flights, self.final = [], [], 0.0
         self.decision_ms, self.decision_cpu, self.updates, self.p_succ = [], [], [], []
         self.no_plan, self.completed = 0, False
@@ -137,14 +146,21 @@ class FeedbackRunner:
         reason the run ended, '' when the policy finished).
         """
         fnav, belief, cfg, rng = self.fnav, self.belief, self.cfg, self.rng
-        turns, flights, on_belief = self.turns, self.flights, self.policy.on_belief
-        cap, rest = flight_cap(self.cells), ()
-        tick, cpu, at_start = time.perf_counter(), time.process_time(), True
-
-        def note_decision() -> None:
-            self.decision_ms.append(1e3 * (time.perf_counter() - tick))
-            self.decision_cpu.append(1e3 * (time.process_time() - cpu))
-
+        turns, flights, rest = self.turns, self.flights, ()
+        self._tick, self._cpu, at_start = time.perf_counter(), time.process_time(), True
+        while self.localizing:                 # an unknown start: angles that localize
+            if not at_start:
+                angle = fnav.localizing_angle(belief)
+                self._note_decision()
+                yield from self._turn(angle)
+            reason = yield from self._fly()
+            if reason is not None:
+                return reason
+            at_start = False
+            if belief.localized(self.cells.h / 2, self.cells.delta_deg / 2):
+                self.localizing = False
+                self.bumps_to_localize = len(self.updates)
+                belief.size = cfg.particles
         while True:
             shift = (fnav.heading_offset(belief) if cfg.correct_heading and not at_start
                      else 0.0)
@@ -158,7 +174,7 @@ class FeedbackRunner:
             todo = list(best.angles) if best is not None else [float(rng.choice(fnav.nav.angles))]
             if not todo:                       # already on the final flight (or in the cell)
                 self.final, _ = fnav.final(belief.pos, belief.heading, belief.weights)
-                note_decision()
+                self._note_decision()
                 if flights and len(flights) > len(turns):
                     self.final += flights.pop()     # the flight into the cell ends the plan
                 if self.final > 0:
@@ -166,18 +182,13 @@ class FeedbackRunner:
                 self.completed = True
                 return ""
             if not at_start:
-                angle = float(todo.pop(0)) - shift
-                yield Turn(angle)
-                belief.turn(angle)
-                turns.append(angle)
-                if on_belief is not None:
-                    on_belief("turn", belief)
+                yield from self._turn(float(todo.pop(0)) - shift)
             rest = tuple(todo)
             if not todo and best is not None:  # the last turn: the final drive
                 self.final, mass = fnav.final(belief.pos, belief.heading, belief.weights)
                 if fnav.stops(mass, last=len(flights) >= self.policy.max_bumps - 1):
                     # else (too little belief mass stops in the cell, §22): fly on
-                    note_decision()
+                    self._note_decision()
                     if self.final > 0:
                         res = yield Drive(self.final)
                         ev = res.event
@@ -186,28 +197,50 @@ class FeedbackRunner:
                     self.completed = True
                     return ""
             if not at_start:
-                note_decision()
-            if len(flights) >= self.policy.max_bumps:
-                return f"gave up after {self.policy.max_bumps} bumps"
-            res = yield Fly(cap)
-            ev, d = res.event, res.travelled
-            if not ev.bumped:
-                yield Note("no_bump", f"{d:.3f} m", res.pose)
-                if cfg.p_miss <= 0:
-                    return f"no bump within {cap:.2f} m"
-            else:
-                yield Note("bump", side_text(ev), res.pose)
-            tick, cpu = time.perf_counter(), time.process_time()
-            flights.append(d)
-            # a drive that read no bump within the cap: a missed bump (docs/model.md §22)
-            self.updates.append(belief.flight(d, ev.left, ev.right) if ev.bumped
-                                else belief.missed(d))
-            if on_belief is not None:
-                on_belief("flight", belief)
-            if self.back_off > 0:
-                yield BackOff(self.back_off)
-                belief.back_off(self.back_off)
+                self._note_decision()
+            reason = yield from self._fly()
+            if reason is not None:
+                return reason
             at_start = False
+
+    def _note_decision(self) -> None:
+        self.decision_ms.append(1e3 * (time.perf_counter() - self._tick))
+        self.decision_cpu.append(1e3 * (time.process_time() - self._cpu))
+
+    def _turn(self, angle: float):
+        """Turn by ``angle`` [deg] and predict it in the belief."""
+        yield Turn(angle)
+        self.belief.turn(angle)
+        self.turns.append(angle)
+        if self.policy.on_belief is not None:
+            self.policy.on_belief("turn", self.belief)
+
+    def _fly(self):
+        """Fly to the next bump and update the belief (a missed bump too, when declared);
+        back off. Returns the reason to end the run, or None.
+        """
+        cap, belief = flight_cap(self.cells), self.belief
+        if len(self.flights) >= self.policy.max_bumps:
+            return f"gave up after {self.policy.max_bumps} bumps"
+        res = yield Fly(cap)
+        ev, d = res.event, res.travelled
+        if not ev.bumped:
+            yield Note("no_bump", f"{d:.3f} m", res.pose)
+            if self.cfg.p_miss <= 0:
+                return f"no bump within {cap:.2f} m"
+        else:
+            yield Note("bump", side_text(ev), res.pose)
+        self._tick, self._cpu = time.perf_counter(), time.process_time()
+        self.flights.append(d)
+        # a drive that read no bump within the cap: a missed bump (docs/model.md §22)
+        self.updates.append(belief.flight(d, ev.left, ev.right) if ev.bumped
+                            else belief.missed(d))
+        if self.policy.on_belief is not None:
+            self.policy.on_belief("flight", belief)
+        if self.back_off > 0:
+            yield BackOff(self.back_off)
+            belief.back_off(self.back_off)
+        return None
 
     def result(self, reason: str, elapsed: float, final, trace: Trace) -> FeedbackRun:
         """The run's record from the loop's ending (reason, clock [s], final pose)."""
@@ -218,4 +251,4 @@ class FeedbackRunner:
                            trace, cls=FeedbackRun, decision_ms=tuple(self.decision_ms),
                            decision_cpu_ms=tuple(self.decision_cpu),
                            updates=tuple(self.updates), p_success=tuple(self.p_succ),
-                           no_plan=self.no_plan)
+                           no_plan=self.no_plan, bumps_to_localize=self.bumps_to_localize)

@@ -25,8 +25,8 @@ from envs.motion import (
     unit,
 )
 
-__all__ = ["FeedbackConfig", "FlightUpdate", "ParticleFilter", "side_of", "flights", "landings",
-           "SIDES"]
+__all__ = ["FeedbackConfig", "FlightUpdate", "ParticleFilter", "side_of", "side_probs", "flights",
+           "landings", "SIDES"]
 
 SIDES = ("both", "left", "right")
 """Bumper readings: both switches, the left one only, the right one only."""
@@ -48,6 +48,9 @@ class FeedbackConfig:
     centre_zone_deg : float    [deg] contacts within ± this of the heading close both
                                switches (the twin's ``CENTRE_ZONE_DEG``)
     side_blur_deg : float      [deg] width of the soft side boundary
+    side_union : float         in a corner (several walls touched), the weight of the
+                               twin's convention (every switch any wall selects closes)
+                               against one wall's reading (a body that reads one point)
     p_side : float             the declared rate of wrong bumper-side readings: a reading is
                                one of the two others with this probability (a real bumper's
                                switches in a corner are no more predictable than either
@@ -68,6 +71,14 @@ class FeedbackConfig:
                                weigh) within this many σ_d and with the side it predicts
     resample_ess : float       resample when ESS < this · n
     reinit_sigma_deg : float   [deg] heading spread of the local re-initialisation
+    global_particles : int     particles of a belief that starts anywhere (unknown start),
+                               kept until it has localized
+    localized_mass : float     the belief has localized when this share of its weight lies
+                               within h/2 of its mean position and Δ/2 of its mean heading
+    jitter_deg, jitter_m : float
+        while an unknown start has not localized, every resampled copy is moved by
+        N(0, jitter_deg²) in heading and N(0, jitter_m²) in position (a regularised filter:
+        copies of one pose explore around it instead of staying identical)
     votes : int                poses planned from after every bump
     slack : float              plans within this of the cheapest (§15's cost) are candidates
     per_pose : int             at most this many candidates (cheapest first) per pose
@@ -99,6 +110,7 @@ class FeedbackConfig:
     dist_sigma_rel: float = 0.01
     centre_zone_deg: float = CENTRE_ZONE_DEG
     side_blur_deg: float = 1.0
+    side_union: float = 0.5
     p_side: float = 0.05
     p_phantom: float = 0.01
     p_miss: float = 0.01
@@ -107,6 +119,10 @@ class FeedbackConfig:
     consistent_z: float = 5.0
     resample_ess: float = 0.5
     reinit_sigma_deg: float = 10.0
+    global_particles: int = 3000
+    localized_mass: float = 0.9
+    jitter_deg: float = 1.0
+    jitter_m: float = 0.005
     votes: int = 2
     slack: float = 0.0
     per_pose: int = 1
@@ -120,13 +136,13 @@ class FeedbackConfig:
     contact: ContactParams | None = None
 
     def __post_init__(self) -> None:
-        for name in ("particles", "votes", "per_pose", "eval_particles"):
+        for name in ("particles", "votes", "per_pose", "eval_particles", "global_particles"):
             v = getattr(self, name)
             if int(v) != v or v < 1:
                 raise UserError(f"feedback {name} must be a positive whole number, got {v}.")
         for name in ("turn_sigma_deg", "sigma_floor_deg", "dist_sigma_m", "dist_sigma_rel", "slack",
                      "centre_zone_deg", "side_blur_deg", "reinit_sigma_deg", "margin_m",
-                     "edge_guard"):
+                     "edge_guard", "jitter_deg", "jitter_m"):
             v = float(getattr(self, name))
             if not (math.isfinite(v) and v >= 0):
                 raise UserError(f"feedback {name} must be a non-negative number, got {v}.")
@@ -134,7 +150,9 @@ class FeedbackConfig:
             raise UserError("feedback dist_sigma_m must be positive.")
         if not 0 <= self.final_min <= 1:
             raise UserError("feedback final_min must lie in [0, 1].")
-        for name in ("p_side", "p_phantom", "p_miss", "p_lost", "surprise"):
+        if not 0 < self.localized_mass <= 1:
+            raise UserError("feedback localized_mass must lie in (0, 1].")
+        for name in ("p_side", "p_phantom", "p_miss", "p_lost", "surprise", "side_union"):
             v = float(getattr(self, name))
             if not 0 <= v < 1:
                 raise UserError(f"feedback {name} must lie in [0, 1), got {v}.")
@@ -231,19 +249,30 @@ def landings(caster, pos, heading_deg, contact: ContactParams | None, bearings: 
     return clock, end, beta, slid, D
 
 
-def _side_probs(beta, cfg: FeedbackConfig) -> np.ndarray:
+def side_probs(beta, cfg: FeedbackConfig) -> np.ndarray:
     """(n, 3) probability of each reading of :data:`SIDES` given the touched features'
-    bearings (n, F) [deg] (NaN: not touched): a feature at bearing β closes the left switch
-    when β >= −zone and the right one when β <= zone (the twin's rule), blurred by a normal
-    CDF of width ``side_blur_deg``; then a wrong reading with probability ``p_side``, spread
-    evenly over the two others: (1 − p_side)·p + p_side·(1 − p)/2.
+    bearings (n, F) [deg] (NaN: not touched).
+
+    A feature at bearing β closes the left switch when β >= −zone and the right one when
+    β <= zone, blurred by a normal CDF of width ``side_blur_deg``. Where several features
+    are touched (a corner) bodies differ: the twin closes every switch any of them selects
+    (the union), a body whose switches read one wall point the switches of one of them. The
+    model weighs the two conventions ``side_union`` : 1 − ``side_union`` (one touched
+    feature at random for the second); then a wrong reading with probability ``p_side``,
+    spread evenly over the two others: (1 − p_side)·p + p_side·(1 − p)/2.
     """
     s = max(cfg.side_blur_deg, 1e-9)
     z = cfg.centre_zone_deg
     with np.errstate(invalid="ignore"):
-        left = np.nan_to_num(np.nanmax(ndtr((beta + z) / s), axis=1, initial=0.0))
-        right = np.nan_to_num(np.nanmax(ndtr((z - beta) / s), axis=1, initial=0.0))
+        fl = ndtr((beta + z) / s)                      # (n, F): NaN where not touched
+        fr = ndtr((z - beta) / s)
+        left = np.nan_to_num(np.nanmax(fl, axis=1, initial=0.0))
+        right = np.nan_to_num(np.nanmax(fr, axis=1, initial=0.0))
+        touched = np.isfinite(beta).sum(axis=1)
+        one = np.stack([np.nansum(fl * fr, axis=1), np.nansum(fl * (1 - fr), axis=1),
+                        np.nansum((1 - fl) * fr, axis=1)], axis=1)
     p = np.column_stack([left * right, left * (1 - right), (1 - left) * right])
+    p = cfg.side_union * p + (1 - cfg.side_union) * one / np.maximum(touched, 1)[:, None]
     total = p.sum(1, keepdims=True)
     p = np.where(total > 0, p / np.maximum(total, 1e-300), 1.0 / 3)    # nothing touched
     return (1 - cfg.p_side) * p + cfg.p_side * (1 - p) / 2
@@ -293,20 +322,95 @@ class ParticleFilter:
         Initial particles (x [m], y [m], heading [deg]), equal weights.
     start : (x, y, heading), optional
         Alternatively the known start pose: ``config.particles`` copies of it.
+    region : (x0, y0, x1, y1), optional
+        With neither: the start is unknown, anywhere in the free space (within this box
+        [m] when given) with any heading: ``config.global_particles`` poses drawn uniformly,
+        kept until the belief has localized (:meth:`localized`).
+
+    Attributes
+    ----------
+    size : int       the particle count the filter resamples to: ``global_particles`` while
+                     an unknown start has not localized, then ``particles``
     """
 
     def __init__(self, env: Environment, config: FeedbackConfig, rng: np.random.Generator,
-                 poses=None, start=None) -> None:
+                 poses=None, start=None, region=None) -> None:
         self.env, self.cfg, self.rng = env, config, rng
         self.caster = casters(env)[0]
-        if poses is None:
-            if start is None:
-                raise UserError("the particle filter needs its start pose or its particles.")
+        self.size = config.particles
+        self.region = None if region is None else tuple(float(v) for v in region)
+        self.fresh = False                # an unknown start before its first reading
+        if poses is None and start is None:
+            poses = self.uniform_poses(config.global_particles, region)
+            self.size, self.fresh = config.global_particles, True
+        elif poses is None:
             poses = np.tile(np.asarray(start, dtype=float).reshape(1, 3), (config.particles, 1))
         poses = np.asarray(poses, dtype=float).reshape(-1, 3)
         self.pos = poses[:, :2].copy()
         self.heading = poses[:, 2] % 360.0
         self.w = np.full(len(poses), 1.0 / len(poses))
+
+    def uniform_poses(self, n: int, region=None) -> np.ndarray:
+        """(n, 3) poses uniform over the robot's free space (within the box ``region``
+        (x0, y0, x1, y1) [m] when given) and uniform headings [deg].
+        """
+        x0, y0, x1, y1 = self.env.bounds if region is None else (float(v) for v in region)
+        if not (x1 > x0 and y1 > y0):
+            raise UserError(f"the start region {region} is not a box (x0, y0, x1, y1) with "
+                            "x1 > x0 and y1 > y0.")
+        pts = np.empty((0, 2))
+        for _ in range(200):
+            cand = self.rng.uniform([x0, y0], [x1, y1], size=(4 * n, 2))
+            pts = np.vstack([pts, cand[self.env.points_free(cand)]])
+            if len(pts) >= n:
+                break
+        if len(pts) == 0:
+            where = self.env.name if region is None else f"the start region {tuple(region)}"
+            raise UserError(f"{where} has no free space for the robot.")
+        pts = pts[:n] if len(pts) >= n else pts[self.rng.integers(0, len(pts), n)]
+        return np.column_stack([pts, self.rng.uniform(0.0, 360.0, n)])
+
+    def _propose_contacts(self, d: float) -> None:
+        """The first reading of an unknown start: instead of weighing uniform poses (nearly
+        all of which the reading rules out), draw the flight's end: contact points uniform
+        along the C-space boundary and headings uniform over the half circle into the wall,
+        started ``d`` [m] back; weighted by cos(incidence), the density with which uniform
+        starts reach the boundary there (and 0 outside the start region).
+        """
+        from ...boundary import Boundary
+        n = self.size
+        bd = Boundary(self.env, 0.03)
+        length = bd.ring_bin_length[bd.ring_of_bin]
+        bins = self.rng.choice(bd.n_bins, n, p=length / length.sum())
+        pts, seg = bd.points(bins, self.rng.random(n), return_segment=True)
+        inward = bd.seg_inward[seg]
+        into = np.degrees(np.arctan2(-inward[:, 1], -inward[:, 0]))
+        head = into + self.rng.uniform(-90.0, 90.0, n)
+        u = unit(head)
+        cos_inc = np.maximum(-(u * inward).sum(1), 0.0)
+        start = pts - d * u
+        with np.errstate(divide="ignore"):
+            logw = np.log(cos_inc)
+        if self.region is not None:
+            x0, y0, x1, y1 = self.region
+            inside = ((start[:, 0] >= x0) & (start[:, 0] <= x1) & (start[:, 1] >= y0)
+                      & (start[:, 1] <= y1))
+            logw = np.where(inside, logw, -np.inf)
+        w = np.exp(logw - logw.max()) if np.isfinite(logw).any() else np.ones(n)
+        self.pos, self.heading, self.w = start, head % 360.0, w / w.sum()
+        self.fresh = False
+
+    def localized(self, radius: float, heading_tol_deg: float) -> bool:
+        """Whether ``localized_mass`` of the weight lies within ``radius`` [m] of the
+        weighted mean position and ``heading_tol_deg`` of the circular mean heading.
+        """
+        w = self.w
+        mean = w @ self.pos
+        th = np.radians(self.heading)
+        mh = math.degrees(math.atan2(float(w @ np.sin(th)), float(w @ np.cos(th))))
+        near = (np.hypot(*(self.pos - mean).T) <= radius) & \
+            (np.abs((self.heading - mh + 180.0) % 360.0 - 180.0) <= heading_tol_deg)
+        return float(w[near].sum()) >= self.cfg.localized_mass
 
     @property
     def n(self) -> int:
@@ -349,7 +453,7 @@ class ParticleFilter:
         cfg = self.cfg
         sd = self._sigma_d(d)
         z = (d - D) / sd
-        ps = _side_probs(beta, cfg)
+        ps = side_probs(beta, cfg)
         p_read = ps[:, side]
         real = (math.log1p(-(cfg.p_phantom + cfg.p_miss)) - 0.5 * z * z
                 - math.log(sd * math.sqrt(2 * math.pi)) + np.log(p_read))
@@ -375,6 +479,8 @@ class ParticleFilter:
         the share Bayes gives it under the prior ``p_lost``.
         """
         d, side = float(distance), side_of(left, right)
+        if self.fresh:                  # an unknown start: propose poses the reading explains
+            self._propose_contacts(d)
         D, end, beta, _, _ = landings(self.caster, self.pos, self.heading, self.cfg.contact)
         ll, ghost, ok = self._loglik(d, side, D, beta)
         ok &= self.w > 0
@@ -390,7 +496,7 @@ class ParticleFilter:
         where it is now; a particle whose flight is longer stopped mid-flight, as a drive
         does. The reading is nearly uninformative; it never zeroes the belief.
         """
-        d = float(distance)
+        d, self.fresh = float(distance), False
         D, end, _, _, _ = landings(self.caster, self.pos, self.heading, self.cfg.contact,
                                    bearings=False)
         ll = self._missed_loglik(d, D)
@@ -436,9 +542,11 @@ class ParticleFilter:
         w /= w.sum()
         self.pos, self.heading, self.w = pos, head % 360.0, w
         ess = self.ess
-        resampled = ess < self.cfg.resample_ess * self.n or len(w) != self.cfg.particles
+        resampled = ess < self.cfg.resample_ess * self.n or len(w) != self.size
         if resampled:
-            self.resample(self.cfg.particles)
+            self.resample(self.size)
+            if self.size == self.cfg.global_particles and self.size != self.cfg.particles:
+                self._jitter()
         return FlightUpdate(d, side, consistent, stage, ess, resampled, log_mb, mixed,
                             mixed > 0.5)
 
@@ -447,7 +555,7 @@ class ParticleFilter:
         belief with headings widened by ``reinit_sigma_deg`` (stage 1); if none of them
         explains the reading (log-likelihood at least ``fits``), ``8n`` poses uniform over
         the free space and all headings (stage 2). Returns (stage, landing poses, headings,
-        log-likelihoods), or None when the room has no free space.
+        log-likelihoods).
         """
         n = self.cfg.particles
         idx = self.rng.choice(self.n, size=4 * n, p=self.w)
@@ -455,19 +563,21 @@ class ParticleFilter:
         pos0 = self.pos[idx]
         ll, stage = loglik(pos0, head0), 1
         if float(ll.max()) < fits:
-            x0, y0, x1, y1 = self.env.bounds
-            pts = np.empty((0, 2))
-            for _ in range(50):
-                cand = self.rng.uniform([x0, y0], [x1, y1], size=(16 * n, 2))
-                pts = np.vstack([pts, cand[self.env.points_free(cand)]])
-                if len(pts) >= 8 * n:
-                    break
-            if len(pts) == 0:
-                return None
-            pos0, head0 = pts, self.rng.uniform(0.0, 360.0, len(pts))
+            poses = self.uniform_poses(8 * n)
+            pos0, head0 = poses[:, :2], poses[:, 2]
             ll, stage = loglik(pos0, head0), 2
         D, end, _, _, _ = landings(self.caster, pos0, head0, self.cfg.contact, bearings=False)
         return stage, end, head0 % 360.0, ll
+
+    def _jitter(self) -> None:
+        """Move every particle by N(0, jitter_m²) per axis and N(0, jitter_deg²) in heading,
+        keeping positions that stay in the free space.
+        """
+        n = self.n
+        moved = self.pos + self.rng.normal(0.0, self.cfg.jitter_m, (n, 2))
+        ok = self.env.points_free(moved)
+        self.pos = np.where(ok[:, None], moved, self.pos)
+        self.heading = (self.heading + self.rng.normal(0.0, self.cfg.jitter_deg, n)) % 360.0
 
     def resample(self, n: int | None = None) -> None:
         """Systematic resampling to ``n`` equally weighted particles (default: as many)."""

@@ -68,6 +68,7 @@ from .filter import (
     ParticleFilter,
     landings,
     side_of,
+    side_probs,
 )
 from .search import ScalarWalls, cost_to_go, search, search_reference
 
@@ -315,6 +316,27 @@ class FeedbackNavigator:
         ``last`` (the bump budget allows no other try) and ``mass`` > 0 (§22).
         """
         return mass > 0 and (mass >= self.cfg.final_min or last)
+
+    def localizing_angle(self, belief: ParticleFilter, n: int = 400,
+                         bin_m: float = 0.05) -> float:
+        """The bouncing angle whose next reading tells most about where the robot is (an
+        unknown start, §22): ``n`` particles drawn by weight each predict the reading after
+        turning by each angle (the flight's distance in bins of ``bin_m`` [m] and the side
+        it closes); the angle whose predicted readings are the most spread (the largest
+        entropy, i.e. the most information for a nearly exact sensor) wins; ties: the first.
+        """
+        pos, head = belief.sample(n)
+        best, best_h = self.nav.angles[0], -1.0
+        for a in self.nav.angles:
+            D, _, beta, _, _ = landings(self.nav.caster, pos, head + a, self.cfg.contact)
+            side = np.argmax(side_probs(beta, self.cfg), axis=1)
+            _, counts = np.unique(np.floor(D / bin_m).astype(np.int64) * 3 + side,
+                                  return_counts=True)
+            p = counts / counts.sum()
+            h = float(-(p * np.log(p)).sum())
+            if h > best_h + 1e-12:
+                best, best_h = a, h
+        return float(best)
 
     def heading_offset(self, belief: ParticleFilter) -> float:
         """[deg] the belief's mean heading offset ε̄ from the Δ grid (the weighted circular

@@ -86,7 +86,11 @@ class FeedbackPolicy:
     goal : int                      goal configuration z
     start : int, (x, y, heading) or None
         Start configuration or pose [m, m, deg]: the belief starts there and simulators are
-        placed there; None: the caller's ``execute(start=...)``.
+        placed there; None: the caller's ``execute(start=...)``, and when that is None too
+        the start is unknown: the belief starts anywhere (in ``region``), the body where it
+        is, and the robot first turns angles that localize (§22).
+    region : (x0, y0, x1, y1) or None
+        An unknown start's box [m] (default: the whole room).
     max_bumps : int                 give up after this many bumps
     on_belief : callable or None    ``on_belief(event, belief)`` after every filter step
                                     (``"flight"``, ``"turn"``): for tests and plots
@@ -97,6 +101,7 @@ class FeedbackPolicy:
     start: object = None
     max_bumps: int = DEFAULT_MAX_BUMPS
     on_belief: object = None
+    region: tuple | None = None
 
 
 class FeedbackPlanner:
@@ -175,14 +180,20 @@ class FeedbackPlanner:
         return Route(s, g, plan, float(cand.cost), tuple(poses), self.name)
 
     def policy(self, start, goal: int, *, max_bumps: int = DEFAULT_MAX_BUMPS,
-               on_belief=None) -> FeedbackPolicy:
-        """The feedback run from ``start`` (configuration, pose or None) to ``goal``."""
+               on_belief=None, region=None) -> FeedbackPolicy:
+        """The feedback run from ``start`` (configuration, pose or None: unknown, anywhere
+        in ``region`` (x0, y0, x1, y1) [m] when given) to ``goal``.
+        """
         g = check_config(self.cells, goal, "goal")
         if start is not None and isinstance(start, (int, np.integer)):
             start = check_config(self.cells, start, "start")
         if int(max_bumps) < 1:
             raise UserError(f"max_bumps must be at least 1, got {max_bumps}.")
-        return FeedbackPolicy(self, g, start, int(max_bumps), on_belief)
+        if region is not None:
+            region = tuple(float(v) for v in region)
+            if len(region) != 4:
+                raise UserError("a start region is a box (x0, y0, x1, y1) [m].")
+        return FeedbackPolicy(self, g, start, int(max_bumps), on_belief, region)
 
     @classmethod
     def memory_estimate(cls, cells: CellSpace, angles,
