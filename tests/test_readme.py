@@ -34,3 +34,45 @@ def test_readme_block_runs(index, tmp_path, monkeypatch):
     finally:
         plt.close("all")
     assert any(tmp_path.glob("*.png"))
+
+
+# --- the README stays a five-minute read, and its links (and the docs index's) resolve -----
+
+INDEX = README.parent / "docs" / "index.md"
+MAX_README_LINES = 300
+
+
+def test_readme_is_short():
+    lines = README.read_text(encoding="utf-8").splitlines()
+    assert len(lines) <= MAX_README_LINES, (
+        f"README.md has {len(lines)} lines (at most {MAX_README_LINES}): move details into docs/")
+
+
+def relative_links(path: Path) -> list[str]:
+    """The relative targets of ``[text](target)`` and ``![alt](target)`` outside code fences,
+    without their ``#anchor``; web links (http, https, mailto) and anchor-only links are left out."""
+    text = path.read_text(encoding="utf-8")
+    text = re.sub(r"^```.*?^```", "", text, flags=re.S | re.M)      # fenced code blocks
+    text = re.sub(r"`[^`\n]*`", "", text)                           # inline code
+    targets = []
+    for target in re.findall(r"\]\(\s*<?([^)\s>]+)>?(?:\s+\"[^\"]*\")?\s*\)", text):
+        if re.match(r"^(https?:|mailto:|#)", target):
+            continue
+        targets.append(target.split("#", 1)[0])
+    return targets
+
+
+@pytest.mark.parametrize("page", [README, INDEX], ids=["README.md", "docs/index.md"])
+def test_relative_links_resolve(page):
+    assert page.exists(), f"{page} is missing"
+    targets = relative_links(page)
+    assert targets, f"{page.name} has no relative links (is the link parser broken?)"
+    missing = sorted({t for t in targets if not (page.parent / t).exists()})
+    assert not missing, f"{page.name} links to files that do not exist: {missing}"
+
+
+def test_link_parser(tmp_path):
+    sample = tmp_path / "sample.md"
+    sample.write_text('[a](docs/x.md#sec) ![b](fig.png "title") [c](https://e.org) [d](#top)\n'
+                      "`[e](code.md)`\n```\n[f](fenced.md)\n```\n", encoding="utf-8")
+    assert relative_links(sample) == ["docs/x.md", "fig.png"]
