@@ -10,8 +10,8 @@ For every map at K = 360 (angles 30°, 75°, 315°, ε = 5°, r = 0.8): the even
 CPU time, then per method the CPU time of the three chains (``time.process_time``) and the
 largest over the angles of the residual ‖πT − π‖₁, the L1 distance between the two
 methods' π, and the CPU time of the three angles' horizon coverage at T = 2000 (one
-:class:`~planners.coverage.Horizon`, docs/model.md §17); the load average is printed with
-every row. Methods (docs/model.md §10): the default (BiCGSTAB, then
+:class:`~planners.coverage.Horizon`, docs/model.md §20); the load average is printed with
+every row. Methods (docs/model.md §17): the default (BiCGSTAB, then
 aggregation–disaggregation from its answer) and the one before it (``--power-first`` damped
 power iterations, 3000 unless told, then the aggregation from that iterate; 0: the
 aggregation alone from the uniform vector, the method before the power-first decision);

@@ -1,4 +1,4 @@
-"""Feedback navigation's decision time per bump under turn noise (docs/model.md §22): the
+"""Feedback navigation's decision time per bump under turn noise (docs/model.md §15): the
 decision rule as it was (the reference search and scoring), the same rule on the fast search,
 and the guided search, run on the same pairs and seeds in one process.
 
@@ -13,11 +13,11 @@ For each σ, ``--pairs`` seeded feedback runs in the kinematic twin with Gaussia
   wall) and one plan scored after another: the rule and the code before the speed-up;
 - ``fast``: ``FeedbackConfig(guided=False)``, the same rule on the fast search and the
   batched scoring (the same decisions as ``reference``: the table says how many runs differ);
-- ``guided``: ``FeedbackConfig(guided=True)``, the search guided by the cost to go (§22);
+- ``guided``: ``FeedbackConfig(guided=True)``, the search guided by the cost to go (§15);
 - ``before``: ``FeedbackConfig(final_min=0.0)``, the default before the final drive needed
-  half the belief's mass in the goal cell (§22): it stopped whenever any mass did;
+  half the belief's mass in the goal cell (§15): it stopped whenever any mass did;
 - ``contact``: ``FeedbackConfig(contact=PYBULLET_CONTACT)``, the filter, search and scores
-  under PyBullet's contact rule (§22, §23).
+  under PyBullet's contact rule (§15, §9).
 
 ``--contact pybullet`` gives the twin PyBullet's contact rule (glancing contacts slide); every
 rule but ``contact`` keeps the front-half bumper model whatever the body (so ``fast`` is the

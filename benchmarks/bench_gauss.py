@@ -1,5 +1,5 @@
 """Gaussian turn noise in the event model against the kinematic twin, and what the Δ grid
-changes (docs/model.md §18).
+changes (docs/model.md §11a).
 
     python -m benchmarks.bench_gauss                       # the catalogue at K = 360
     python -m benchmarks.bench_gauss --envs fig1 --twin-steps 4000000

@@ -7,7 +7,7 @@ CLI's whole ``--horizon`` pipeline: one thread, split steps, and runs beside the
         --orientations 360 --threads 2
 
 For every map (event model; angles 30°, 75°, 315°, ε = 5°, r = 0.8, the mix α = (0.2, 0.3,
-0.5) whose runs each keep one angle; docs/model.md §17): the wall time of the four
+0.5) whose runs each keep one angle; docs/model.md §20): the wall time of the four
 ``steps_to_limit`` calls the CLI made before (one pass per angle, then one for the mix, which
 runs every angle again) against one :func:`~planners.coverage.steps_to_limit_each` pass (the
 mix read off the angles' runs, finished runs dropped), whether all four answers are
@@ -20,7 +20,7 @@ per run.
 
 ``--pipeline`` times what ``bouncesim coverage MAP --model event --horizon 2000`` computes
 (angles 30°, 75°, 315°, ε = 5°, r = 0.8, uniform target): the model's build, then the three
-angles' limits and α fitted to their q_T (docs/model.md §17) three ways in the same run:
+angles' limits and α fitted to their q_T (docs/model.md §20) three ways in the same run:
 *one thread* for everything; the limits on threads and *then* the runs, each step split into
 row blocks over the cores (the CLI before runs went beside the analyses); and *now*,
 :func:`~planners.coverage.design_mix` with the horizon, whose runs go on the analyses'

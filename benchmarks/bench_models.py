@@ -40,7 +40,9 @@ EPS, R = 5.0, 0.8
 
 
 def twin_counts(cs: CellSpace, angle: float, steps: int, seed: int) -> np.ndarray:
-    """Visits per position cell of 200 twin robots at one angle [§7 noise], ``steps`` steps each."""
+    """Visits per position cell of 200 twin robots at one angle [§11 noise], ``steps`` steps
+    each.
+    """
     from bouncesim.robots.kinematic import KinematicBatch
     from bouncesim.robots.noise import SteppedNoise
     n = 200

@@ -10,7 +10,7 @@ single-source search), all pairs with the angle-use histogram. The networkx refe
 an nx.DiGraph over (z, a) nodes and runs one multi-source Dijkstra (with paths) per source;
 ``--ref-sources K`` times K random sources and extrapolates to all N (0 = all sources).
 
-``--exact`` adds the exact planner (docs/model.md §15): one cold query (mean and maximum of
+``--exact`` adds the exact planner (docs/model.md §13): one cold query (mean and maximum of
 20 random pairs; CPU and wall time) beside a plain heapq Dijkstra over the same states with
 one scalar ray cast over every wall per expansion (same costs: the number of equal answers
 is printed), and with ``--exact-all-pairs`` the full all-pairs run beside the same
@@ -195,7 +195,7 @@ def main(argv=None) -> None:
                     "(0: all)")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--exact", action="store_true",
-                    help="also time the exact planner (docs/model.md §15)")
+                    help="also time the exact planner (docs/model.md §13)")
     ap.add_argument("--exact-all-pairs", action="store_true",
                     help="with --exact: also the exact all pairs (about 20 CPU s on complex)")
     ap.add_argument("--exact-ref-starts", type=int, default=3,

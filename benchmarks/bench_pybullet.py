@@ -28,17 +28,17 @@ The reference is PyBullet's defaults (240 Hz, sequential-impulse solver with 50 
 with the contacts read after every physics step; the other rows poll every 15 ms. A second
 table gives the turn accuracy of the default settings by clock and by encoders.
 
-``--throughput`` instead measures coverage steps (docs/model.md §9) per CPU second: today's
+``--throughput`` instead measures coverage steps (docs/model.md §8) per CPU second: today's
 single robot (``execute`` on one :class:`PyBulletRobot`, default physics) against
 :class:`~bouncesim.robots.pybullet.batch.PyBulletBatch` worlds of 1, 8, 32 and 64 robots
 (``--robots``) simulating every physics step, and the same worlds with the fast-forward of
-steady motion (docs/model.md §24), all at 75° with ε = 5°, r = 0.8, K = 72, 0.3 m/s, about
+steady motion (docs/model.md Appendix C), all at 75° with ε = 5°, r = 0.8, K = 72, 0.3 m/s, about
 ``--budget`` robot-steps per row, plus the fast-forward batch in one process per core
 (wall-clock rate over ``--processes`` processes) and the time 10⁶ steps would take at that
 rate.
 
 ``--fidelity`` runs ``--robots`` (first entry) robots for ``--budget`` robot-steps with
-and without the fast-forward (independent seeds) and compares what §24 says it keeps: the
+and without the fast-forward (independent seeds) and compares what Appendix C says it keeps: the
 gap at the bump, the turn error, the heading change over a flight (bump to bump), bumps per
 step, and the coverage histograms (TV between the two runs against the noise floor of two
 independent halves of each run, at the same budget).

@@ -1,6 +1,6 @@
 """Benchmark of the kinematic twin: robot-steps per second, single and batched.
 
-A *robot-step* is one docs/model.md §9 step: a forward move of h, or a move to contact plus the
+A *robot-step* is one docs/model.md §8 step: a forward move of h, or a move to contact plus the
 in-place rotation. Rows, per environment:
 
 - ``shapely reference``: a straightforward per-robot stepper: ``env.segments_free`` decides

@@ -1,4 +1,4 @@
-"""A Gymnasium environment of the bouncing robot: ``bouncesim/Bounce-v0`` (docs/model.md §13).
+"""A Gymnasium environment of the bouncing robot: ``bouncesim/Bounce-v0`` (docs/model.md §23).
 
 Importing this module registers the environment (gymnasium is the optional extra ``gym``;
 ``import bouncesim`` never imports it)::
@@ -12,10 +12,10 @@ Importing this module registers the environment (gymnasium is the optional extra
 - The observation is what the robot senses: ``{"bumper": (left, right) in {0, 1},
   "duration": [flight time [s]]}``. The true pose and the cell are in ``info`` only.
 - ``task="navigate"``: reward +1 and the end of the episode when a flight reaches the goal
-  configuration (its cell with its heading, the executor's success rule, docs/model.md §8),
+  configuration (its cell with its heading, the executor's success rule, docs/model.md §21),
   ``-step_cost`` for every other bounce.
 - ``task="cover"``: the reward of a bounce is the decrease of the total-variation distance
-  between the visit histogram (docs/model.md §9's counted steps) and the target, so the return
+  between the visit histogram (docs/model.md §22's counted steps) and the target, so the return
   of an episode is 1 − the final TV.
 - Episodes are truncated after ``max_steps`` bounces. Seeding follows Gymnasium:
   ``reset(seed=s)`` seeds ``self.np_random``, which draws the start and every turn error.
@@ -81,11 +81,11 @@ _TRAIL = 400                  # flights kept for rendering
 
 
 def flight_reaches(start_xy, end_xy, heading_deg: float, cells: CellSpace, goal: int) -> bool:
-    """Whether a straight flight reaches goal configuration ``goal`` (docs/model.md §13).
+    """Whether a straight flight reaches goal configuration ``goal`` (docs/model.md §23).
 
     True when the flight's heading [deg] is within ±(Δ/2 + 1e-9°) of the goal heading and the
     segment from ``start_xy`` to ``end_xy`` [m] meets the goal's position cell, a half-open
-    square as in docs/model.md §3 (its left and bottom borders belong to it).
+    square as in docs/model.md §4 (its left and bottom borders belong to it).
 
     >>> import envs
     >>> cs = CellSpace(envs.load("lab"))
@@ -121,7 +121,7 @@ def flight_reaches(start_xy, end_xy, heading_deg: float, cells: CellSpace, goal:
     if t0 > t1:
         return False
     # the clipped part may only touch the square's right or top border, which belongs to the
-    # neighbouring cell: its midpoint decides with the §3 point -> cell rule
+    # neighbouring cell: its midpoint decides with the §4 point -> cell rule
     def at(t: float) -> np.ndarray:         # the end points exactly, not a + d rounded
         return a if t == 0.0 else b if t == 1.0 else a + t * d
 
@@ -130,7 +130,7 @@ def flight_reaches(start_xy, end_xy, heading_deg: float, cells: CellSpace, goal:
 
 
 class BounceEnv(gymnasium.Env):
-    """A bump-and-clock robot in a room; one step is one bounce (docs/model.md §13).
+    """A bump-and-clock robot in a room; one step is one bounce (docs/model.md §23).
 
     Parameters
     ----------
@@ -141,9 +141,9 @@ class BounceEnv(gymnasium.Env):
         The bouncing angles Φ [deg] the actions index, multiples of 360°/K (default 45°, 90°,
         135°).
     noise : str or NoiseModel
-        Turn noise: ``"none"``, ``"gauss:SIGMA"`` or ``"model:eps=E,r=R"`` (docs/model.md §7-8).
+        Turn noise: ``"none"``, ``"gauss:SIGMA"`` or ``"model:eps=E,r=R"`` (docs/model.md §16, §21).
     goal : int
-        Navigate: the goal configuration z (docs/model.md §4); ``reset(options={"goal": z})``
+        Navigate: the goal configuration z (docs/model.md §6); ``reset(options={"goal": z})``
         changes it for one episode.
     target : None, path or array of P weights
         Cover: the target over the position cells (default uniform; a file as
@@ -233,7 +233,7 @@ class BounceEnv(gymnasium.Env):
         return obs, before, after
 
     def _count(self, before, after) -> int:
-        """Add the flight's counted steps to the visit histogram (docs/model.md §9-10);
+        """Add the flight's counted steps to the visit histogram (docs/model.md §8, §17);
         returns the position cell of the contact (−1: none).
         """
         x, y, deg = before

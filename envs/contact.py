@@ -1,4 +1,4 @@
-"""The contact rule: which contacts close the bumper, and how the body slides (docs/model.md §23).
+"""The contact rule: which contacts close the bumper, and how the body slides (docs/model.md §9).
 
 Part of the motion layer (:mod:`envs.motion` holds the casts, constants and the calibrated
 :class:`~envs.motion.ContactParams`); written once and used by the kinematic twin (one robot
@@ -6,7 +6,7 @@ and the batch) and by the event coverage model, so that their flights are the sa
 
 - A front contact at bearing b from the heading (|b| < 90°) meets the wall at incidence
   α = 90° − |b|. With ``contact`` = None every front contact closes the bumper (the paper's
-  front-half bumper, docs/model.md §9). With a :class:`~envs.motion.ContactParams` only
+  front-half bumper, docs/model.md §8). With a :class:`~envs.motion.ContactParams` only
   contacts with α ≥ β do (the bumper arc ±(90° − β)).
 - A contact outside the arc is a **slide**: the heading is kept and the body moves along the
   wall with its velocity projected on the wall's tangent, reduced by friction: speed factor
@@ -16,7 +16,7 @@ and the batch) and by the event coverage model, so that their flights are the sa
   arc appears (a concave corner), and it continues on the next wall when the new contact is
   again outside the arc.
 - Time is counted as clock length ℓ = v · time [m]: a straight metre costs 1 m of clock, a
-  sliding metre 1/f. A step is h of clock (docs/model.md §9: it drives h by the clock).
+  sliding metre 1/f. A step is h of clock (docs/model.md §8: it drives h by the clock).
 - Decision: two distinct contacts outside the arc at once (a pocket), or a slide blocked at
   once, count as a bump, so every flight ends in a bump (the twin stalled there before).
 
@@ -186,7 +186,7 @@ def slide_on(caster: WallCaster, contact: ContactParams | None, lx: float, ly: f
     contact at (lx, ly) lies outside the bumper arc the robot slides on (:func:`advance`) to
     its bump; else (lx, ly, 0). :func:`contact_flights` for one flight in plain Python (3x
     faster; the same end and clock to 5e-9 m: advance may first close a ~1e-9 m gap), for
-    the planners that follow one flight at a time (§15's exact planner, §22's searches).
+    the planners that follow one flight at a time (§13's exact planner, §15's searches).
     """
     if contact is None or any(closes_bumper(b, contact)
                               for b, *_ in front_contacts(caster, lx, ly, ux, uy)):

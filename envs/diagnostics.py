@@ -1,4 +1,4 @@
-"""Map diagnostics: what about an environment will surprise the cell models (docs/model.md §3a).
+"""Map diagnostics: what about an environment will surprise the cell models (docs/model.md §4a).
 
 Pure geometry, no planning: :func:`diagnose` returns structured warnings, each a
 :class:`MapWarning` with a stable ``code`` and a one-sentence ``message``:
@@ -80,7 +80,7 @@ def off_grid_edges(env: Environment) -> np.ndarray:
 
 
 def narrow_passages(env: Environment, slack: float = PASSAGE_SLACK) -> tuple:
-    """Middles [m] of the passages and dead ends no wider than the robot (docs/model.md §3a).
+    """Middles [m] of the passages and dead ends no wider than the robot (docs/model.md §4a).
 
     The disk of radius r' = r (1 + ``slack``) cannot sweep the regions of E outside the
     pieces of E eroded by r' dilated by r' again. Such a region is narrow when it touches

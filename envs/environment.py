@@ -1,4 +1,4 @@
-"""Environments: polygons, validation, free space and segment checks (docs/model.md §1-3).
+"""Environments: polygons, validation, free space and segment checks (docs/model.md §1, §2, §4).
 
 An :class:`Environment` holds the outer wall polygon W, the obstacle polygons, the robot
 radius [m] and the discretisation (cell size [m], number of orientations K). It answers the
@@ -232,7 +232,7 @@ class Environment:
     # ------------------------------------------------------------------ geometry
     @property
     def tol(self) -> float:
-        """Distance tolerance [m]: 1e-9 * max(cell_size, 1) (docs/model.md §3)."""
+        """Distance tolerance [m]: 1e-9 * max(cell_size, 1) (docs/model.md §4)."""
         return 1e-9 * max(self.cell_size, 1.0)
 
     @cached_property
@@ -284,7 +284,7 @@ class Environment:
         return int(rows), int(cols)
 
     def points_free(self, points: ArrayLike) -> np.ndarray:
-        """Whether the robot disk centred at each point lies inside E (docs/model.md §3).
+        """Whether the robot disk centred at each point lies inside E (docs/model.md §4).
 
         Parameters
         ----------
@@ -307,7 +307,7 @@ class Environment:
         """Whether the disk can slide along each segment [start, end] without a wall.
 
         The segment is free when it stays at distance >= radius - tol from every wall and its
-        end point is covered by E (docs/model.md §5).
+        end point is covered by E (docs/model.md §7).
         """
         a = np.asarray(starts, dtype=float).reshape(-1, 2)
         b = np.asarray(ends, dtype=float).reshape(-1, 2)

@@ -3,7 +3,7 @@
 :func:`build_env` runs the steps of :mod:`envs.raster` (clean, trace) on a read map, can
 snap the walls onto the cell grid (:func:`snap`), validates the result as an
 :class:`~envs.Environment` and reports what the import did (:class:`ImportReport`):
-docs/model.md §14, docs/readme_maps.md.
+docs/model.md §3, docs/readme_maps.md.
 """
 
 from __future__ import annotations
@@ -57,7 +57,7 @@ class ImportReport:
     cell_size : float
         The env's cell size h [m].
     free_cells : int
-        Free position cells P at that cell size (docs/model.md §3).
+        Free position cells P at that cell size (docs/model.md §4).
     """
 
     pixels: tuple[int, int]
@@ -150,7 +150,7 @@ def _ring(coords) -> list:
 def build_env(omap: OccupancyMap, *, robot_radius: float = 0.17, cell_size: float | None = None,
               orientations: int = 8, snap_walls: bool = False, tolerance: float | None = None,
               min_area: int = 4, name: str | None = None) -> tuple[dict, ImportReport]:
-    """(env dict, report): the environment of an occupancy map (docs/model.md §2, §14).
+    """(env dict, report): the environment of an occupancy map (docs/model.md §2, §3).
 
     Parameters
     ----------

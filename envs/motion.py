@@ -1,19 +1,19 @@
-"""The motion layer: how a disk robot moves, stops and is counted (docs/model.md §3-5, §9).
+"""The motion layer: how a disk robot moves, stops and is counted (docs/model.md §4, §6, §7, §8).
 
 Pure geometry on numpy, the bottom layer under the planners (the step model, the sampled and
 event coverage models) and the simulators (the kinematic twin, the executor's step counting),
 so that model and simulation see bitwise the same flights, steps and cells. One home each:
 
 - the contact constants ``CONTACT_GAP``, ``BUMP_RANGE``, ``STEP_TOL``, ``APPROACH_MIN``,
-  ``GRAZE_TOL`` (docs/model.md §9);
+  ``GRAZE_TOL`` (docs/model.md §8);
 - :func:`unit` / :func:`unit_rad`: unit heading vectors, axis headings exact;
 - :class:`WallCaster` (all walls, vectorised over rays x walls, and a scalar path),
   :class:`LocalCaster` (only the walls near each ray origin, exact for short rays) and
   :func:`casters` (both, cached per environment): exact ray casts of the disk;
 - :func:`drive_distance`: how far a drive goes before a contact stops it;
-- :func:`step`: the step rule of docs/model.md §9 (the step's length and whether it is a bump
+- :func:`step`: the step rule of docs/model.md §8 (the step's length and whether it is a bump
   step), and :func:`flight_steps`, the same rule along a straight flight;
-- :func:`grid_index`: point → grid cell (docs/model.md §3).
+- :func:`grid_index`: point → grid cell (docs/model.md §4).
 
 Ray casts. The robot is a disk of radius r whose centre moves inside the C-space (E eroded by
 r). A straight drive is a ray cast against the walls *grown into capsules*: the disk centred
@@ -104,7 +104,7 @@ def drive_distance(contact):
 
 
 def step(free, h: float):
-    """The step rule (docs/model.md §9): one step drives h by the clock or until a bump.
+    """The step rule (docs/model.md §8): one step drives h by the clock or until a bump.
 
     Parameters
     ----------
@@ -149,7 +149,7 @@ def flight_steps(free, h: float) -> np.ndarray:
 def grid_index(xy, origin, h: float, shape) -> np.ndarray:
     """Flat index j·cols + i of the grid cell (i, j) holding each point, or −1 outside.
 
-    docs/model.md §3: i = floor((x − x0)/h), j = floor((y − y0)/h); a point on a cell border
+    docs/model.md §4: i = floor((x − x0)/h), j = floor((y − y0)/h); a point on a cell border
     belongs to the cell above / to the right of it.
 
     Parameters
@@ -465,9 +465,9 @@ def casters(env: Environment, step: float | None = None) -> tuple[WallCaster, Lo
 # ---------------------------------------------------------------------------- contact data
 @dataclass(frozen=True)
 class ContactParams:
-    """How a disk robot meets a straight wall (data only; docs/model.md §16, "Contact calibration
-    (PyBullet)"). Fitted to the PyBullet Create 2 by ``experiments/contact_calibration.py``;
-    the rule that uses it is :mod:`envs.contact` (§23).
+    """How a disk robot meets a straight wall (data only; docs/model.md Appendix B, "Contact
+    calibration (PyBullet)"). Fitted to the PyBullet Create 2 by
+    ``experiments/contact_calibration.py``; the rule that uses it is :mod:`envs.contact` (§9).
 
     Attributes
     ----------

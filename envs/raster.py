@@ -1,6 +1,6 @@
 """Occupancy-grid maps to environments: read, threshold, clean, trace, simplify, snap.
 
-A ROS ``map_server`` map (a YAML file naming an image, docs/model.md §14) or a plain
+A ROS ``map_server`` map (a YAML file naming an image, docs/model.md §3) or a plain
 occupancy image becomes an env dict (docs/model.md §2) in five steps:
 
 1. **read** the image and its metadata (:func:`read_map`);

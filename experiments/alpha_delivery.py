@@ -4,7 +4,7 @@ Table I's setting (the complex environment, Φ = {30°, 75°, 315°}, ε = 5°, 
 orientations, uniform target over the position cells): each coverage model (``--models``,
 default step, sampled and event) predicts the coverage q of every angle and designs its mix
 α = argmin ‖Aα − b‖ over the simplex. Each α is then *executed* — time-shared in epochs
-(docs/model.md §8) in the kinematic twin (long runs) and in PyBullet (shorter runs) — and the
+(docs/model.md §21) in the kinematic twin (long runs) and in PyBullet (shorter runs) — and the
 simulated coverage is compared with the target:
 
 - ``promised``: TV(Σ α_i q_i, b), what the model says its α achieves;
@@ -20,7 +20,7 @@ Outputs (under ``--out``, default results/alpha_delivery/): ``alpha.csv`` (model
 promised, delivered, prediction error, noise floor, steps), ``config.json`` and the
 headline figure ``alpha_delivery.png`` (drawn from the CSV files alone).
 
-``--horizon T`` designs every α for the first T steps of a run (docs/model.md §17: each
+``--horizon T`` designs every α for the first T steps of a run (docs/model.md §20: each
 model's q_T from the uniform start, executed in ``--epoch`` epochs; SLSQP when epochs make the
 fit non-linear) and executes it for exactly T steps without burn-in (robots =
 max(twin robots, twin steps / T)); delivery.csv's ``horizon`` column says which (``limit``

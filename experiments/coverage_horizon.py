@@ -2,8 +2,8 @@
 
 The two-room map (4.08 m × 2.72 m, a partition with a door ``door`` wide, one pillar per room;
 :func:`two_room`) with Φ = {30°, 75°, 315°}, ε = 5°, r = 0.8. For every angle the event model's
-expected coverage of the first T steps from the uniform start (docs/model.md §17) is computed on
-a geometric grid of T in one pass, with its TV to the angle's limit (docs/model.md §7, §10) and
+expected coverage of the first T steps from the uniform start (docs/model.md §20) is computed on
+a geometric grid of T in one pass, with its TV to the angle's limit (docs/model.md §16, §17) and
 ``steps_to_limit`` (the first grid T within TV 0.05). The kinematic twin, started uniformly and
 run for T steps without burn-in, gives Monte-Carlo points at a few T (two seeds each).
 

@@ -1,13 +1,13 @@
 """Table I of the paper: the policy mix over Φ = {30°, 75°, 315°} on the complex environment.
 
-Algorithm 3 (docs/model.md §7) on the complex environment at 360 orientations (N = 65880) with
+Algorithm 3 (docs/model.md §16) on the complex environment at 360 orientations (N = 65880) with
 ε = 5°, r = 0.8 and the uniform target over position cells: the persistent groups and the
 limiting distribution of each bouncing angle, and the mix α minimising ‖Aα − b‖₂. The paper
 reports α = (0.22138172, 0.28005791, 0.49856037).
 
 Outputs (under ``--out``, default results/coverage_table1/):
 
-- ``table1.csv``: angle, alpha (uniform target over position cells, docs/model.md §7's default;
+- ``table1.csv``: angle, alpha (uniform target over position cells, docs/model.md §16's default;
   ``--models step,event`` adds ``alpha_event``, the mix designed on the event model),
   alpha_configurations (uniform target over the N configurations, the paper's n = N),
   alpha_paper, persistent groups, largest group, group sizes, transient fraction (one row
@@ -223,7 +223,7 @@ def run(config: Config) -> Path:
               f"{int(r['persistent_groups']):7d} {int(r['largest_group']):8d} "
               f"{100 * r['transient_fraction']:9.1f}%"
               + "".join(f" {r['alpha_' + m]:13.8f}" for m in extra))
-    print("alpha: target uniform over the P position cells (docs/model.md §7 default); "
+    print("alpha: target uniform over the P position cells (docs/model.md §16 default); "
           "alpha conf.: target uniform over the N configurations (the paper's n = N)")
     print(f"positions: residual ||A alpha - b||_2 = {res.residual:.6g}, "
           f"TV = {res.tv:.4f}")

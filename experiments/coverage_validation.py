@@ -1,4 +1,4 @@
-"""Predicted against simulated coverage (docs/model.md §7 against docs/model.md §9).
+"""Predicted against simulated coverage (docs/model.md §16 against docs/model.md §8).
 
 For every environment and every bouncing angle of the coverage setting (Table I:
 Φ = {30°, 75°, 315°}, ε = 5°, r = 0.8, 360 orientations, 0.34 m cells), plus the policy mix α
@@ -16,9 +16,9 @@ step-sampled visit histogram q̂ of simulated runs:
 
 The same simulation is run twice with independent seeds (replicates 0 and 1); the TV between
 the two is the noise floor of the estimate at that step count. A mix is run by time-sharing
-in epochs of ``--epoch`` steps (docs/model.md §8); its prediction is the model's *time-shared*
+in epochs of ``--epoch`` steps (docs/model.md §21); its prediction is the model's *time-shared*
 coverage (:mod:`planners.coverage.timeshare`: the model's chain followed through the epochs), and
-docs/model.md §7's Σ α_i q_i is reported beside it (``tv_pooled_sum``). The two differ when an
+docs/model.md §16's Σ α_i q_i is reported beside it (``tv_pooled_sum``). The two differ when an
 epoch is short against an angle's mixing: in fig1 at 315° the robot leaks into a pocket at
 about 1e-4 per step, which a 1000-step epoch rarely reaches.
 
@@ -139,7 +139,7 @@ def predict(cs: CellSpace, model: str = "step", epoch: int | None = None) -> dic
     """Predicted coverage of each angle and of the model's own α mix (uniform target).
 
     The mix's prediction is the model's time-shared coverage with epochs of ``epoch`` steps
-    (:func:`planners.coverage.timeshared_coverage`, docs/model.md §12), or docs/model.md §7's
+    (:func:`planners.coverage.timeshared_coverage`, docs/model.md §19), or docs/model.md §16's
     Σ α_i q_i when ``epoch`` is None.
 
     Returns {"q": {label: (P,) array}, "q_sum": {label: Σ α_i q_i for the mix, q for an

@@ -1,6 +1,6 @@
 """A random policy against the planner's policy in the Gymnasium environment (navigate on lab).
 
-Both policies play the same episodes of ``bouncesim/Bounce-v0`` (docs/model.md §13): start and
+Both policies play the same episodes of ``bouncesim/Bounce-v0`` (docs/model.md §23): start and
 goal configurations drawn once (uniform, distinct, the goal reachable by the planner), one env
 seed per episode, for each turn-noise level.
 
@@ -8,7 +8,7 @@ seed per episode, for each turn-noise level.
 - ``planner``: the angles of :meth:`planners.navigation.Navigator.plan` for the episode's
   (start, goal), played open loop (the robot only senses bumps and time); when they run out
   before the goal the policy stops and the episode is a failure (the executor's reading of a
-  plan, docs/model.md §8).
+  plan, docs/model.md §21).
 
 Outputs in ``--out``: ``episodes.csv`` (one row per episode and policy), ``summary.csv``
 (success rates with 95 % Wilson intervals, mean returns with their standard errors),
@@ -46,7 +46,7 @@ class Config:
     ----------
     env : str                  environment
     angles : tuple of float    the bouncing angles Φ [deg] (the action set and the planner's)
-    noises : tuple of str      turn-noise levels (docs/model.md §8 forms)
+    noises : tuple of str      turn-noise levels (docs/model.md §21 forms)
     episodes : int             (start, goal) episodes per noise level
     max_steps : int            bounces before an episode is truncated
     step_cost : float          reward of a bounce that does not reach the goal is −this

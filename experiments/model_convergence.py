@@ -11,7 +11,7 @@ For each environment (``--envs``, default lab and complex) at Table I's noise (�
 - every model also at a finer cell size (0.17 m) where it is cheap enough.
 
 Each prediction is timed and compared, angle by angle, with the kinematic twin's
-step-sampled histogram (docs/model.md §9) at the same cell size and K, from a long run (``--steps``
+step-sampled histogram (docs/model.md §22) at the same cell size and K, from a long run (``--steps``
 per angle, default 2·10^6) plus a second seed for the noise floor. The twin runs go through
 the resumable sweep runner.
 

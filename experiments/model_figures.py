@@ -277,7 +277,7 @@ def _patched(stack: ExitStack, change: dict) -> None:
 
 def knife_edge_table(angles=(45.0, 90.0, 135.0), eps_deg: float = 45.0, r: float = 0.8
                      ) -> list[dict]:
-    """The event model's coverage of ``lab`` at K = 8 under §7 noise (ε, r), each variant of
+    """The event model's coverage of ``lab`` at K = 8 under §11 noise (ε, r), each variant of
     :data:`KNIFE_EDGE_VARIANTS` against the defaults: free cells P and TV per angle (None
     where P differs, so the cells are not the same).
     """

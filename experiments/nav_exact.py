@@ -1,9 +1,9 @@
-"""Exact vs step plans, noise-free in the kinematic twin (docs/model.md §15).
+"""Exact vs step plans, noise-free in the kinematic twin (docs/model.md §13).
 
 For each map, pairs (start ≠ goal) are drawn uniformly without replacement from the ordered
 pairs the step model reaches (Φ = {45°, 90°, 135°}, K = 8, w1 = 1, w2 = 100). Each pair is
 planned by both planners and each plan is executed once, noise-free, in the kinematic twin
-(front-half bumper) by bump and clock (docs/model.md §8). Maps: the catalogue, a pentagon room
+(front-half bumper) by bump and clock (docs/model.md §21). Maps: the catalogue, a pentagon room
 with a hexagonal pillar, and random regular-polygon rooms with a polygonal hole.
 
     python -m experiments.nav_exact [--quick] [--seed S] [--pairs N] [--out DIR]

@@ -1,15 +1,15 @@
-"""Feedback navigation against open-loop exact plans under Gaussian turn noise (§22).
+"""Feedback navigation against open-loop exact plans under Gaussian turn noise (§15).
 
 For each map, (start, goal) pairs are drawn uniformly from the ordered pairs (start ≠ goal)
 the exact planner reaches (Φ = {45°, 90°, 135°}, K = 8, w1 = 1, w2 = 100). Every pair is run
 once per σ in the kinematic twin (front-half bumper, 0.2 m/s) with Gaussian turn noise σ:
 by feedback (:func:`bouncesim.runs.execute.navigate_feedback`, the filter told σ), by feedback
-with heading correction (§22's extension, off by default elsewhere) and, with the same robot
+with heading correction (§15's extension, off by default elsewhere) and, with the same robot
 noise seed, by the open-loop exact plan (:func:`bouncesim.runs.execute.execute`).
 Maps: ``lab`` and one random polygon room with a hole (``experiments.nav_exact``).
-With ``--contact pybullet`` the twin has PyBullet's contact rule (§23: glancing contacts
+With ``--contact pybullet`` the twin has PyBullet's contact rule (§9: glancing contacts
 slide), the exact plans are planned for it and the feedback navigator learns it from the
-body (§22); ``--filter-contact off`` keeps the navigator's front-half bumper model on that
+body (§15); ``--filter-contact off`` keeps the navigator's front-half bumper model on that
 body (the rule before).
 
     python -m experiments.nav_feedback [--quick] [--seed S] [--pairs N] [--sigmas 0,2,5]
@@ -61,12 +61,12 @@ class Config:
     sigmas : tuple         Gaussian turn noise σ [deg]
     maps : tuple of str    catalogue names or 'randomN' (random polygon room N)
     particles : int        particles of the filter
-    corrected : bool       also run feedback with heading correction (§22's extension)
-    guided : bool          the guided plan search of §22 (off by default, as in
+    corrected : bool       also run feedback with heading correction (§15's extension)
+    guided : bool          the guided plan search of §15 (off by default, as in
                            :class:`planners.navigation.feedback.FeedbackConfig`)
     contact : str          the twin's contact rule: 'off' (front-half bumper) or 'pybullet'
-                           (§23's PYBULLET_CONTACT; exact plans are planned for it)
-    filter_contact : str   'auto': the feedback navigator takes the body's rule (§22);
+                           (§9's PYBULLET_CONTACT; exact plans are planned for it)
+    filter_contact : str   'auto': the feedback navigator takes the body's rule (§15);
                            'off': it keeps the front-half bumper model
     quick : bool           recorded; ``main`` turns it into a small budget
     seed : int             root seed (rooms, pairs, noise, filter)
@@ -211,7 +211,7 @@ def run(config: Config) -> Path:
                        "feedback": feedback_config(config).__dict__,
                        "robot": "kinematic twin, " + ("front-half bumper" if config.contact
                                                       == "off" else "PyBullet's contact rule "
-                                                      "(docs/model.md section 23)") +
+                                                      "(docs/model.md section 9)") +
                        ", Gaussian turn noise, 0.2 m/s",
                        "contact": config.contact, "filter_contact": config.filter_contact,
                        "pair_sampling": "uniform over ordered pairs (start != goal) with an "
@@ -248,11 +248,11 @@ def main(argv=None) -> int:
                    help="pairs per map (default 60; 4 with --quick)")
     p.add_argument("--maps", default=",".join(Config.maps), help="maps: names or randomN")
     p.add_argument("--guided", action="store_true",
-                   help="the guided plan search (docs/model.md section 22; off by default)")
+                   help="the guided plan search (docs/model.md section 15; off by default)")
     p.add_argument("--sigmas", default=None,
                    help="Gaussian turn noise levels [deg], comma-separated (default 0,2,5)")
     p.add_argument("--contact", choices=("off", "pybullet"), default="off",
-                   help="the twin's contact rule (docs/model.md section 23; default off)")
+                   help="the twin's contact rule (docs/model.md section 9; default off)")
     p.add_argument("--filter-contact", choices=("auto", "off"), default="auto",
                    help="auto (default): the feedback navigator takes the body's contact "
                    "rule; off: it keeps the front-half bumper model")

@@ -5,7 +5,7 @@ then (when the physics backends are installed) executed in PyBullet and in the k
 
 Paper ids are 1-based (id = z + 1): plan 1 goes from id 9 to id 1, plan 2 from id 104 to id 9.
 Writes ``plans.csv`` (the step plans, the paper's, and the exact planner's for the same
-queries, docs/model.md §15), ``fig3_paths.png`` (the step plans and their noise-free
+queries, docs/model.md §13), ``fig3_paths.png`` (the step plans and their noise-free
 executions) and ``fig3_step_vs_exact.png`` (the paper's step plans beside the exact ones,
 each replayed noise-free in the twin, plus one contrasting query on ``studio``).
 """
@@ -88,7 +88,7 @@ def plan_routes(angles, w1=1.0, w2=100.0):
 
 
 def exact_routes(cells, table, angles, w1=1.0, w2=100.0) -> list:
-    """The exact planner's routes (docs/model.md §15) for the queries of ``table`` (None where
+    """The exact planner's routes (docs/model.md §13) for the queries of ``table`` (None where
     it finds none); adds the columns ``exact`` (the plan with its flights), ``exact_cost``
     and ``exact_bumps`` to ``table``.
     """
@@ -138,7 +138,7 @@ and whose exact plan reaches it."""
 
 
 def _replay(env, cells, route):
-    """The noise-free twin's (success, trace frame) for a route (front-half bumper, §8)."""
+    """The noise-free twin's (success, trace frame) for a route (front-half bumper, §21)."""
     from bouncesim.robots import make_robot
     from bouncesim.runs.execute import execute
     run = execute(route.plan, make_robot("kinematic", env), start=route.start,

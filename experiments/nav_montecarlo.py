@@ -11,10 +11,10 @@ the pentagon room with a hexagonal pillar (``pentagon``) and random pentagon or 
 with a polygonal hole (``polyN``: :func:`envs.generated.random_polygon_room`), all at
 h = 0.34 m, K = 8. Per map, ``pairs`` ordered (start, goal) pairs (start ≠ goal) are drawn
 uniformly without replacement from the pairs the step model reaches (Φ = {45°, 90°, 135°},
-w1 = 1, w2 = 100, docs/model.md §6). Every planner of
+w1 = 1, w2 = 100, docs/model.md §12). Every planner of
 :data:`experiments.nav_planners.PLANNERS` drives every pair in the kinematic twin (all pairs)
 and in PyBullet (the first ``pybullet_pairs`` of each map) under Gaussian turn noise σ
-(docs/model.md §18); success is the goal cell with the heading within ±Δ/2 (§8). A pair the
+(docs/model.md §11a); success is the goal cell with the heading within ±Δ/2 (§21). A pair the
 planner finds no plan for counts as a failure. Every drive is one trial of
 :mod:`bouncesim.runs.sweep` (seeded, resumable, any executor).
 
@@ -77,7 +77,7 @@ def nav_trial(params: dict, rng: np.random.Generator) -> dict:
 
     ``params``: env, map_seed, start, goal (configuration indices), planner (a
     :data:`PLANNERS` name), backend ('kinematic' or 'pybullet'), noise (``parse_noise`` spec),
-    glance (the twin's bumper arc [deg]; 0 for the front-half bumper of docs/model.md §8).
+    glance (the twin's bumper arc [deg]; 0 for the front-half bumper of docs/model.md §21).
     The rng drives the noise (and any randomness of the planner).
     """
     env = world(params["env"], int(params["map_seed"]))
@@ -88,7 +88,7 @@ def nav_trial(params: dict, rng: np.random.Generator) -> dict:
     options = ({"glance_deg": glance} if params["backend"] == "kinematic" and glance > 0
                else {})
     # the exact planner plans for the body's contact rule: the twin's glance_deg, or
-    # PyBullet's fitted rule (docs/model.md §16, §23)
+    # PyBullet's fitted rule (docs/model.md Appendix B, §9)
     contact = (ContactParams(90.0 - glance, 0.0) if options else
                PYBULLET_CONTACT if params["backend"] == "pybullet" else None)
     config = NavConfig(angles=ANGLES, w1=W1, w2=W2, noise=spec, contact=contact)
@@ -383,9 +383,9 @@ class Config:
     pybullet_pairs : int      of those, pairs also driven in PyBullet (0 for none)
     reps : int                noisy repetitions per pair, planner and level in the twin
     pybullet_reps : int       noisy repetitions per pair, planner and level in PyBullet
-    sigmas : tuple of float   Gaussian turn noise σ [deg] (docs/model.md §18)
+    sigmas : tuple of float   Gaussian turn noise σ [deg] (docs/model.md §11a)
     twin_glance : float       the twin's bumper arc [deg] (80: like the PyBullet body;
-                              0: the front-half bumper the planners model, §8)
+                              0: the front-half bumper the planners model, §21)
     planners : tuple of str   names in :data:`experiments.nav_planners.PLANNERS`
     maps : tuple of str       map names (:func:`world`)
     restart : bool            delete the output folder's earlier sweep instead of resuming it
@@ -468,7 +468,7 @@ def run(config: Config) -> Path:
               "twin_glance_deg": config.twin_glance,
               "twin_glance_note": "the twin's bumper ignores contacts more than this from "
               "the heading (80: the PyBullet body's bumper arc, as experiments.nav_fig3; "
-              "0: the front-half bumper of docs/model.md §8 that the planners model)",
+              "0: the front-half bumper of docs/model.md §21 that the planners model)",
               "executor": {"speed_m_s": 0.2, "back_off_m": 0.0},
               "pair_sampling": "uniform without replacement over the ordered pairs "
               "(start != goal) the step model reaches, numpy default_rng(SeedSequence([seed, "
@@ -477,7 +477,7 @@ def run(config: Config) -> Path:
               "envs.generated.random_polygon_room(sides=(5, 7)), each with "
               "default_rng(SeedSequence([seed, 3, 0 or 1, N]))",
               "success": "final position in the goal cell and heading within ±Δ/2 "
-              "(docs/model.md §8); a pair without a plan is a failure",
+              "(docs/model.md §21); a pair without a plan is a failure",
               "decision_time": "open-loop planners: one decision per drive, the wall time "
               "of the plan query (computed once per worker process and pair, then cached)",
               "confidence_intervals": "95 % Wilson score (scipy.stats.binomtest)",

@@ -1,4 +1,4 @@
-"""Reliable vs exact plans under Gaussian turn noise, in the kinematic twin (docs/model.md §21).
+"""Reliable vs exact plans under Gaussian turn noise, in the kinematic twin (docs/model.md §14).
 
     python -m experiments.nav_reliable [--quick] [--seed S] [--pairs N] [--runs R]
                                        [--sigma DEG] [--w2-factors 1,0.1,0.01]
@@ -6,9 +6,9 @@
 
 For each map, pairs (start ≠ goal) are drawn uniformly without replacement from the ordered
 pairs the exact planner reaches (Φ = {45°, 90°, 135°}, K = 8, w1 = 1, w2 = 100). Each pair is
-planned by the exact planner (§15) and by the reliable planner (§21, ``gauss:σ``, default
+planned by the exact planner (§13) and by the reliable planner (§14, ``gauss:σ``, default
 particles and slack); each plan is executed ``runs`` times in the kinematic twin with
-Gaussian turn noise σ (its own seeded draws), through the executor (§8). The particle set of
+Gaussian turn noise σ (its own seeded draws), through the executor (§21). The particle set of
 500 particles also measure how each plan funnels uncertainty: the spread of the contact
 points (RMS distance from the planned contact) at every bump; a bump whose spread is below
 the one before it is a funnel (a wall or corner took position error out), one whose spread
@@ -57,7 +57,7 @@ class Config:
     runs : int             twin executions per plan
     sigma : float          Gaussian turn noise σ [deg]
     particles : int        the reliable planner's particles per estimate
-    w2_factors : tuple     its angle-change weight factors (docs/model.md §21)
+    w2_factors : tuple     its angle-change weight factors (docs/model.md §14)
     maps : tuple of str    catalogue names, 'pentagon' or 'randomN' (nav_exact's rooms)
     quick : bool           recorded; ``main`` turns it into a small budget
     seed : int             root seed

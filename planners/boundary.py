@@ -1,4 +1,4 @@
-"""The C-space boundary cut into contact bins (docs/model.md §10): shared by the event
+"""The C-space boundary cut into contact bins (docs/model.md §5): shared by the event
 coverage model (:mod:`planners.coverage.event`) and the exact navigation planner
 (:mod:`planners.navigation.exact`), which both name a contact point by its bin.
 

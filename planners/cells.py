@@ -1,5 +1,5 @@
 """The discrete cell model: free cells, configuration indices and the step table
-(docs/model.md §3-5).
+(docs/model.md §4, §6, §7).
 
 Position index p numbers the free cells row-major from the bottom; configuration index
 z = k * P + p with orientation k = 0..K-1 at heading 360° k / K. The step table says, for every
@@ -163,7 +163,7 @@ class CellSpace:
 
     @cached_property
     def units(self) -> np.ndarray:
-        """(K, 2) unit heading vector of each orientation k (axis headings exact, §5)."""
+        """(K, 2) unit heading vector of each orientation k (axis headings exact, §7)."""
         u = unit_rad(self.headings)
         u.flags.writeable = False
         return u
@@ -185,7 +185,7 @@ class CellSpace:
         return float(x), float(y), float(k * self.delta_deg)
 
     def cell_of_point(self, xy) -> np.ndarray:
-        """P of the grid cell containing each point (§3, :func:`envs.motion.grid_index`), or
+        """P of the grid cell containing each point (§4, :func:`envs.motion.grid_index`), or
         -1 outside the free cells.
         """
         g = grid_index(xy, self.env.origin, self.h, self.index_grid.shape)
@@ -227,7 +227,7 @@ class CellSpace:
     # ------------------------------------------------------------------ step table
     @cached_property
     def forward(self) -> np.ndarray:
-        """Forward-step table: z' after one step from z, or -1 where the robot bumps (§5)."""
+        """Forward-step table: z' after one step from z, or -1 where the robot bumps (§7)."""
         P, K, h = self.P, self.K, self.h
         if P == 0:
             return np.zeros(0, dtype=np.int64)
@@ -246,7 +246,7 @@ class CellSpace:
 
     @cached_property
     def step_offsets(self) -> np.ndarray:
-        """(K, 2) int: the grid offset (di, dj) of a forward move at each orientation (§5).
+        """(K, 2) int: the grid offset (di, dj) of a forward move at each orientation (§7).
 
         A forward move from the centre of cell (i, j) lands in the cell containing
         c + (1 + 1e-6)·h·u_k, which is cell (i + di, j + dj) with
@@ -257,7 +257,7 @@ class CellSpace:
 
     def run_length(self, k: int, n: int) -> float:
         """[m] distance between the centres of the cells where n forward moves at orientation
-        k start and end: n·h·|(di, dj)| (§8: how far a run of n zeros drives).
+        k start and end: n·h·|(di, dj)| (§21: how far a run of n zeros drives).
 
         >>> from envs import Environment
         >>> env = Environment.from_dict({"boundary": [[0, 0], [1.02, 0], [1.02, 1.02],

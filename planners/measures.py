@@ -1,13 +1,13 @@
 """Named measurements shared by both wings, the run loop and the Gymnasium environment: one
-definition each (docs/model.md §8).
+definition each (docs/model.md §21).
 
 - :func:`wrap180`: a heading difference [deg] wrapped into (−180°, 180°];
 - :func:`heading_ok`: a heading within ±(Δ/2 + :data:`HEADING_TOL`) of a goal heading;
-- :func:`goal_check` (one pose) and :func:`in_goal` (many): the goal rule of §8, the final
+- :func:`goal_check` (one pose) and :func:`in_goal` (many): the goal rule of §21, the final
   position in the goal configuration's cell and its heading within ±(Δ/2 + 1e-9°);
 - :func:`flight_cap` and :func:`flight_limit`: how far a drive until a bump may go before a
   run gives up ("no bump");
-- :func:`step_flights`: the expected flights of a step-model plan (§8: the length of the run
+- :func:`step_flights`: the expected flights of a step-model plan (§21: the length of the run
   of zeros before every bump, and of the trailing run).
 
 Examples
@@ -63,7 +63,7 @@ def heading_ok(heading_deg, goal_heading_deg: float, delta_deg: float):
 
 @dataclass(frozen=True)
 class GoalCheck:
-    """The goal rule (docs/model.md §8) applied to one final pose.
+    """The goal rule (docs/model.md §21) applied to one final pose.
 
     Attributes
     ----------
@@ -81,7 +81,7 @@ class GoalCheck:
 
 
 def goal_check(cells: CellSpace, goal: int, pose) -> GoalCheck:
-    """The goal rule of docs/model.md §8 for final ``pose`` (x [m], y [m], heading [deg])
+    """The goal rule of docs/model.md §21 for final ``pose`` (x [m], y [m], heading [deg])
     against goal configuration ``goal``.
     """
     gx, gy, gh = cells.pose(int(goal))
@@ -93,7 +93,7 @@ def goal_check(cells: CellSpace, goal: int, pose) -> GoalCheck:
 
 
 def in_goal(cells: CellSpace, goal: int, xy, heading_deg) -> np.ndarray:
-    """The goal rule of docs/model.md §8 for many final poses: (n,) bool."""
+    """The goal rule of docs/model.md §21 for many final poses: (n,) bool."""
     p_goal = int(cells.pk(int(goal))[0])
     in_cell = cells.cell_of_point(np.asarray(xy, dtype=float).reshape(-1, 2)) == p_goal
     return in_cell & heading_ok(heading_deg, cells.pose(int(goal))[2], cells.delta_deg)
@@ -122,7 +122,7 @@ def flight_limit(cells: CellSpace, max_factor: float, *, zeros: int | None = Non
 
 
 def step_flights(cells: CellSpace, plan, k0: int) -> tuple[list, float]:
-    """The expected flights [m] of a step-model plan (docs/model.md §8): the length of the
+    """The expected flights [m] of a step-model plan (docs/model.md §21): the length of the
     run of zeros before every bump, and of the trailing run, from start orientation ``k0``
     (:meth:`planners.cells.CellSpace.run_length`: n·h along an axis, n·√2·h along a
     diagonal at K = 8; the orientation after each bump is the previous one turned by its

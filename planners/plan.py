@@ -1,16 +1,16 @@
 """Plans (observation strings) and policy mixes: what the planners hand to a robot.
 
 A :class:`Plan` is a sequence of labels: 0 for a forward step of one cell, or a bouncing
-angle [deg] for a bump followed by an in-place CCW turn by that angle (docs/model.md §6). It prints
+angle [deg] for a bump followed by an in-place CCW turn by that angle (docs/model.md §12). It prints
 in the paper's form and parses from both that form and the plain one.
 
 A plan from a planner (:class:`planners.navigation.Route`) also carries the expected length of
 every flight before a bump (``flights_m``) and of the final drive by the clock (``final_m``).
-An *exact* plan (docs/model.md §15, :mod:`planners.navigation.exact`) runs by its angles: its
+An *exact* plan (docs/model.md §13, :mod:`planners.navigation.exact`) runs by its angles: its
 flights are exact and its labels are the paper's form with zeros = round(flight / h), exact
 along the axes and approximate off them (a diagonal step of the step model moves √2·h); its
 text form appends the flights: ``00 90° 0 | flights 0.68 0.34 m | final 0.34 m``. A step-model
-plan runs by its observation string; its flights are the step model's run lengths (§8), marked
+plan runs by its observation string; its flights are the step model's run lengths (§21), marked
 ``exact_flights=False``, and its text form is the paper's.
 
 Examples
@@ -87,8 +87,8 @@ class Plan:
     planner : str or None  the planner that made it (a :data:`planners.navigation.PLANNERS`
                            name), or None (unknown, e.g. a hand-written plan)
     exact_flights : bool   True (default): the flights are exact and the plan runs by its
-                           angles (§15); False: they are the step model's run lengths and the
-                           plan runs by its observation string (§8)
+                           angles (§13); False: they are the step model's run lengths and the
+                           plan runs by its observation string (§21)
     """
 
     labels: tuple
@@ -138,13 +138,13 @@ class Plan:
     @classmethod
     def with_flights(cls, plan: Plan, flights_m, final_m: float, planner: str) -> Plan:
         """A step-model ``plan`` with the run lengths of its segments [m] (docs/model.md
-        §8, :func:`planners.measures.step_flights`): it still runs by its observation string.
+        §21, :func:`planners.measures.step_flights`): it still runs by its observation string.
         """
         return cls(plan.labels, tuple(flights_m), float(final_m), planner, exact_flights=False)
 
     @property
     def is_exact(self) -> bool:
-        """True when the plan carries exact flights (it runs by its angles, §15)."""
+        """True when the plan carries exact flights (it runs by its angles, §13)."""
         return self.flights_m is not None and self.exact_flights
 
     @property
@@ -274,7 +274,7 @@ class Plan:
 
     @property
     def angles_used(self) -> int:
-        """Number of distinct bouncing angles in the plan (docs/model.md §6)."""
+        """Number of distinct bouncing angles in the plan (docs/model.md §12)."""
         return len(self.angles)
 
     def segments(self) -> list[tuple[int, int | float | None]]:
@@ -309,9 +309,9 @@ class PolicyMix:
     ----------
     angles : tuple of float   bouncing angles [deg]
     alpha : tuple of float    probabilities (non-negative, sum 1)
-    eps : float               error range ε [deg] (docs/model.md §7)
+    eps : float               error range ε [deg] (docs/model.md §11)
     r : float                 reliability in [0, 1]
-    sigma : float             Gaussian turn noise σ [deg] (docs/model.md §18; 0: none; σ > 0
+    sigma : float             Gaussian turn noise σ [deg] (docs/model.md §11a; 0: none; σ > 0
                               excludes ε > 0 with r < 1, as :class:`planners.noise.TurnNoise`)
     """
 

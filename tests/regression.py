@@ -16,9 +16,9 @@ Three golden files:
   fixed seed, with the noise floor measured when the file was written: the largest TV
   between independent seeds at the same step count. The twin (10^5 steps) is compared with
   the step and the event model; PyBullet with what ``bouncesim validate --backend pybullet``
-  compares: the event model with PyBullet's contact rule (docs/model.md §23) against
+  compares: the event model with PyBullet's contact rule (docs/model.md §9) against
   validate's own batches (``simulate_trial``: a ``PyBulletBatch`` of 16 robots that ignore
-  each other, with fast-forward, docs/model.md §24), two batches of 16 × 750 counted steps
+  each other, with fast-forward, docs/model.md Appendix C), two batches of 16 × 750 counted steps
   per seed (24 000 steps) at 75°. Budget: the PyBullet test may cost at most 1.5× the CPU
   time of the one it replaced (four single-robot runs of 250 steps against the step model,
   about 30 s CPU), so 45 s; it takes about 41 s, and the floor fell from 0.16 to the value

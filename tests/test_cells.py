@@ -1,4 +1,4 @@
-"""The cell model and step table (docs/model.md §3-5) against hand computation and a per-cell
+"""The cell model and step table (docs/model.md §4, §6, §7) against hand computation and a per-cell
 loop.
 """
 
@@ -17,7 +17,7 @@ from .conftest import random_room, room
 
 
 def reference_forward(cs: CellSpace) -> np.ndarray:
-    """docs/model.md §5 written out cell by cell with plain shapely objects."""
+    """docs/model.md §7 written out cell by cell with plain shapely objects."""
     env = cs.env
     E, walls, r, tol, h = env.free_space, env.free_space.boundary, env.robot_radius, env.tol, \
         env.cell_size

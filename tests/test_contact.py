@@ -1,4 +1,4 @@
-"""The contact rule of docs/model.md §23 (``envs.contact``), shared by the twin and the event
+"""The contact rule of docs/model.md §9 (``envs.contact``), shared by the twin and the event
 model.
 
 Independent evidence: slides computed by hand from the geometry (a 5° incidence into a
@@ -74,7 +74,7 @@ def test_slide_at_5_degrees_into_a_wall_then_the_corner_by_hand():
 
 def test_twin_robot_and_batch_follow_the_hand_slide():
     """The one robot's elapsed time is clock / v; the batch counts floor((ℓ + tol)/h) forward
-    steps then the bump step at the corner (docs/model.md §9 with §23's clock).
+    steps then the bump step at the corner (docs/model.md §8 with §9's clock).
     """
     env = room(9, 4, K=72)
     x0, y0 = 0.5, 0.3

@@ -1,7 +1,7 @@
 """The coverage models (step, sampled, event): hand-computed cases, entry point, twin agreement.
 
-Twin histograms are docs/model.md §9 step-sampled histograms of
-:class:`bouncesim.robots.kinematic.KinematicBatch` under the §7 rotation noise, with a burn-in so
+Twin histograms are docs/model.md §22 step-sampled histograms of
+:class:`bouncesim.robots.kinematic.KinematicBatch` under the §11 rotation noise, with a burn-in so
 that they estimate the *limiting* coverage the models predict. Next to each bound: the twin's
 counted steps and its seed-to-seed TV (noise floor), both measured with these settings
 (``docs/model_continuous.md``).

@@ -50,7 +50,7 @@ def test_tv_table_agrees_with_raw_histograms(quick_run):
 
 
 def test_step_model_misses_continuous_motion(quick_run):
-    """The finding this experiment exists to report (docs/model.md §7's cell-centre steps against
+    """The finding this experiment exists to report (docs/model.md §16's cell-centre steps against
     continuous motion): the step model is further from the twin than sampling noise explains,
     by a wide margin, for every angle and the mix.
     """

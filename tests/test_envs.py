@@ -1,4 +1,4 @@
-"""Environment loading and validation (docs/model.md §2-3) and the catalogue counts."""
+"""Environment loading and validation (docs/model.md §2, §4) and the catalogue counts."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The exact navigation planner (docs/model.md §15) and the exact plan format.
+"""The exact navigation planner (docs/model.md §13) and the exact plan format.
 
 Independent evidence: closed-form flights in a rectangle room, a shapely ray cast against the
 buffered C-space on random non-rectilinear rooms with a hole, and replays in the kinematic

@@ -1,4 +1,4 @@
-"""The exact planner's all pairs and its culled casts (docs/model.md §15).
+"""The exact planner's all pairs and its culled casts (docs/model.md §13).
 
 Independent evidence: a plain heapq Dijkstra per start (the benchmark's reference: one
 scalar cast over every wall per state, one bin lookup and chord call per flight, no shared

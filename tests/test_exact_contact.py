@@ -1,4 +1,4 @@
-"""The exact planner under the contact rule (docs/model.md §15, "Contact rule"; §23): plans
+"""The exact planner under the contact rule (docs/model.md §13, "Contact rule"; §9): plans
 for a robot whose bumper ignores glancing contacts replay in the twin with that rule.
 """
 

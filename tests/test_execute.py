@@ -1,4 +1,4 @@
-"""Executors (docs/model.md §8-9) on the kinematic twin, interface-only robots and the CLI."""
+"""Executors (docs/model.md §8, §21) on the kinematic twin, interface-only robots and the CLI."""
 
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
-"""Feedback navigation (planners/navigation/feedback/, bouncesim/runs/feedback.py; §22).
+"""Feedback navigation (planners/navigation/feedback/, bouncesim/runs/feedback.py; §15).
 
 Evidence: hand-computed filter updates and final drives in a rectangle; the pose planner
-against the exact planner (§15, an independent search over the same states); the filter's
+against the exact planner (§13, an independent search over the same states); the filter's
 support against the twin's true pose; runs on the OI emulator through a serial transport;
 feedback against open-loop exact plans under noise, bounded by Wilson intervals.
 """
@@ -101,7 +101,7 @@ def test_final_drive_stops_only_with_enough_belief_mass_in_the_goal_cell():
     # RECT's goal cell [1.25, 1.5] × [1, 1.25] facing 0°; half the belief at (0.5, 1.1)
     # facing 0° crosses it (0.75 to 1 m of drive, deepest at 0.875 m), the other half facing
     # 30° passes above it (y = 1.53 at x = 1.25): mass 1/2, so the robot stops there for
-    # final_min 0.4 and flies on for 0.6, unless the bump budget is spent (§22)
+    # final_min 0.4 and flies on for 0.6, unless the bump budget is spent (§15)
     cells = CellSpace(RECT)
     goal = int(cells.cell_of_point([[1.375, 1.125]])[0])       # k = 0: z = p
     for final_min, stops in ((0.0, True), (0.4, True), (0.6, False)):
@@ -114,7 +114,7 @@ def test_final_drive_stops_only_with_enough_belief_mass_in_the_goal_cell():
 
 # ---------------------------------------------------------------- planning from a pose
 def test_plan_from_a_configuration_is_the_exact_planners_plan():
-    # the same states and costs searched by a second implementation (§15): equal costs
+    # the same states and costs searched by a second implementation (§13): equal costs
     cells = CellSpace(ROOM)
     for s, g, route in _exact_routes(cells, np.random.default_rng(5), 12):
         cfg = FeedbackConfig(guided=False)
@@ -125,7 +125,7 @@ def test_plan_from_a_configuration_is_the_exact_planners_plan():
 
 
 def _exact_routes(cells, rng, n):
-    """Random (start, goal, exact route) triples, n of them, start != goal with a plan (§15)."""
+    """Random (start, goal, exact route) triples, n of them, start != goal with a plan (§13)."""
     exact = ExactNavigator(cells, ANGLES)
     found = 0
     while found < n:
@@ -197,7 +197,7 @@ def test_plans_scored_together_score_as_one_by_one():
 
 
 def test_guided_plans_are_exact_plans_that_reach_the_goal():
-    # the guided search (§22) returns plans no cheaper than §15's optimum (the exact
+    # the guided search (§15) returns plans no cheaper than §13's optimum (the exact
     # planner, an independent search) that the noise-free twin flies into the goal cell
     cells = CellSpace(ROOM)
     for s, g, route in _exact_routes(cells, np.random.default_rng(8), 10):
@@ -252,7 +252,7 @@ def test_filter_support_holds_the_true_pose_on_noise_free_runs(floor):
 
 def test_declared_sigma_of_the_noise_models():
     assert declared_sigma(None) == 0 and declared_sigma(GaussianNoise(2.0)) == 2.0
-    # §7 model, ε = 2Δ, r = 0.5: offsets ±1°, ±2° each with probability 1/8
+    # §11 model, ε = 2Δ, r = 0.5: offsets ±1°, ±2° each with probability 1/8
     s = declared_sigma(SteppedNoise(2.0, 0.5, 1.0))
     assert s == pytest.approx(math.sqrt((1 + 4) * 2 / 8))
 

@@ -1,8 +1,8 @@
-"""Feedback navigation under the contact rule (docs/model.md §22 "Contact rule", §23).
+"""Feedback navigation under the contact rule (docs/model.md §15 "Contact rule", §9).
 
 Evidence: a glancing flight's slide and bump computed by hand in a 2 m × 2 m room; the pose
-planner with the rule against the exact planner with the rule (§15, a second search); the
-rule with β = 0 (which §23 reduces to the front-half bumper) against the rule off, to the
+planner with the rule against the exact planner with the rule (§13, a second search); the
+rule with β = 0 (which §9 reduces to the front-half bumper) against the rule off, to the
 bit; the filter's support against the true pose of a twin that slides.
 """
 
@@ -40,7 +40,7 @@ def _glancing_flight():
     a = math.radians(5.0)
     straight = (0.2 - 0.17) / math.sin(a)                # to the C-space wall y = 0.17
     x_contact = 0.5 + straight * math.cos(a)
-    f = math.cos(a) - PYBULLET_CONTACT.slide_friction * math.sin(a)   # §23's speed factor
+    f = math.cos(a) - PYBULLET_CONTACT.slide_friction * math.sin(a)   # §9's speed factor
     slide = (2 - 0.17) - x_contact                         # along y = 0.17 to x = 1.83
     return straight, straight + slide / f, (2 - 0.17, 0.17)
 
@@ -59,7 +59,7 @@ def test_filter_with_the_contact_rule_predicts_a_slides_end():
     up = pf.flight(clock, left=True, right=True)
     assert up.reinit == 0 and up.consistent == 1
     # the 30° particle cannot explain the reading but as a phantom bump: a sliver of weight
-    # (no single reading zeroes a belief, docs/model.md §22)
+    # (no single reading zeroes a belief, docs/model.md §15)
     assert pf.weights[0] > 0.999 and 0 < pf.weights[1] < 1e-3
     assert np.allclose(pf.pos[0], end, atol=1e-6)
     assert (pf.heading[0] + 180) % 360 - 180 == pytest.approx(-5.0)
@@ -114,7 +114,7 @@ def test_fast_search_with_the_rule_gives_the_plain_searchs_plans(sigma):
 # ---------------------------------------------------------------- runs
 @pytest.mark.parametrize("sigma", [0.0, 2.0])
 def test_rule_with_beta_zero_is_the_rule_off_bitwise(sigma):
-    # §23: with β = 0 every front contact closes the bumper, the front-half bumper; the
+    # §9: with β = 0 every front contact closes the bumper, the front-half bumper; the
     # contact code paths of the filter, the search and the scores must then change nothing
     cells = CellSpace(SLOPE)
     out = []

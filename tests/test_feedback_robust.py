@@ -1,4 +1,4 @@
-"""Feedback navigation that degrades gracefully (docs/model.md §22, the observation model
+"""Feedback navigation that degrades gracefully (docs/model.md §15, the observation model
 with declared error rates): a flipped side bit, a phantom bump or a missed bump moves a
 converged belief no further than the reading says, no reading zeroes the belief, a surprising
 reading mixes a re-initialised component in, and a body with a different bumper convention

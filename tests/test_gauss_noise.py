@@ -1,5 +1,5 @@
-"""Gaussian turn noise (docs/model.md §18), the event model's large-class solvers (§10) and
-passages exactly one robot wide (§19), each against independent evidence.
+"""Gaussian turn noise (docs/model.md §11a), the event model's large-class solvers (§17) and
+passages exactly one robot wide (§10), each against independent evidence.
 """
 
 from __future__ import annotations
@@ -105,7 +105,7 @@ def test_gauss_event_model_matches_twin():
     floor = tv_distance(h0, h1)
     assert floor < 0.02                                        # the budget resolves 0.05
     assert tv_distance(q, h0) < 0.05
-    # the grid noise of the same variance is a different prediction on this map (§18)
+    # the grid noise of the same variance is a different prediction on this map (§11a)
     qg = model.analyse(76, TurnNoise(6, 0.8)).q
     assert tv_distance(qg, q) > tv_distance(q, h0)
 
@@ -113,7 +113,7 @@ def test_gauss_event_model_matches_twin():
 @pytest.mark.slow
 def test_knife_edge_door_same_rule_in_twin_and_event_model():
     # the office's door (x = 2.04–2.38 m) is exactly 2r wide; its axis y = 1.19 m is also the
-    # contact line of the east pillar's top (docs/model.md §19)
+    # contact line of the east pillar's top (docs/model.md §10)
     from bouncesim.robots.kinematic import KinematicBatch
     cs = CellSpace(office(door=0.34, orientations=72))
     # twin: from the pillar top, exactly on the axis heading west, the robot drives through
@@ -136,7 +136,7 @@ def test_knife_edge_door_same_rule_in_twin_and_event_model():
     # Gaussian noise: no flight heading is exactly on the axis, the door is closed
     model._flight_set(True)
     assert model.knife_edge_flights == 0
-    # the step model (§3's tolerant free test) passes the door: east from the cell west of it
+    # the step model (§4's tolerant free test) passes the door: east from the cell west of it
     at = np.abs(cs.centres[:, 1] - 1.19) < 1e-9
     i_door = int(np.flatnonzero(at & (np.abs(cs.centres[:, 0] - 2.21) < 1e-9))[0])
     i_w = int(np.flatnonzero(at & (np.abs(cs.centres[:, 0] - 1.87) < 1e-9))[0])
@@ -195,7 +195,7 @@ def test_large_classes_power_then_aggregation(rooms, monkeypatch):
     # aggregation cycle confirms a fast-mixing class's answer, while two rooms joined by rare
     # edges (where the power iteration stops early, its change below tolerance long before
     # the mass between the rooms has settled) need more cycles; both agree with the direct
-    # sparse solve (docs/model.md §10)
+    # sparse solve (docs/model.md §17)
     from planners.coverage import stationary
 
     cycles = []
@@ -220,7 +220,7 @@ def test_large_classes_power_then_aggregation(rooms, monkeypatch):
 @pytest.mark.parametrize("kind", ["one room", "two rooms", "periodic"])
 def test_krylov_then_aggregation_matches_direct_solve(kind, monkeypatch):
     # the default large-class solve (BiCGSTAB, then the aggregation's check; docs/model.md
-    # §10) against the direct sparse solve: on a fast-mixing class and a pure cycle of
+    # §17) against the direct sparse solve: on a fast-mixing class and a pure cycle of
     # period 3000 (π uniform; the power iteration needs its damping there, the linear solve
     # does not) BiCGSTAB's answer is the fixed point (one aggregation cycle); on two rooms
     # joined by rare edges its residual is below 1e-7 while the mass between the rooms is

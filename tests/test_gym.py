@@ -1,8 +1,8 @@
-"""The Gymnasium environment bouncesim/Bounce-v0 (docs/model.md §13).
+"""The Gymnasium environment bouncesim/Bounce-v0 (docs/model.md §23).
 
 Independent evidence: gymnasium's own env checker; a shapely ray cast and nearest-wall bearing
-for every observation; a shapely box test for the goal rule; the executor (docs/model.md §8)
-for the planner's plans and for the §9 visit counts.
+for every observation; a shapely box test for the goal rule; the executor (docs/model.md §21)
+for the planner's plans and for the §22 visit counts.
 """
 
 from __future__ import annotations

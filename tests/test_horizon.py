@@ -1,8 +1,8 @@
-"""Coverage over a horizon and the time to the limit (docs/model.md §17).
+"""Coverage over a horizon and the time to the limit (docs/model.md §20).
 
 Independent evidence: dense matrix powers of the step model's chain (and a dense epoch
 recursion for mixes), hand-counted first steps, the kinematic twin's Monte-Carlo histograms
-(within their seed-to-seed noise floor) and the limit of §7 / §10.
+(within their seed-to-seed noise floor) and the limit of §11 / §17.
 """
 
 from __future__ import annotations
@@ -94,7 +94,7 @@ def test_first_step_is_counted_where_the_robot_starts():
 
 
 def test_corridor_event_horizon_by_hand():
-    # docs/model.md §10's corridor (K = 4, φ = 90°) from the east-facing centre of the west
+    # docs/model.md §17's corridor (K = 4, φ = 90°) from the east-facing centre of the west
     # cell: steps 0, 1 forward (cells 0, 1), bump step 2 in cell 2, then north: a 0.06 m
     # flight, one bump step in cell 2 (step 3), west: two forward steps (cells 2, 1) and the
     # bump in cell 0 (steps 4-6). First 5 steps: cells 0, 1, 2, 2, 2.
@@ -147,7 +147,7 @@ def test_event_horizon_matches_the_twin_on_random_rooms(seed):
 
 
 def test_event_horizon_with_gaussian_noise_matches_the_twin():
-    # docs/model.md §18: with gauss:σ the event model's flights leave at sub-bin headings and
+    # docs/model.md §11a: with gauss:σ the event model's flights leave at sub-bin headings and
     # the horizon must count those flights, not the grid headings' (on this room the grid
     # flights under Gaussian turns are off by TV 0.15 at T = 1000, the twin's floor 0.04)
     env = random_room(np.random.default_rng(4), K=72)
@@ -288,7 +288,7 @@ def test_two_sealed_rooms_share_the_steps_as_the_start_does():
         model = model_for(cs, name)
         for _, counts, _ in Horizon(model).run([135], [1, 10, 300], noise=NOISE8):
             assert counts[left].sum() / counts.sum() == pytest.approx(share, abs=1e-5)
-        # the limit q is the per-step limit (docs/model.md §10, §17): the rooms' flights
+        # the limit q is the per-step limit (docs/model.md §17, §20): the rooms' flights
         # differ in length, so weighting classes by their flights would miss the share
         lim = model.analyse(135, NOISE8).q
         assert lim[left].sum() == pytest.approx(share, abs=1e-6)

@@ -1,4 +1,4 @@
-"""``bouncesim import-map`` and envs.raster / envs.map_import (docs/model.md §14).
+"""``bouncesim import-map`` and envs.raster / envs.map_import (docs/model.md §3).
 
 The maps are rasterised here, independently of the code under test, from known shapely
 polygons (a pixel is free when its centre is inside); accuracy is then measured with shapely

@@ -1,5 +1,5 @@
 """The kinematic twin: hand-computed bounces, an independent ray-cast reference, the polling
-default, determinism, and the batch against the discrete step table (docs/model.md §5, §8-9).
+default, determinism, and the batch against the discrete step table (docs/model.md §7, §8, §21).
 """
 
 from __future__ import annotations
@@ -309,7 +309,7 @@ def test_place_validates_and_noise_needs_rng(lab):
 
 # ------------------------------------------------------------------ the batch
 def _chain_counts(cells: CellSpace, starts, angle: float, steps: int) -> np.ndarray:
-    """Visit counts per position cell from the discrete step table (docs/model.md §5)."""
+    """Visit counts per position cell from the discrete step table (docs/model.md §7)."""
     counts = np.zeros(cells.P, dtype=np.int64)
     fwd = cells.forward
     for z in starts:

@@ -1,4 +1,4 @@
-"""Navigation (docs/model.md §6): hand-checked plans, replay, networkx cross-check, all pairs,
+"""Navigation (docs/model.md §12): hand-checked plans, replay, networkx cross-check, all pairs,
 CLI.
 """
 
@@ -41,7 +41,7 @@ def replay(cs: CellSpace, start: int, plan: Plan, angles, w1=1.0, w2=100.0):
 
 
 def nx_costs(cs: CellSpace, angles, w1=1.0, w2=100.0) -> np.ndarray:
-    """docs/model.md §6 built independently as a networkx graph over (z, a) nodes."""
+    """docs/model.md §12 built independently as a networkx graph over (z, a) nodes."""
     G = nx.DiGraph()
     m = len(angles)
     steps = [int(round(a / (360 / cs.K))) for a in angles]

@@ -1,4 +1,4 @@
-"""Rotation-noise models: distributions, determinism and the CLI parser (docs/model.md §7-8).
+"""Rotation-noise models: distributions, determinism and the CLI parser (docs/model.md §16, §21).
 
 Statistical bounds: with n draws a frequency p̂ of an event of probability p is checked to
 lie within 5 standard errors sqrt(p (1 - p) / n) (two-sided tail below 1e-6 per check; the
@@ -141,7 +141,7 @@ def test_a_gaussian_designed_mix_keeps_its_sigma():
     assert (mix.eps, mix.r, mix.sigma) == (0.0, 1.0, 3.0)
     assert mix.noise == TurnNoise.gauss(3)
     assert noise_for_mix(mix, cs.delta_deg) == GaussianNoise(3.0)
-    # the §7 noise is unchanged, and one kind at a time
+    # the §11 noise is unchanged, and one kind at a time
     assert noise_for_mix(PolicyMix((90.0,), (1.0,), eps=2.0, r=0.9), 1.0) == \
         SteppedNoise(2.0, 0.9, 1.0)
     with pytest.raises(UserError):

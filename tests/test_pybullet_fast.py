@@ -1,4 +1,4 @@
-"""Fast-forward of steady motion in the PyBullet batch (docs/model.md §24).
+"""Fast-forward of steady motion in the PyBullet batch (docs/model.md Appendix C).
 
 Independent evidence: the same PyBullet world stepped through every physics step (the jump
 must land where the physics goes), the geometry of a hand-made room (where a slide along a

@@ -50,7 +50,9 @@ def test_readme_is_short():
 
 def relative_links(path: Path) -> list[str]:
     """The relative targets of ``[text](target)`` and ``![alt](target)`` outside code fences,
-    without their ``#anchor``; web links (http, https, mailto) and anchor-only links are left out."""
+    without their ``#anchor``; web links (http, https, mailto) and anchor-only links are left
+    out.
+    """
     text = path.read_text(encoding="utf-8")
     text = re.sub(r"^```.*?^```", "", text, flags=re.S | re.M)      # fenced code blocks
     text = re.sub(r"`[^`\n]*`", "", text)                           # inline code

@@ -1,4 +1,4 @@
-"""Plans chosen for reliability (planners/navigation/reliable.py, docs/model.md §21).
+"""Plans chosen for reliability (planners/navigation/reliable.py, docs/model.md §14).
 
 Independent evidence: a success probability computed by hand in a 4 × 3 room, the kinematic
 twin driven through the executor (scalar casts, its own turn handling) with the particles'
@@ -85,7 +85,7 @@ def test_hand_computed_probability_in_a_small_room():
                        np.random.default_rng(7), confidence=0.999)
         lo, hi = est.ci
         assert lo <= p <= hi, (sigma, p, est.p)
-    # the §7 model at ε = Δ = 45°, r = 0.6: any error (±45°) misses the cell, so p = r
+    # the §11 model at ε = Δ = 45°, r = 0.6: any error (±45°) misses the cell, so p = r
     est = estimate(cs, route.plan, s, g, "model:eps=45,r=0.6", 3000,
                    np.random.default_rng(8), confidence=0.999)
     lo, hi = est.ci
@@ -246,7 +246,7 @@ def test_registered_for_the_planner_comparison():
 
 
 # ============================================================================ contact rule
-# docs/model.md §21 with §23: a body whose bumper ignores glancing contacts (PyBullet's
+# docs/model.md §14 with §9: a body whose bumper ignores glancing contacts (PyBullet's
 # fitted rule) slides on; the candidates are planned and the particles flown under the rule.
 @pytest.fixture(scope="module")
 def glancing_room():

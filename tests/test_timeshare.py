@@ -1,9 +1,9 @@
-"""planners.coverage.timeshare: the coverage of a policy mix executed in epochs (docs/model.md §12).
+"""planners.coverage.timeshare: the coverage of a policy mix executed in epochs (docs/model.md §19).
 
 Independent evidence: dense brute force (matrix powers of the epoch map, and of an explicit
 step-level expansion of a delay chain) on random small chains, the one-angle and long-epoch
-limits against the models' own q, and the kinematic twin on fig1, where docs/model.md §7's Σ α_i q_i
-is far off.
+limits against the models' own q, and the kinematic twin on fig1, where docs/model.md §16's
+Σ α_i q_i is far off.
 """
 
 from __future__ import annotations
@@ -183,7 +183,7 @@ def test_one_angle_is_that_angles_limit(model):
 
 @pytest.mark.parametrize("model", ["step", "event"])
 def test_long_epochs_tend_to_the_sum_rule(model):
-    """E ≫ mixing time: docs/model.md §7's Σ α_i q_i; E = 1 differs from it."""
+    """E ≫ mixing time: docs/model.md §16's Σ α_i q_i; E = 1 differs from it."""
     cs = CellSpace(envs.load("lab", orientations=24))
     res = design_mix(model_for(cs, model), (30, 75, 315), TurnNoise(15, 0.8))
     alpha = [0.3, 0.3, 0.4]

@@ -21,7 +21,7 @@ def register(sub) -> None:
     """Add the ``allpairs`` sub-command to the CLI's sub-parsers."""
     p = sub.add_parser(
         "allpairs", help="shortest plans for every ordered pair and the angle-use histogram",
-        description="Run Algorithm 2 (docs/model.md §6): the weight matrix L (-1 where "
+        description="Run Algorithm 2 (docs/model.md §12): the weight matrix L (-1 where "
         "unreachable) and the number of distinct angles each shortest plan uses. Writes "
         "weights.npy, angles_used.csv, summary.json and angles_used.png to --out.")
     add_env_args(p)

@@ -55,7 +55,7 @@ def add_env_args(p: argparse.ArgumentParser) -> None:
 
 
 def add_angle_noise_args(p: argparse.ArgumentParser) -> None:
-    """--angles, and the rotation noise --eps / --r of docs/model.md §7 (coverage, validate)."""
+    """--angles, and the rotation noise --eps / --r of docs/model.md §11 (coverage, validate)."""
     p.add_argument("--angles", required=True, metavar="A1,A2,...",
                    help="bouncing angles [deg], multiples of 360/K")
     p.add_argument("--eps", type=float, default=0.0, metavar="DEG",
@@ -66,19 +66,19 @@ def add_angle_noise_args(p: argparse.ArgumentParser) -> None:
 
 
 def add_contact_arg(p: argparse.ArgumentParser, auto: bool = False, what: str = "") -> None:
-    """--contact: the executing robot's contact rule (docs/model.md §23) for a model or a
+    """--contact: the executing robot's contact rule (docs/model.md §9) for a model or a
     planner; with ``auto`` also the choice "auto" (on with --backend pybullet) as default.
     """
     choices = ("auto", "off", "pybullet") if auto else ("off", "pybullet")
     p.add_argument("--contact", choices=choices, default=choices[0],
-                   help=f"contact rule{what} (docs/model.md section 23): off = every front "
+                   help=f"contact rule{what} (docs/model.md section 9): off = every front "
                    "contact bumps, pybullet = the fitted bumper arc: glancing contacts slide "
                    "on" + ("; auto (default) = pybullet with --backend pybullet, else off"
                            if auto else " (default off)"))
 
 
 def contact_rule(args: argparse.Namespace) -> ContactParams | None:
-    """The contact rule of ``--contact`` (docs/model.md §23), or None for none. "auto" follows
+    """The contact rule of ``--contact`` (docs/model.md §9), or None for none. "auto" follows
     ``--backend``; a rule is refused in one sentence for a ``--model`` other than event
     (a command without ``--model``, such as ``plan``, passes it to its planner).
     """

@@ -1,6 +1,6 @@
 """``bouncesim coverage ENV``: persistent groups, limiting distributions and the best policy mix.
 
-The paper's Algorithm 3 (docs/model.md §7): for every bouncing angle, the Markov chain of the
+The paper's Algorithm 3 (docs/model.md §16): for every bouncing angle, the Markov chain of the
 noisy bouncing robot, its persistent groups, its limiting distribution π and coverage q;
 then the mix α over the angles whose mixed coverage best matches a target.
 """
@@ -71,14 +71,14 @@ configurations also
 coverage_configurations.csv (angle,z,p,k,pi).
 
 A x alpha assumes every epoch of the executed mix reaches its angle's limiting distribution.
-With --epoch STEPS the mix is also predicted as docs/model.md section 8 runs it (epochs of STEPS
+With --epoch STEPS the mix is also predicted as docs/model.md section 21 runs it (epochs of STEPS
 steps, each with one angle drawn with probabilities alpha; the robot carries its state from
 epoch to epoch): alpha.json gains "timeshared" (its TV to the target and to A alpha),
 coverage.csv the series "mix_epochs" and the plots heatmap_mix_epochs_vs_target.png. Where
 an angle mixes slowly (a pocket the robot leaks into rarely) the two differ a lot.
 
 With --horizon T everything is for the first T steps of a run instead of the limit
-(docs/model.md section 17): coverage.csv's q and the heatmaps are the expected share of the
+(docs/model.md section 20): coverage.csv's q and the heatmaps are the expected share of the
 first T steps in each cell (from the uniform start, or --start), alpha is fitted to that (with
 --epoch: as executed in epochs, by SLSQP; alpha.json reports its convergence), and alpha.json
 reports per angle and for the mix "steps_to_limit": the first T on a 2^(1/8) grid from 100
@@ -111,7 +111,7 @@ def register(sub) -> None:
     add_angle_noise_args(p)
     p.add_argument("--noise", default=None, metavar="SPEC",
                    help="rotation noise instead of --eps/--r: gauss:SIGMA, a Gaussian turn "
-                   "error of SIGMA deg (docs/model.md section 18), or model:eps=E,r=R")
+                   "error of SIGMA deg (docs/model.md section 11a), or model:eps=E,r=R")
     p.add_argument("--target", type=Path, default=None, metavar="FILE",
                    help="target distribution file (formats below; default uniform)")
     p.add_argument("--target-space", choices=SPACES,
@@ -129,11 +129,11 @@ def register(sub) -> None:
     add_contact_arg(p, what=" of the event model")
     p.add_argument("--epoch", type=int, default=None, metavar="STEPS",
                    help="also predict the mix as it is executed: epochs of STEPS steps, each "
-                   "with one angle drawn with probabilities alpha (docs/model.md section 8); "
+                   "with one angle drawn with probabilities alpha (docs/model.md section 21); "
                    "positions only")
     p.add_argument("--horizon", type=int, default=None, metavar="STEPS",
                    help="coverage of the first STEPS steps instead of the limit, alpha fitted "
-                   "to it, and each policy's steps_to_limit (docs/model.md section 17)")
+                   "to it, and each policy's steps_to_limit (docs/model.md section 20)")
     p.add_argument("--start", default=None, metavar="S",
                    help="with --horizon: start configuration z or pose X,Y,DEG (default: "
                    "uniform over the configurations)")
@@ -251,7 +251,7 @@ def run(args) -> int:
 
 def horizon_report(model, result: MixDesign, args, start, timeshared_q) -> dict:
     """alpha.json's "horizon": T, start, per-angle and mix TV to the limit and steps_to_limit
-    (docs/model.md section 17); warns on stderr when T is far below a steps_to_limit.
+    (docs/model.md section 20); warns on stderr when T is far below a steps_to_limit.
     """
     hz = horizon_of(model)
     T, noise = int(args.horizon), result.noise

@@ -2,7 +2,7 @@
 
 Reads a ROS ``map_server`` map (YAML + PGM/PNG) or a plain occupancy image, thresholds,
 cleans, traces and simplifies it (:mod:`envs.raster`), optionally snaps the walls onto the
-cell grid, and writes an env file (docs/model.md §2, §14; docs/readme_maps.md).
+cell grid, and writes an env file (docs/model.md §2, §3; docs/readme_maps.md).
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ def register(sub) -> None:
         "image with --resolution), threshold it as map_server does (unknown counts as wall), "
         "remove salt-and-pepper specks, trace the largest free region with sub-pixel "
         "accuracy, simplify it and write the env file: its outline is the boundary, its "
-        "holes the obstacles (docs/model.md §14).",
+        "holes the obstacles (docs/model.md §3).",
         epilog="examples:\n  bouncesim import-map office.yaml --out office.json\n"
         "  bouncesim import-map scan.png --resolution 0.05 --origin -2,-1.5 --snap "
         "--out scan.json --json",
@@ -49,7 +49,7 @@ def register(sub) -> None:
                    help="number of orientations K (default 8)")
     p.add_argument("--snap", action="store_true",
                    help="put the walls on the cell grid: the free space becomes the cells "
-                   "at least half free (the step model's walls, docs/model.md §5)")
+                   "at least half free (the step model's walls, docs/model.md §7)")
     p.add_argument("--tolerance", type=float, default=None, metavar="M",
                    help=f"simplification tolerance [m] (default {TOLERANCE_PX:g} x the pixel size)")
     p.add_argument("--min-area", type=int, default=4, metavar="PIXELS",

@@ -12,7 +12,7 @@ def register(sub) -> None:
     p = sub.add_parser("info", help="print the cell model's sizes (P, N, K, ...)",
                        description="Load ENV and print the number of free position cells P, "
                        "configurations N = K*P, orientations K, cell size, bounds and radius, "
-                       "and the map's warnings (docs/model.md section 3a).")
+                       "and the map's warnings (docs/model.md section 4a).")
     add_env_args(p)
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)

@@ -80,11 +80,11 @@ def add_planner_args(p) -> None:
     p.add_argument("--w2", type=float, default=100.0,
                    help="weight of a bump that changes the angle (default 100)")
     p.add_argument("--planner", choices=tuple(PLANNERS), default="step",
-                   help="step: the paper's step model (docs/model.md §6, default); exact: "
-                   "plans over exact bump poses that a continuous robot follows (§15); "
+                   help="step: the paper's step model (docs/model.md §12, default); exact: "
+                   "plans over exact bump poses that a continuous robot follows (§13); "
                    "reliable: the near-optimal exact plan most likely to succeed under "
-                   "--noise (§21); feedback: a particle filter re-plans after every bump "
-                   "(§22; `plan` prints its plan from the start before any bump)")
+                   "--noise (§14); feedback: a particle filter re-plans after every bump "
+                   "(§15; `plan` prints its plan from the start before any bump)")
 
 
 def make_planner_of(args, cells: CellSpace | None = None, rng=None, noise=None):
@@ -127,7 +127,7 @@ def register(sub) -> None:
     p = sub.add_parser(
         "plan", help="shortest bouncing plan from a start to a goal configuration",
         description="Find the minimum-weight observation string from START to GOAL on the "
-        "layered roadmap (docs/model.md §6). START and GOAL are configuration indices z = k*P + p "
+        "layered roadmap (docs/model.md §12). START and GOAL are configuration indices z = k*P + p "
         "(0-based; the paper's id is z + 1) or poses X,Y,DEG [m, m, deg] mapped to their "
         "cell. Exit status 3 when a single query has no path.",
         epilog="examples:\n  bouncesim plan lab --angles 90,135 --start 8 --goal 0\n"

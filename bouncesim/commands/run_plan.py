@@ -36,7 +36,7 @@ def register(sub) -> None:
     p = sub.add_parser(
         "run-plan", help="plan from START to GOAL and run the plan on a robot",
         description="Find the shortest bouncing plan from START to GOAL (as `bouncesim plan` "
-        "does) and execute it on a robot (docs/model.md §8): drive until a bump, turn CCW "
+        "does) and execute it on a robot (docs/model.md §21): drive until a bump, turn CCW "
         "by the next angle, and so on. Prints 'success' or 'failure: <reason>' with the "
         "final pose error. A real Create 2 has no pose: a plan it completes prints "
         "'finished' (check the goal by eye). Exit status 0 on success (or a completed plan "
@@ -246,7 +246,7 @@ def _plot(path, env, cells, route, result) -> None:
                                  title=title), path, dpi=150)
 
 
-# ------------------------------------------------- closed-loop planners (docs/model.md §22)
+# ------------------------------------------------- closed-loop planners (docs/model.md §15)
 def _run_closed_loop(args, env, cells, start: int, goal: int, noise) -> int:
     """``run-plan`` with a closed-loop planner (feedback): its policy decides after every bump
     in the one run loop (:func:`bouncesim.runs.execute.execute`).

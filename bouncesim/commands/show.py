@@ -1,7 +1,7 @@
 """``bouncesim show ENV``: one figure of a map with whatever the options name.
 
 The map (walls, obstacles, the cell grid), optionally the cell ids, the start and goal poses,
-a planned path (replayed on the step model, docs/model.md §5-6), an executed trace (the CSV of
+a planned path (replayed on the step model, docs/model.md §7, §12), an executed trace (the CSV of
 ``run-plan --trace``) and a coverage heatmap (``coverage.csv`` of ``coverage --out``). PNG or
 SVG by the suffix of ``--out``.
 """
@@ -79,7 +79,7 @@ def register(sub) -> None:
 # ----------------------------------------------------------------------------- readers
 def replay_plan(cells: CellSpace, plan: Plan, start: int) -> list[int]:
     """Configuration indices z visited when ``plan`` runs on the step model from ``start``
-    (docs/model.md §5-6): a 0 steps forward, an angle needs a bump there and turns CCW.
+    (docs/model.md §7, §12): a 0 steps forward, an angle needs a bump there and turns CCW.
 
     A 90° turn adds 2 orientations (K = 8), i.e. 2 P = 96 to z; a step west along lab's
     bottom row takes one from z:

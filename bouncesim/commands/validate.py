@@ -3,7 +3,7 @@
 For every bouncing angle (and, with ``--alpha``, the policy mix) it predicts the coverage q
 with a coverage model (:func:`planners.coverage.model_for`, ``analyse``; a mix with
 :func:`planners.coverage.timeshared_coverage`), simulates the step-sampled visit histogram q̂
-(docs/model.md §9) on the kinematic twin (:class:`~bouncesim.robots.kinematic.KinematicBatch`)
+(docs/model.md §8) on the kinematic twin (:class:`~bouncesim.robots.kinematic.KinematicBatch`)
 or in PyBullet (:class:`~bouncesim.robots.pybullet.batch.PyBulletBatch`) through the seeded,
 resumable sweep runner (:mod:`bouncesim.runs.sweep`), and compares them: TV(q, q̂), the noise
 floor (TV between two independent halves of the simulation), the steps behind q̂ and the
@@ -73,15 +73,15 @@ BURN_IN = {"kinematic": 200, "pybullet": 50}
 
 DESCRIPTION = """\
 For every bouncing angle: the coverage q predicted by --model and the step-sampled visit
-histogram of a simulation on --backend (docs/model.md section 9: a step drives one cell by the
+histogram of a simulation on --backend (docs/model.md section 22: a step drives one cell by the
 clock or until a bump; runs start uniformly over the configurations and a burn-in is not
 counted). Prints per angle: tv = TV(q, simulated), floor = TV between two independent halves of
 the simulation (what sampling noise alone gives at half the steps; a model that is right has
 tv near floor/2: each half has sqrt(2) times the pooled noise), steps = simulated steps, and
 the bumps per step of the model and of the simulation. With --alpha also the policy mix,
 executed in epochs of --epoch steps and predicted by the model's time-shared coverage
-(docs/model.md section 12). --contact sets the contact rule of the event model and the
-kinematic twin (docs/model.md section 23); the default follows the simulated body.
+(docs/model.md section 19). --contact sets the contact rule of the event model and the
+kinematic twin (docs/model.md section 9); the default follows the simulated body.
 
 Halves are groups of whole trials (batches of independent robots with their own seeds), never
 stretches of one robot's run, so they are independent. floor_splits (JSON) is the mean floor
@@ -191,7 +191,7 @@ def floors(counts: np.ndarray, half: np.ndarray, rng: np.random.Generator,
     Returns
     -------
     (floor, floor_splits)
-        TV between the sums of the trials of half 0 and of half 1 (docs/model.md §9: two
+        TV between the sums of the trials of half 0 and of half 1 (docs/model.md §22: two
         independent halves, since every trial is a batch of independent robots with its own
         seed), and the mean of the same TV over ``splits`` random splits of the trials into
         two groups of ⌊T/2⌋ and ⌈T/2⌉ (each split is again two independent halves; the mean

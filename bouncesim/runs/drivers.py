@@ -51,13 +51,13 @@ class NavConfig:
     Attributes
     ----------
     angles : tuple of float   bouncing angles Φ [deg]
-    w1, w2 : float            cost per step (or same-angle bump) and per angle change (§6)
+    w1, w2 : float            cost per step (or same-angle bump) and per angle change (§12)
     noise : str               the declared turn noise (a noise spec); planners that do not
                               need noise ignore it, reliable and feedback planners use it
     speed : float             drive speed [m/s]
     contact : ContactParams or None
-        The executing robot's contact rule (docs/model.md §23): open-loop planners that need
-        one plan their flights under it (§15, §21); None: every contact bumps. Closed-loop
+        The executing robot's contact rule (docs/model.md §9): open-loop planners that need
+        one plan their flights under it (§13, §14); None: every contact bumps. Closed-loop
         planners take the body's own rule.
     """
 

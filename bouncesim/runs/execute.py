@@ -1,5 +1,5 @@
 """The one run loop: :func:`execute` runs a plan, a policy mix or a feedback navigator on any
-:class:`bouncesim.robots.Robot` (docs/model.md §8-9, §22).
+:class:`bouncesim.robots.Robot` (docs/model.md §8, §21, §15).
 
 Every policy is a *runner* that yields moves (:mod:`bouncesim.runs.moves`: fly until a bump,
 drive by the clock, turn, back off, note) and hears back what each move did; after every bump
@@ -19,7 +19,7 @@ never feeds back into control. The room is the robot's (``robot.env``), or the g
   the clock and stops. A run's length is the distance the step model moves in n steps at the
   current heading (:meth:`planners.cells.CellSpace.run_length`: n·h along an axis, n·√2·h
   along a diagonal at K = 8), known from the start heading and the angles before it.
-  An exact plan (:mod:`planners.navigation.exact`, docs/model.md §15) runs by its angles
+  An exact plan (:mod:`planners.navigation.exact`, docs/model.md §13) runs by its angles
   instead: drive until a bump and turn, for every angle, then drive its final length by the
   clock; its expected flights only log deviations (more than h/4 off). Returns a
   :class:`PlanRun`.
@@ -28,7 +28,7 @@ never feeds back into control. The room is the robot's (``robot.env``), or the g
   bump turns by the epoch's angle (the robot's own noise model perturbs the turn). Returns a
   :class:`MixRun`.
 - A feedback policy (:meth:`planners.navigation.feedback.FeedbackPlanner.policy`) re-plans
-  from a particle belief after every bump (docs/model.md §22;
+  from a particle belief after every bump (docs/model.md §15;
   :mod:`bouncesim.runs.feedback`). Returns a :class:`~bouncesim.runs.feedback.FeedbackRun`.
 
 Runs always end: every drive has a timeout, a plan has finitely many segments, a coverage run
@@ -91,7 +91,7 @@ def execute(policy, robot: Robot, *, start=None, cells: CellSpace | None = None,
             epoch: int | None = None, rng: np.random.Generator | None = None,
             max_stuck: int | None = None, record_trace: bool = True,
             on_segment=None):
-    """Run a policy on a robot (docs/model.md §8-9, §22): a plan's observation string, a
+    """Run a policy on a robot (docs/model.md §8, §21, §15): a plan's observation string, a
     policy mix by time-sharing, or a feedback navigator.
 
     Parameters
@@ -111,7 +111,7 @@ def execute(policy, robot: Robot, *, start=None, cells: CellSpace | None = None,
         Start configuration z or pose [m, m, deg]; simulators are placed there (on hardware
         the robot is assumed to be there already). A plan needs it (its heading fixes how far
         each run of zeros drives); a mix draws it uniformly over the N configurations when
-        None (docs/model.md §9); a feedback policy brings its own.
+        None (docs/model.md §8); a feedback policy brings its own.
     cells : CellSpace, optional
         The cell space (default: built from ``robot.env``).
     speed : float          drive speed [m/s]
@@ -181,7 +181,7 @@ def execute(policy, robot: Robot, *, start=None, cells: CellSpace | None = None,
 def _runner(policy, robot, start, cells, goal, back_off, max_factor, steps, epoch, rng,
             max_stuck, record_trace, on_segment, max_time):
     """The runner of a policy: a plan's, a mix's or a feedback policy's."""
-    if isinstance(policy, FeedbackPolicy):                   # closed loop (§22)
+    if isinstance(policy, FeedbackPolicy):                   # closed loop (§15)
         if steps is not None or epoch is not None or max_stuck is not None:
             raise UserError("steps, epoch and max_stuck are for policy mixes.")
         return FeedbackRunner(policy, robot, start=start, goal=goal, cells=cells,
@@ -253,7 +253,7 @@ def navigate_feedback(robot: Robot, env: Environment | None, start, goal: int, n
                       speed: float = 0.2, back_off: float = 0.0, w1: float = 1.0,
                       w2: float = 100.0, max_bumps: int = 40, max_time: float | None = None,
                       on_belief=None, contact="auto") -> FeedbackRun:
-    """Drive ``robot`` from ``start`` to the goal configuration by feedback (§22):
+    """Drive ``robot`` from ``start`` to the goal configuration by feedback (§15):
     ``execute(FeedbackPlanner(...).policy(start, goal), robot)``.
 
     Parameters
@@ -268,7 +268,7 @@ def navigate_feedback(robot: Robot, env: Environment | None, start, goal: int, n
         :func:`planners.navigation.feedback.declared_sigma`); not applied to the robot,
         which brings its own.
     rng : numpy.random.Generator   the filter's and the decision rule's draws
-    angles : bouncing angles Φ [deg];  w1, w2 : §15's weights
+    angles : bouncing angles Φ [deg];  w1, w2 : §13's weights
     config : FeedbackConfig   its ``turn_sigma_deg`` is replaced by the declared noise's σ
     speed : float [m/s];  back_off : float [m] reversed after every bump before turning
     max_bumps : int         give up after this many bumps
@@ -277,14 +277,14 @@ def navigate_feedback(robot: Robot, env: Environment | None, start, goal: int, n
         Called as ``on_belief(event, belief)`` after every filter step (``"flight"``,
         ``"turn"``): for tests and plots.
     contact : "auto", ContactParams or None
-        The contact rule of the filter's motion model and the plan search (§22, §23).
+        The contact rule of the filter's motion model and the plan search (§15, §9).
         "auto" (default): ``config.contact`` when set, else the body's
         (:func:`body_contact`: PyBullet's fitted rule for a PyBullet body, the twin's own
         opt-in rule, else the front-half bumper); None: the front-half bumper.
 
     Returns
     -------
-    FeedbackRun   success as §8 (final position in the goal cell, heading within ±Δ/2)
+    FeedbackRun   success as §21 (final position in the goal cell, heading within ±Δ/2)
 
     Examples
     --------

@@ -1,4 +1,4 @@
-"""Feedback navigation on any body (docs/model.md §22): the runner of a
+"""Feedback navigation on any body (docs/model.md §15): the runner of a
 :class:`~planners.navigation.feedback.FeedbackPolicy` in the one run loop, and its record.
 
 The runner uses only the bump-and-clock interface of :class:`bouncesim.robots.base.Robot`
@@ -87,7 +87,7 @@ class FeedbackRun(PlanRun):
 
 
 def body_contact(robot) -> ContactParams | None:
-    """The contact rule (docs/model.md §23) a body declares, as ``validate --contact auto``
+    """The contact rule (docs/model.md §9) a body declares, as ``validate --contact auto``
     takes it: a PyBullet body has ``envs.motion.PYBULLET_CONTACT``; a body with a
     ``contact`` attribute that is a :class:`~envs.motion.ContactParams` (the twin made with
     ``contact=`` or ``glance_deg=``) has that one; any other body (the twin by default, the
@@ -100,7 +100,7 @@ def body_contact(robot) -> ContactParams | None:
 
 
 class FeedbackRunner:
-    """The runner of a :class:`~planners.navigation.feedback.FeedbackPolicy` (§22): decide,
+    """The runner of a :class:`~planners.navigation.feedback.FeedbackPolicy` (§15): decide,
     turn, fly, update the belief, back off, and so on, until the final drive.
     """
 
@@ -187,7 +187,7 @@ class FeedbackRunner:
             if not todo and best is not None:  # the last turn: the final drive
                 self.final, mass = fnav.final(belief.pos, belief.heading, belief.weights)
                 if fnav.stops(mass, last=len(flights) >= self.policy.max_bumps - 1):
-                    # else (too little belief mass stops in the cell, §22): fly on
+                    # else (too little belief mass stops in the cell, §15): fly on
                     self._note_decision()
                     if self.final > 0:
                         res = yield Drive(self.final)
@@ -232,7 +232,7 @@ class FeedbackRunner:
             yield Note("bump", side_text(ev), res.pose)
         self._tick, self._cpu = time.perf_counter(), time.process_time()
         self.flights.append(d)
-        # a drive that read no bump within the cap: a missed bump (docs/model.md §22)
+        # a drive that read no bump within the cap: a missed bump (docs/model.md §15)
         self.updates.append(belief.flight(d, ev.left, ev.right) if ev.bumped
                             else belief.missed(d))
         if self.policy.on_belief is not None:

@@ -1,6 +1,6 @@
 """The records a run returns (:func:`bouncesim.runs.execute.execute`): a plan's
 :class:`PlanRun` with its :class:`Deviation` list, a mix's :class:`MixRun`, and the
-:class:`SegmentDone` progress record (docs/model.md §8-9, §15).
+:class:`SegmentDone` progress record (docs/model.md §8, §21, §13).
 """
 
 from __future__ import annotations
@@ -18,8 +18,8 @@ __all__ = ["Deviation", "MixRun", "PlanRun", "SegmentDone"]
 
 @dataclass(frozen=True)
 class Deviation:
-    """A bump more than one cell length early or late (docs/model.md §8); for an exact plan
-    more than h/4, the contact-bin length (§15).
+    """A bump more than one cell length early or late (docs/model.md §21); for an exact plan
+    more than h/4, the contact-bin length (§13).
 
     Attributes
     ----------
@@ -138,7 +138,7 @@ class MixRun:
 
     @property
     def coverage(self) -> np.ndarray | None:
-        """(P,) fraction of the counted steps per position cell (docs/model.md §9)."""
+        """(P,) fraction of the counted steps per position cell (docs/model.md §8)."""
         if self.counts is None:
             return None
         s = self.counts.sum()

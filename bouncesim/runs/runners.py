@@ -1,5 +1,5 @@
 """The runners of open-loop policies in the one run loop (:func:`bouncesim.runs.execute.execute`):
-a plan's (docs/model.md §8, §15) and a policy mix's (§8-9), and the helpers every runner
+a plan's (docs/model.md §21, §13) and a policy mix's (§8, §21), and the helpers every runner
 shares (start and goal poses, placing a simulated body, the goal rule's verdict in words).
 
 A runner is a generator of moves (:mod:`bouncesim.runs.moves`) plus ``label``, ``finished``
@@ -83,7 +83,7 @@ def side_text(ev) -> str:
 
 # ============================================================================ plans
 class PlanRunner:
-    """The plan runner (docs/model.md §8): for every segment (n zeros, angle) fly until a
+    """The plan runner (docs/model.md §21): for every segment (n zeros, angle) fly until a
     bump, log a deviation, back off, turn; a trailing run or final drive by the clock.
     """
 
@@ -186,7 +186,7 @@ def plan_result(cells: CellSpace, plan: Plan, goal_z, goal_pose, completed: bool
                 final, elapsed: float, deviations, bumps: int, start_pose, trace: Trace,
                 cls=PlanRun, **extra) -> PlanRun:
     """The :class:`PlanRun` (or subclass ``cls`` with ``extra`` fields) of a navigation run:
-    the goal rule of docs/model.md §8 (:func:`planners.measures.goal_check`) on the final
+    the goal rule of docs/model.md §21 (:func:`planners.measures.goal_check`) on the final
     pose, and the reason in words.
     """
     success: bool | None = None
@@ -221,7 +221,7 @@ def plan_result(cells: CellSpace, plan: Plan, goal_z, goal_pose, completed: bool
 
 # ============================================================================ policy mixes
 class MixRunner:
-    """The mix runner (docs/model.md §8-9): epochs of ``epoch`` steps, each with one angle
+    """The mix runner (docs/model.md §8, §21): epochs of ``epoch`` steps, each with one angle
     drawn with probabilities α; a step drives h by the clock or until a bump, and on a bump
     turns by the epoch's angle. Visits are counted per step.
     """
@@ -282,7 +282,7 @@ class MixRunner:
                 self.epoch_angles.append(angle)
             res = yield forward
             ev, t = res.event, res.t
-            # the step rule (docs/model.md §9): a drive the bumper did not stop had h free
+            # the step rule (docs/model.md §8): a drive the bumper did not stop had h free
             _, bump_step = step(res.travelled if ev.bumped else math.inf, h)
             if not bump_step:
                 self._count(pose)

@@ -1,4 +1,4 @@
-"""Run traces: what happened when, and where the robot was (docs/model.md §8-9).
+"""Run traces: what happened when, and where the robot was (docs/model.md §8, §21).
 
 A :class:`Trace` is an append-only list of rows ``(t, x, y, heading, event, detail)``:
 time [s] on the robot's clock, the true pose (x [m], y [m], heading [deg]; NaN on hardware,

@@ -1,9 +1,9 @@
-"""Coverage by bouncing policies: the paper's Algorithm 3 (docs/model.md §7) and the models that
+"""Coverage by bouncing policies: the paper's Algorithm 3 (docs/model.md §16) and the models that
 predict what a continuous robot covers, behind one interface.
 
 Layout (imports flow down this list; nothing imports upwards):
 
-- :mod:`.noise`: :class:`TurnNoise`, the §7 rotation noise (ε, r), validated once; its
+- :mod:`.noise`: :class:`TurnNoise`, the §11 rotation noise (ε, r), validated once; its
   support over K and a seeded sampler (the simulators' ``SteppedNoise`` delegates to it).
 - :mod:`.targets`: target b over position or configuration cells (files, uniform, checks).
 - :mod:`.base`: the :class:`CoverageModel` protocol and its one per-angle record,
@@ -12,7 +12,7 @@ Layout (imports flow down this list; nothing imports upwards):
   :class:`SampledModel`, :class:`EventModel`); :mod:`.event_flights`: the event model's
   flights step by step (its rewards and the horizon's counts).
 - :mod:`.mix`: :func:`solve_mix` (α over the simplex) and :class:`MixDesign`.
-- :mod:`.horizon`: coverage over the first T steps and the time to the limit (§17).
+- :mod:`.horizon`: coverage over the first T steps and the time to the limit (§20).
 - :mod:`.api`: the registry :data:`MODELS`, :func:`model_for`, :func:`design_mix` and
   :func:`timeshared_coverage`.
 

@@ -2,15 +2,15 @@
 prediction, written once against the :class:`~planners.coverage.base.CoverageModel` protocol.
 
 - :data:`MODELS`: name → model class (``"step"``: the paper's Algorithm 3 on the
-  configuration-cell chain, docs/model.md §5 and §7; ``"sampled"``: Hsu's generalized cell mapping;
+  configuration-cell chain, docs/model.md §7 and §16; ``"sampled"``: Hsu's generalized cell mapping;
   ``"event"``: exact flights between binned contact points, recommended,
-  ``docs/model_continuous.md``). All three predict the step-sampled coverage of docs/model.md §9
+  ``docs/model_continuous.md``). All three predict the step-sampled coverage of docs/model.md §22
   (what :class:`bouncesim.robots.kinematic.KinematicBatch` measures), one probability per cell.
 - :func:`model_for`: a model of a cell space (settings checked; the continuous models' flights
   are built once per environment and settings and shared).
 - :func:`design_mix`: every angle's coverage, the target and the best mix α, as a
   :class:`~planners.coverage.mix.MixDesign` carrying the :class:`PolicyMix` to execute.
-- :func:`timeshared_coverage`: the coverage of a mix executed in epochs (docs/model.md §12).
+- :func:`timeshared_coverage`: the coverage of a mix executed in epochs (docs/model.md §19).
 
 >>> import envs
 >>> from planners.cells import CellSpace
@@ -161,11 +161,11 @@ def design_mix(model: CoverageModel, angles: Iterable[float], noise: TurnNoise =
     progress : callable, optional   wraps the iterable of the angles' analyses, in order
                                     (e.g. ``tqdm``; they run in parallel, :func:`analyses`)
     horizon : int, optional
-        Fit α to the coverage expected over the first ``horizon`` steps (docs/model.md §17)
+        Fit α to the coverage expected over the first ``horizon`` steps (docs/model.md §20)
         instead of the limit; positions only. The per-angle limits are still in
         ``per_angle``.
     epoch : int, optional
-        With a horizon: steps per epoch of the executed mix (docs/model.md §8). Then q_T(α) is
+        With a horizon: steps per epoch of the executed mix (docs/model.md §21). Then q_T(α) is
         not linear in α: the linear fit on the angles' q_T is the start of an SLSQP on the
         simplex (scipy, finite-difference gradient) of ‖q_T(α) − b‖₂², reported in
         ``convergence``. Without it (or with epoch ≥ horizon) each run keeps one angle and
@@ -207,12 +207,13 @@ def design_mix(model: CoverageModel, angles: Iterable[float], noise: TurnNoise =
 
 def timeshared_coverage(model: CoverageModel, mix: PolicyMix, epoch: int = 1000, **kw
                         ) -> TimeSharedCoverage:
-    """Predicted coverage of a policy mix executed in epochs of ``epoch`` steps (docs/model.md §12).
+    """Predicted coverage of a policy mix executed in epochs of ``epoch`` steps (docs/model.md §19).
 
-    docs/model.md §7's Σ α_i q_i assumes every epoch reaches its angle's limiting distribution; this
-    follows the model's own chain through the epochs instead (:mod:`planners.coverage.timeshare`),
-    through the protocol's :meth:`~CoverageModel.delay_chain` and
-    :meth:`~CoverageModel.turn_matrix`, so it works for every model.
+    docs/model.md §16's Σ α_i q_i assumes every epoch reaches its angle's limiting distribution;
+    this follows the model's own chain through the epochs instead
+    (:mod:`planners.coverage.timeshare`), through the protocol's
+    :meth:`~CoverageModel.delay_chain` and :meth:`~CoverageModel.turn_matrix`, so it works for
+    every model.
 
     Parameters
     ----------

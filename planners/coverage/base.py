@@ -5,10 +5,10 @@ A model is built once per cell space and settings (its angle-independent part: s
 flights, rewards) and then answers for any bouncing angle and :class:`TurnNoise`:
 
 - :meth:`CoverageModel.analyse`: the angle's chain, its limiting distribution and the
-  predicted step-sampled coverage q over the P position cells (docs/model.md §7, §9);
+  predicted step-sampled coverage q over the P position cells (docs/model.md §16, §22);
 - :meth:`CoverageModel.turn_matrix` and :meth:`CoverageModel.delay_chain`: the model as a
   delay chain (:mod:`planners.coverage.timeshare`), so a policy mix run in epochs
-  (docs/model.md §8) is predicted the same way for every model.
+  (docs/model.md §21) is predicted the same way for every model.
 """
 
 from __future__ import annotations
@@ -98,9 +98,9 @@ class CoverageModel(Protocol):
     state_kind : str            what its chain states (``group_sizes``,
                                 ``transient_fraction``) count
     steps_in_flights : bool     its steps come in flights of several steps (delays D > 1,
-                                docs/model.md §12) whose headings Gaussian noise moves off
-                                the Δ grid (§18); False: one step per transition
-    contact_rule : bool         it models the body's contact rule (docs/model.md §23)
+                                docs/model.md §19) whose headings Gaussian noise moves off
+                                the Δ grid (§11a); False: one step per transition
+    contact_rule : bool         it models the body's contact rule (docs/model.md §9)
     cs : CellSpace
     settings : Settings
     """

@@ -9,7 +9,7 @@ kinematic twin: :mod:`envs.motion`). Only the contact *point* is binned (by arc 
 the C-space boundary); the heading stays exact on the Δ = 360°/K grid (starts are
 cell-centre headings θ_k and every turn φ + δ is a multiple of Δ).
 
-The definition is docs/model.md §10; its measured accuracy ``docs/model_continuous.md``.
+The definition is docs/model.md §17; its measured accuracy ``docs/model_continuous.md``.
 :class:`EventSettings` (bin length, samples per bin); the contact bins are
 :class:`planners.boundary.Boundary`'s (the C-space rings cut into bins, point → (ring, arc
 length)); :class:`EventModel` (flights, step rewards and start built once;
@@ -77,11 +77,11 @@ class EventSettings:
         Flight start points per bin, spread evenly across it at arc-length fractions
         (j + ½)/samples; 1 means the bin centre only.
     heading_samples : int
-        Gaussian noise only (docs/model.md §18): flight headings per heading bin, spread
+        Gaussian noise only (docs/model.md §11a): flight headings per heading bin, spread
         evenly inside it at θ_k + ((l + ½)/n_θ − ½)Δ, each crossed with the ``samples``
         start points. Grid noise keeps the exact heading θ_k.
     contact : envs.motion.ContactParams, optional
-        The contact rule of docs/model.md §23 (default None: every contact bumps, §10).
+        The contact rule of docs/model.md §9 (default None: every contact bumps, §17).
     """
 
     bin_length: float = 0.03
@@ -148,7 +148,7 @@ class EventModel:
         Every sampled flight: (start state, landing pre-turn state, steps including the bump
         step, weight 1/samples); ``flight``, ``reward`` and ``length`` are its sums.
     build_seconds : float
-    knife_edge_flights : int      sampled flights (last set built) that pass a knife edge (§19)
+    knife_edge_flights : int      sampled flights (last set built) that pass a knife edge (§10)
     stationary_method : str
         "krylov" (default), "aggregation" or "power": how classes above 20000 states are
         solved (:func:`analyse_contact_chain`).
@@ -196,8 +196,8 @@ class EventModel:
 
     def _flight_set(self, continuous: bool) -> "_Flights":
         """The sampled flights: from the exact grid headings θ_k (grid noise, docs/model.md
-        §10), or with ``continuous`` from ``heading_samples`` headings spread evenly inside
-        each heading bin, θ_k + ((l + ½)/n_θ − ½)Δ (Gaussian noise, §18). Cached.
+        §17), or with ``continuous`` from ``heading_samples`` headings spread evenly inside
+        each heading bin, θ_k + ((l + ½)/n_θ − ½)Δ (Gaussian noise, §11a). Cached.
         """
         if continuous in self._flight_sets:
             return self._flight_sets[continuous]
@@ -220,11 +220,11 @@ class EventModel:
         into = (u * bd.seg_inward[seg]).sum(axis=1) < -_INTO_TOL
         dist = np.zeros(len(pts))
         dist[~into] = _cast(caster, pts[~into], u[~into])
-        paths = contact_flights(caster, pts, u, dist, st.contact)   # slides below β (§23)
+        paths = contact_flights(caster, pts, u, dist, st.contact)   # slides below β (§9)
         land, dist, into = paths.end, paths.clock, into & (paths.clock == 0)
         lb = b.copy()                        # an immediate bump lands in its own bin
         lb[~into] = bd.bin_of(land[~into])
-        # flights into another part of C-space thread a knife edge exactly on its axis (§19)
+        # flights into another part of C-space thread a knife edge exactly on its axis (§10)
         self.knife_edge_flights = int((bd.part_of_bin[lb] != bd.part_of_bin[b]).sum())
         w = np.full(state.size, 1.0 / (S * nt))
         flight = sp.csr_matrix((w, (state, lb * K + k)), shape=(n, n))
@@ -256,7 +256,7 @@ class EventModel:
         return cached_build(cls, cs, settings)
 
     def turn_matrix(self, angle_deg: float, noise: TurnNoise = _EXACT) -> sp.csr_matrix:
-        """Pre-turn (b, k) → post-turn (b, k + (φ+δ)/Δ) with the docs/model.md §7 probabilities."""
+        """Pre-turn (b, k) → post-turn (b, k + (φ+δ)/Δ) with the docs/model.md §16 probabilities."""
         K = self.cs.K
         steps, probs = noise.turns(K, angle_deg, positive=True)
         i = np.arange(self.n_states)
@@ -270,7 +270,7 @@ class EventModel:
     def delay_chain(self, noise: TurnNoise = _EXACT) -> DelayChain:
         """The model as a :class:`planners.coverage.timeshare.DelayChain`: the sampled flights with
         their steps (forward steps + the bump step), the flight rewards and the first landing
-        (for Gaussian ``noise`` the flights with headings inside their bins, §18).
+        (for Gaussian ``noise`` the flights with headings inside their bins, §11a).
         """
         fs = self._flight_set(noise.gaussian)
         src, dst, delay, w = fs.flights
@@ -279,7 +279,7 @@ class EventModel:
 
     def flight_cells(self, noise: TurnNoise = _EXACT) -> FlightCells:
         """The flights of :meth:`delay_chain` (same ``noise``) and the first flights from the
-        cell centres, step by step: what the horizon coverage counts (docs/model.md §17).
+        cell centres, step by step: what the horizon coverage counts (docs/model.md §20).
         """
         paths, land0 = self._start
         n0 = flight_steps(paths.clock, self.cs.h)
@@ -304,7 +304,7 @@ class EventModel:
         The chain's closed classes g are weighted by absorption a_g from the cell-centre
         start (first flight, then the first turn); q = Σ_g a_g q_g with q_g = π_gᵀ R
         normalised over the P cells, R the expected counted steps per flight in every cell
-        (renewal–reward): the share of a long run's steps, class by class (§10, §17).
+        (renewal–reward): the share of a long run's steps, class by class (§17, §20).
         """
         t0 = time.thread_time()
         T, mu = self.chain(angle_deg, noise)

@@ -1,10 +1,10 @@
-"""The counted steps of the event model's flights, step by step (docs/model.md §10, §17).
+"""The counted steps of the event model's flights, step by step (docs/model.md §17, §20).
 
 A flight of the event model (:mod:`planners.coverage.event`) leaves a contact (or, for the
 first flight of a run, a cell centre) at point s with heading u, runs a free length d [m] and
 makes n_fwd = :func:`envs.motion.flight_steps` forward steps and one bump step. Forward step
 m = 0 … n_fwd − 1 is counted in the cell of s + m·h·u, the bump step in the cell of s + d·u;
-steps in no free cell are dropped (§9). :func:`step_table` lists every counted step with its
+steps in no free cell are dropped (§8). :func:`step_table` lists every counted step with its
 flight and its offset m (the bump step has offset n_fwd), once: the event model sums it into
 its renewal rewards (:meth:`StepTable.reward`), and the horizon coverage of
 :mod:`planners.coverage.horizon` counts each step at the time it happens
@@ -61,7 +61,7 @@ class StepTable:
 
 @dataclass(frozen=True, eq=False)
 class FlightCells:
-    """The event model's flights step by step, as a horizon needs them (docs/model.md §17).
+    """The event model's flights step by step, as a horizon needs them (docs/model.md §20).
 
     Attributes
     ----------

@@ -1,7 +1,7 @@
 """Coverage over a horizon of T steps, and the time a policy needs to reach its limit
-(docs/model.md §17).
+(docs/model.md §20).
 
-docs/model.md §7 predicts the *limiting* coverage. On a map whose rooms exchange the robot
+docs/model.md §16 predicts the *limiting* coverage. On a map whose rooms exchange the robot
 rarely the limit can be days of driving away; a user who runs the robot for T steps wants
 the expected fraction of *those* T steps spent in each cell. This module computes it with
 the model's own dynamics, step by step, through the delay chain of
@@ -10,7 +10,7 @@ the model's own dynamics, step by step, through the delay chain of
 - :class:`Horizon`: a model's delay chain extended for horizons: per-step rewards, so that a
   flight cut by T counts only the steps made before T, and (event model) the first flights
   from the cell-centre starts, whose steps are counted too.
-- :func:`horizon_coverage`: q_T of one angle or of a mix executed in epochs (docs/model.md §8),
+- :func:`horizon_coverage`: q_T of one angle or of a mix executed in epochs (docs/model.md §21),
   from the uniform start or a given start.
 - :func:`steps_to_limit`: the smallest T (on a geometric grid of ratio 2^(1/8) from 100) at
   which q_T from the uniform start is within TV ``tol`` (0.05) of the limit, or None above
@@ -63,7 +63,7 @@ _EXACT = TurnNoise()
 
 @dataclass(frozen=True, eq=False)
 class HorizonCoverage:
-    """Expected coverage of the first T steps (docs/model.md §17).
+    """Expected coverage of the first T steps (docs/model.md §20).
 
     Attributes
     ----------
@@ -104,9 +104,9 @@ def _grid_set(cap: int = CAP) -> frozenset:
 
 
 def start_distribution(cs, start=None) -> np.ndarray:
-    """A start as a distribution over the N configurations (docs/model.md §17).
+    """A start as a distribution over the N configurations (docs/model.md §20).
 
-    ``None``: uniform (docs/model.md §9); an int z: that configuration; an array of N
+    ``None``: uniform (docs/model.md §8); an int z: that configuration; an array of N
     non-negative weights: normalised.
     """
     if start is None:
@@ -149,7 +149,7 @@ class _Recursion:
 
     @classmethod
     def build(cls, model, noise: TurnNoise) -> "_Recursion":
-        """The recursion of ``model`` with the flights of ``noise`` (event model: §18)."""
+        """The recursion of ``model`` with the flights of ``noise`` (event model: §11a)."""
         cs = model.cs
         if not model.steps_in_flights:                    # step, sampled: D = 1
             base = model.delay_chain()
@@ -182,7 +182,7 @@ class _Trajectory:
 
     Counts of the first T steps are computed on one canonical path, whatever was asked
     before: from step 0 through every grid point below T, then to T. So a later, longer
-    horizon (steps_to_limit after the fit, docs/model.md §17) resumes where an earlier one
+    horizon (steps_to_limit after the fit, docs/model.md §20) resumes where an earlier one
     stopped instead of starting again, with the same arithmetic as a fresh run.
     """
 
@@ -226,7 +226,7 @@ class Horizon:
 
     Notes
     -----
-    State of the recursion (docs/model.md §12): the departures v_{t−1} … v_{t−D}. A departure
+    State of the recursion (docs/model.md §19): the departures v_{t−1} … v_{t−D}. A departure
     at t makes its flight's steps at t + 1 … t + d; so the steps 0 … T−1 are those of the
     departures at −1 … T−2, and the count of the first T steps is
     Rᵀ(v_{−1} + Σ_{t<T} v_t) − Σ_j Q_jᵀ v_{T−1−j}, with Q_j (n × P) the steps a flight makes
@@ -267,7 +267,7 @@ class Horizon:
 
     def _prepare(self, noise: TurnNoise) -> "_Recursion":
         """The recursion of ``noise``'s flights (the event model casts Gaussian noise's
-        flights at sub-bin headings, docs/model.md §18), built once per kind of flights.
+        flights at sub-bin headings, docs/model.md §11a), built once per kind of flights.
         """
         kind = bool(noise.gaussian) and self.model.steps_in_flights
         if kind not in self._prepared:
@@ -301,7 +301,7 @@ class Horizon:
         """Counted steps per cell (P, m) of the first T steps of each of m runs, for every T
         in ``horizons``: the angles with α_i > 0 (all angles when ``alpha`` is None), each
         run keeping its angle, or with ``epoch`` a mix whose runs restart every epoch from
-        the α-mixture of their end states (docs/model.md §17). Yields (T, counts, α of the
+        the α-mixture of their end states (docs/model.md §20). Yields (T, counts, α of the
         runs).
         """
         cs = self.model.cs
@@ -417,7 +417,7 @@ def steps_to_limit(hz: Horizon, angles, limit_q, *, noise: TurnNoise = _EXACT, a
                    epoch: int | None = None, tol: float = LIMIT_TV, cap: int = CAP,
                    max_seconds: float | None = None) -> dict:
     """The smallest T on :func:`grid` at which q_T from the uniform start is within TV
-    ``tol`` of ``limit_q`` (docs/model.md §17).
+    ``tol`` of ``limit_q`` (docs/model.md §20).
 
     Returns
     -------
@@ -447,7 +447,7 @@ def steps_to_limit_each(hz: Horizon, angles, limits, *, noise: TurnNoise = _EXAC
                         max_seconds: float | None = None) -> tuple[list[dict], dict | None]:
     """:func:`steps_to_limit` of every angle alone (against ``limits[i]``) and, with ``alpha``
     and ``mix_limit``, of the mix whose runs each keep one angle drawn with probabilities α
-    (no epochs), in one pass (docs/model.md §17).
+    (no epochs), in one pass (docs/model.md §20).
 
     The mix's counts are Σ α_i of the angles' counts at every T, so it costs no run of its
     own (:func:`steps_to_limit` on the mix runs every angle again); the angles' runs go in
@@ -503,7 +503,7 @@ def steps_to_limit_each(hz: Horizon, angles, limits, *, noise: TurnNoise = _EXAC
 
 def fit_horizon_mix(hz: Horizon, angles, noise: TurnNoise, target, horizon: int,
                     epoch: int | None, per_angle: tuple, *, start=None) -> MixDesign:
-    """α for a horizon (docs/model.md §17): the mix whose expected coverage of the first
+    """α for a horizon (docs/model.md §20): the mix whose expected coverage of the first
     ``horizon`` steps, executed in epochs of ``epoch`` steps, best meets ``target``.
 
     The angles' q_T are A's columns and :func:`~planners.coverage.mix.solve_mix` gives the

@@ -1,7 +1,7 @@
 """Finite Markov chains with sparse transition matrices: closed classes, limiting distributions.
 
 This module knows nothing about robots: it takes a row-stochastic transition matrix
-(``scipy.sparse``, any format) and answers docs/model.md §7's questions about it.
+(``scipy.sparse``, any format) and answers docs/model.md §16's questions about it.
 
 - :func:`closed_classes`: the persistent groups (closed communicating classes) = strongly
   connected components with no transition leaving them, read off the condensation graph

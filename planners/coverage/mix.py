@@ -1,4 +1,4 @@
-"""The policy mix: α = argmin ‖Aα − b‖₂ over the probability simplex (docs/model.md §7), and the
+"""The policy mix: α = argmin ‖Aα − b‖₂ over the probability simplex (docs/model.md §16), and the
 record of a designed mix, :class:`MixDesign`, which carries the :class:`PolicyMix` that
 :func:`bouncesim.runs.execute.execute` runs.
 """
@@ -161,7 +161,7 @@ class MixDesign(NoiseView):
     mixed : ndarray               Aα over the space (for a horizon: q_T(α), as executed)
     method : str                  the solver (see :func:`solve_mix`; "slsqp-horizon" when a
                                   horizon with epochs made the fit non-linear)
-    horizon : int or None         T [steps] the mix was designed for (docs/model.md §17);
+    horizon : int or None         T [steps] the mix was designed for (docs/model.md §20);
                                   None: the limit
     epoch : int or None           steps per epoch the horizon fit assumed (None: one angle
                                   per run, linear in α)

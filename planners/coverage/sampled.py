@@ -5,10 +5,10 @@ sample poses: m × m points spread over the position cell's square (those where 
 fits; the cell centre if none does) times ``theta_samples`` headings spread over
 [θ_k − Δ/2, θ_k + Δ/2]. Each sample makes one exact continuous step with the kinematic
 twin's rule (:func:`envs.motion.step`: forward h when at least h − STEP_TOL is free, else a
-move to contact and a turn by φ + δ with the docs/model.md §7 noise) and is mapped to the
+move to contact and a turn by φ + δ with the docs/model.md §11 noise) and is mapped to the
 configuration cell it ends in; the fractions give the row of (p, k) in a sparse N × N chain,
 analysed with :mod:`planners.coverage.markov` (uniform start over the N configurations, as
-docs/model.md §7). Coverage counts steps where the twin counts them: a forward step in its
+docs/model.md §16). Coverage counts steps where the twin counts them: a forward step in its
 start cell, a bump step in the cell of the contact point (steps in no free cell are
 dropped; a sample that ends in a cell that is not free is sent to the nearest free cell for
 the chain).

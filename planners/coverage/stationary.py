@@ -1,4 +1,4 @@
-"""The stationary distributions of the event model's large contact chains (docs/model.md §10).
+"""The stationary distributions of the event model's large contact chains (docs/model.md §17).
 
 Closed classes of up to 20 000 states are solved directly (sparse LU,
 :func:`planners.coverage.markov.stationary_distributions`). Larger ones by BiCGSTAB
@@ -32,7 +32,7 @@ __all__ = ["analyse_contact_chain"]
 _DIRECT_MAX = 20000      # closed classes up to this size are solved directly (sparse LU)
 _POWER_TOL = 1e-6        # L1 error bound at which the power iteration stops
 _POWER_MAX = 200000      # iterations cap
-_POWER_FIRST = 3000      # power iterations tried before the aggregation (docs/model.md §10)
+_POWER_FIRST = 3000      # power iterations tried before the aggregation (docs/model.md §17)
 _LAZY = 0.05             # weight of the current iterate (damps periodic modes)
 _AGG_SWEEPS = 10         # damped power steps per aggregation-disaggregation cycle
 _AGG_MAX = 20000         # cycles cap
@@ -66,7 +66,7 @@ def _one_blas_thread():
 
 
 def _krylov_stationary(Tg: sp.csr_matrix) -> tuple[np.ndarray | None, int]:
-    """Stationary distribution of one irreducible class by BiCGSTAB (docs/model.md §10):
+    """Stationary distribution of one irreducible class by BiCGSTAB (docs/model.md §17):
     (I − Tᵀ + 1·1ᵀ/n) x = 1/n, which π solves (1ᵀ(I − Tᵀ) = 0 and 1ᵀπ = 1) and which is
     non-singular for an irreducible T; periodic classes need no damping here. Float64,
     from the uniform vector, to a relative residual of 1e-8. Returns (π, products), or
@@ -133,7 +133,7 @@ def _power_stationary(Tg: sp.csr_matrix, max_iter: int | None = None
 def _aggregated_stationary(Tg: sp.csr_matrix, agg: np.ndarray, x0=None
                            ) -> tuple[np.ndarray, int]:
     """Stationary distribution of one irreducible class by iterative aggregation–
-    disaggregation (Takahashi's method; docs/model.md §10).
+    disaggregation (Takahashi's method; docs/model.md §17).
 
     ``agg`` maps every state of the class to an aggregate (its contact bin). One cycle: the
     coarse chain C_IJ = Σ_{i∈I} x_i T_ij(J) / X_I over the aggregates, weighted by the current
@@ -190,7 +190,7 @@ def analyse_contact_chain(T, start, aggregates=None, method: str = "krylov"
 
     Closed classes and absorption (from ``start``, only needed with several classes) as in
     :mod:`planners.coverage.markov`. Classes of up to 20000 states are solved directly
-    (:func:`planners.coverage.markov.stationary_distributions`). Larger ones (docs/model.md §10):
+    (:func:`planners.coverage.markov.stationary_distributions`). Larger ones (docs/model.md §17):
 
     - ``"krylov"`` (default): BiCGSTAB (:func:`_krylov_stationary`; where it fails, the
       damped power iteration, ≤ 3000 iterations), then aggregation–disaggregation over
@@ -201,7 +201,7 @@ def analyse_contact_chain(T, start, aggregates=None, method: str = "krylov"
     - ``"aggregation"``: the same with the damped power iteration first (the method before).
     - ``"power"`` (or no aggregates): the first stage alone (BiCGSTAB, or the damped power
       iteration for ``"power"``), unchecked; the power iteration stalls on slowly mixing
-      classes (two rooms joined by a door: docs/model.md §10).
+      classes (two rooms joined by a door: docs/model.md §17).
     """
     if method not in ("krylov", "aggregation", "power"):
         raise ValueError(f"method must be 'krylov', 'aggregation' or 'power', got {method!r}.")

@@ -1,4 +1,4 @@
-"""The paper's step model: Algorithm 3's chain over the N configuration cells (docs/model.md §7).
+"""The paper's step model: Algorithm 3's chain over the N configuration cells (docs/model.md §16).
 
 For one bouncing angle φ and rotation noise (ε, r) the robot's motion over the N
 configuration cells is a Markov chain: a forward cell moves to its step-table successor with

@@ -1,11 +1,12 @@
-"""Time-shared policy mixes: the coverage a mix delivers when it runs in epochs (docs/model.md §12).
+"""Time-shared policy mixes: the coverage a mix delivers when it runs in epochs (docs/model.md §19).
 
-docs/model.md §7 predicts a mix's coverage as Σ α_i q_i, which holds when every epoch is long enough
-for its angle's chain to reach its limiting distribution. docs/model.md §8 runs a mix in epochs of E
-steps, each with one angle drawn with probabilities α, and the robot carries its state from one
-epoch into the next. When an angle's chain mixes slowly (in ``fig1`` at 315° the robot leaks
-into a pocket at about 1e-4 per step, so a 1000-step epoch rarely gets there) the executed mix
-covers the map very differently from Σ α_i q_i. This module predicts the executed mix.
+docs/model.md §16 predicts a mix's coverage as Σ α_i q_i, which holds when every epoch is long
+enough for its angle's chain to reach its limiting distribution. docs/model.md §21 runs a mix in
+epochs of E steps, each with one angle drawn with probabilities α, and the robot carries its
+state from one epoch into the next. When an angle's chain mixes slowly (in ``fig1`` at 315°
+the robot leaks into a pocket at about 1e-4 per step, so a 1000-step epoch rarely gets
+there) the executed mix covers the map very differently from Σ α_i q_i. This module predicts
+the executed mix.
 
 **Delay chains.** Every coverage model is written as a *delay chain* (:class:`DelayChain`):
 n states; in an angle's *turn* a state moves by the angle's random transition W_φ (n × n,
@@ -29,7 +30,7 @@ when it leaves; over a long run the attribution does not matter). The state at a
 boundary is the last D = max d departures. The angle is drawn independently of the state, so
 the boundary state of the next epoch is the α-mixture of the angles' epoch end states. The
 recursion iterates that epoch map (damped by β = 0.05 like the event model's power iteration)
-from the model's start (the uniform start, docs/model.md §9) until q settles (estimated TV error
+from the model's start (the uniform start, docs/model.md §22) until q settles (estimated TV error
 below 1e-4); then q = Σ_i α_i (Σ_t v_t^{(i)})ᵀ R normalised over the P cells.
 
 This is exact for the model's own dynamics: with one angle it converges to that angle's q; with

@@ -1,5 +1,5 @@
-"""Navigation: plans from a start pose to a goal pose, from a map alone (docs/model.md §6,
-§15, §21, §22).
+"""Navigation: plans from a start pose to a goal pose, from a map alone (docs/model.md §12,
+§13, §14, §15).
 
 One protocol (:class:`Planner`), one record (:class:`Route`, one JSON form), one registry
 (:data:`PLANNERS`, built by :func:`make_planner`); one module per planner:

@@ -43,7 +43,7 @@ __all__ = ["NEEDS", "PairTable", "Planner", "Route", "check_angles", "check_conf
 
 NEEDS = ("noise", "rng", "contact")
 """What a planner may need besides the map, the angles and the weights: the turn noise it
-plans for, a random source, and the executing body's contact rule (docs/model.md §23)."""
+plans for, a random source, and the executing body's contact rule (docs/model.md §9)."""
 
 
 def _r9(v) -> float | int:
@@ -61,7 +61,7 @@ class Route:
     plan : Plan              the observation string with its flights (``flights_m``,
                              ``final_m``): the exact flights of an exact plan, the step
                              model's run lengths of a step plan (``plan.exact_flights``
-                             says which; docs/model.md §8, §15)
+                             says which; docs/model.md §21, §13)
     cost : float             the planner's cost (w1 per step or step-equivalent of travel
                              and per same-angle bump, w2 per change of angle)
     poses : tuple of (x [m], y [m], heading [deg])

@@ -37,9 +37,9 @@ __all__ = ["PLANNERS", "make_planner", "planner_class"]
 
 PLANNERS: dict = {cls.name: cls for cls in (Navigator, ExactNavigator, ReliableNavigator,
                                             FeedbackPlanner)}
-"""Planner name → class: ``step`` (the paper's roadmap, docs/model.md §6), ``exact`` (exact
-bump poses, §15), ``reliable`` (the near-optimal exact plan most likely to succeed under
-turn noise, §21), ``feedback`` (a particle filter re-plans after every bump, §22)."""
+"""Planner name → class: ``step`` (the paper's roadmap, docs/model.md §12), ``exact`` (exact
+bump poses, §13), ``reliable`` (the near-optimal exact plan most likely to succeed under
+turn noise, §14), ``feedback`` (a particle filter re-plans after every bump, §15)."""
 
 _WORDS = {"noise": "turn noise", "rng": "a random source", "contact": "a contact rule"}
 
@@ -62,7 +62,7 @@ def make_planner(name: str, cells: CellSpace, angles, *, w1: float = 1.0, w2: fl
     w1, w2 : float             weights of a step (or same-angle bump) and of an angle change
     noise, rng, contact        what the planner needs (its ``needs``): the turn noise to plan
                                for, the random source of its particles, the executing body's
-                               contact rule (docs/model.md §23); giving one it does not use
+                               contact rule (docs/model.md §9); giving one it does not use
                                is an error
     max_memory : int, str or None
         Refuse (:class:`envs.UserError`) when the planner's estimated peak memory exceeds

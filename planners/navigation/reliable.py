@@ -1,6 +1,6 @@
-"""Plans chosen for reliability under turn noise (docs/model.md §21).
+"""Plans chosen for reliability under turn noise (docs/model.md §14).
 
-The exact planner (:mod:`planners.navigation.exact`, docs/model.md §15) returns the cheapest
+The exact planner (:mod:`planners.navigation.exact`, docs/model.md §13) returns the cheapest
 plan; with rotation noise an open-loop plan misses its goal when the heading errors of its
 turns carry the robot off course. This layer lists the near-optimal exact plans
 (:meth:`ExactNavigator.plans`, every goal arrival within a cost ``slack`` of the cheapest),
@@ -9,11 +9,11 @@ exact flights of the motion layer (:mod:`envs.motion`, vectorised over particles
 returns the most reliable.
 
 - :func:`rollout`: execute a plan for many particles at once, each with its own executed
-  turns, as the executor (docs/model.md §8, §15) runs it on the kinematic twin: drive until a
+  turns, as the executor (docs/model.md §21, §13) runs it on the kinematic twin: drive until a
   bump (or give up after the segment's limit), turn; then the final drive by the clock.
-  Success is §8's: final position in the goal cell and heading within ±(Δ/2 + 1e-9°).
+  Success is §21's: final position in the goal cell and heading within ±(Δ/2 + 1e-9°).
 - :func:`draw_turns`: the executed turns of a particle set under a noise model (the twin's
-  ``gauss:σ`` or §7 ``model:eps=E,r=R``, drawn exactly as the twin draws them).
+  ``gauss:σ`` or §11 ``model:eps=E,r=R``, drawn exactly as the twin draws them).
 - :func:`estimate`: successes of ``particles`` particles and the Wilson interval.
 - :class:`ReliableNavigator`: candidates, selection on one particle set (common random
   numbers), and the reported ``p_success`` from a second, independent one.
@@ -70,7 +70,7 @@ __all__ = ["DEFAULT_SLACK", "DEFAULT_PARTICLES", "MAX_CANDIDATES", "W2_FACTORS",
 
 DEFAULT_SLACK = 150.0
 """Cost slack of the candidates (w1 units): at w2 = 100 one more change of angle and up to
-50 step-equivalents of extra travel or same-angle bumps (docs/model.md §21)."""
+50 step-equivalents of extra travel or same-angle bumps (docs/model.md §14)."""
 W2_FACTORS = (1.0, 0.1, 0.01)
 """The candidates' searches weigh a change of angle by w2 times each factor (not below w1):
 plans near-optimal at the user's weights and at tenfold and hundredfold cheaper changes."""
@@ -124,7 +124,7 @@ class Estimate:
 # ============================================================================ particles
 @dataclass(frozen=True)
 class Rollout:
-    """Where a particle set's executions end (docs/model.md §8 outcome per particle).
+    """Where a particle set's executions end (docs/model.md §21 outcome per particle).
 
     Attributes
     ----------
@@ -155,7 +155,7 @@ def draw_turns(noise, plan: Plan, n: int, rng: np.random.Generator,
     """(n, bumps) executed turns [deg] of the plan's turns under ``noise``, one column per
     turn in order, each column drawn as one array (as ``n`` twins draw them, turn by turn).
 
-    ``noise``: a :class:`~planners.noise.TurnNoise` (§7 or §18), a spec string
+    ``noise``: a :class:`~planners.noise.TurnNoise` (§11 or §11a), a spec string
     (``gauss:σ``, ``model:eps=E,r=R``, ``none``), or any object with
     ``sample_many(rng, commanded)`` (the twin's noise models).
     """
@@ -175,7 +175,7 @@ def rollout(cells: CellSpace, plan: Plan, start: int, goal: int, turns: np.ndarr
             speed: float = 0.2, max_factor: float = 2.0,
             contact: ContactParams | None = None) -> Rollout:
     """Execute ``plan`` from configuration ``start`` for every row of ``turns`` (the executed
-    turns [deg], ``draw_turns``), vectorised over the rows, as docs/model.md §8 and §15 run it
+    turns [deg], ``draw_turns``), vectorised over the rows, as docs/model.md §21 and §13 run it
     on the kinematic twin (front-half bumper, no back-off).
 
     Every segment drives until a bump along the exact cast (no motion when the bumper is
@@ -186,7 +186,7 @@ def rollout(cells: CellSpace, plan: Plan, start: int, goal: int, turns: np.ndarr
     goes by the clock and stops early at a wall. ``speed`` [m/s] only enters through the
     clock's rounding (distance = speed · (length / speed)), as in the executor.
 
-    ``contact`` (docs/model.md §23): the executing robot's contact rule. A flight whose
+    ``contact`` (docs/model.md §9): the executing robot's contact rule. A flight whose
     contact lies outside the bumper arc slides on to its bump
     (:func:`envs.contact.contact_flights`, as the exact planner and the twin fly it); a slide
     whose clock exceeds the segment's limit fails, as the twin times out mid-slide. The
@@ -285,7 +285,7 @@ def estimate(cells: CellSpace, plan: Plan, start: int, goal: int, noise, particl
 
 # ============================================================================ the planner
 def plan_cost(plan: Plan, h: float, w1: float, w2: float) -> float:
-    """The exact planner's cost of an exact plan (docs/model.md §15): w1 per step-equivalent
+    """The exact planner's cost of an exact plan (docs/model.md §13): w1 per step-equivalent
     of travel (flights and final drive over h), min(w1, w2) for the first bump (w1 with one
     angle), then w1 per bump that repeats the previous angle and w2 per change.
 
@@ -300,7 +300,7 @@ def plan_cost(plan: Plan, h: float, w1: float, w2: float) -> float:
 
 
 class ReliableNavigator:
-    """The most reliable of the near-optimal exact plans (``"reliable"``, docs/model.md §21).
+    """The most reliable of the near-optimal exact plans (``"reliable"``, docs/model.md §14).
 
     Its :class:`~planners.navigation.base.Route` has the exact plan's fields (``cost`` at the
     user's weights) and these extras: ``p_success`` (success probability from an independent
@@ -315,7 +315,7 @@ class ReliableNavigator:
     cells : CellSpace
     angles : sequence of float     bouncing angles Φ [deg]
     noise : TurnNoise, str or noise model
-        The turn noise to plan for (``gauss:σ``, §7 ``model:eps=E,r=R``, ``none``).
+        The turn noise to plan for (``gauss:σ``, §11 ``model:eps=E,r=R``, ``none``).
     w1, w2 : float                 the exact planner's weights
     slack : float                  [w1 units] a candidate costs at most this more than the
                                    cheapest plan of its search
@@ -327,8 +327,8 @@ class ReliableNavigator:
     rng : numpy.random.Generator   source of every particle draw
     confidence : float             of the reported Wilson interval
     contact : ContactParams, optional
-        The executing robot's contact rule (docs/model.md §23): the candidate searches plan
-        slid flights under it (``ExactNavigator(contact=...)``, §15) and the particles fly
+        The executing robot's contact rule (docs/model.md §9): the candidate searches plan
+        slid flights under it (``ExactNavigator(contact=...)``, §13) and the particles fly
         through it (:func:`rollout`). Default None: every front contact bumps.
     """
 

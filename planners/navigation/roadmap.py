@@ -1,4 +1,4 @@
-"""The layered roadmap of docs/model.md §6 as one sparse matrix.
+"""The layered roadmap of docs/model.md §12 as one sparse matrix.
 
 Nodes
 -----
@@ -47,7 +47,7 @@ __all__ = ["Roadmap"]
 
 @dataclass(frozen=True, eq=False)
 class Roadmap:
-    """Layered roadmap over configurations and bouncing angles (docs/model.md §6).
+    """Layered roadmap over configurations and bouncing angles (docs/model.md §12).
 
     Parameters
     ----------

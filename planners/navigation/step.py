@@ -1,4 +1,4 @@
-"""Shortest bouncing plans: single queries and all pairs (docs/model.md §6; the paper's Alg. 1-2).
+"""Shortest bouncing plans: single queries and all pairs (docs/model.md §12; the paper's Alg. 1-2).
 
 Examples
 --------
@@ -47,7 +47,7 @@ SEARCH_CACHE = 64
 
 class Navigator:
     """The paper's step-model planner (``"step"``): plans on the layered roadmap of an
-    environment's cell space (docs/model.md §6).
+    environment's cell space (docs/model.md §12).
 
     Parameters
     ----------

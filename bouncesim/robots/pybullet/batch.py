@@ -1,4 +1,4 @@
-"""Many PyBullet Create 2 bodies in one world, stepped in lockstep (docs/model.md §8-9).
+"""Many PyBullet Create 2 bodies in one world, stepped in lockstep (docs/model.md §8, §21).
 
 :class:`PyBulletBatch` runs a policy mix on ``n_robots`` independent Create 2 bodies that
 share one ``DIRECT`` PyBullet world and its walls. The robots ignore each other (their links
@@ -17,9 +17,9 @@ configuration, epoch angles, turn noise), and keeps its own drift-free clock the
 single ``PyBulletRobot`` run by ``execute`` with the same g (the test suite checks the bump
 points and turns against that path).
 
-By default (``fast_forward=FastForward()``, docs/model.md §24) a robot skips the physics steps of
-steady motion: straight drives clear of the walls, steady slides along one wall side and the
-steady middle of turns in place are advanced in one move
+By default (``fast_forward=FastForward()``, docs/model.md Appendix C) a robot skips the physics
+steps of steady motion: straight drives clear of the walls, steady slides along one wall side and
+the steady middle of turns in place are advanced in one move
 (:class:`~bouncesim.robots.pybullet.fastforward.Coaster`), and the robot's own step clock
 runs on by the steps skipped. Robots ignore each other, so their clocks need not agree; a
 robot whose program has ended leaves the world.
@@ -70,7 +70,7 @@ another robot."""
 
 @dataclass(frozen=True)
 class BatchRun:
-    """Per-robot step-sampled visit histograms of a :class:`PyBulletBatch` run (§9).
+    """Per-robot step-sampled visit histograms of a :class:`PyBulletBatch` run (§22).
 
     Attributes
     ----------
@@ -82,7 +82,7 @@ class BatchRun:
     sim_time : float            simulated time of the world steps [s] (each robot's own
                                 clock ran on by its ``skipped`` steps besides)
     wall_s, cpu_s : float       wall-clock and process CPU time of the run [s]
-    skipped : (n,) int array    physics steps each robot fast-forwarded (§24; 0 without)
+    skipped : (n,) int array    physics steps each robot fast-forwarded (Appendix C; 0 without)
     poses : (n, 3) array        each robot's (x [m], y [m], heading [deg]) at its end
     turns : list, optional      with ``record=True``, per robot, one
                                 (x [m], y [m], heading [deg], turn [deg], heading after
@@ -117,7 +117,7 @@ class BatchRun:
         return self.counts[0::2].sum(axis=0), self.counts[1::2].sum(axis=0)
 
     def floor(self) -> float:
-        """TV between the two halves (docs/model.md §9's noise floor at half the budget)."""
+        """TV between the two halves (docs/model.md §22's noise floor at half the budget)."""
         a, b = self.halves()
         return tv_distance(a, b) if a.sum() > 0 and b.sum() > 0 else math.nan
 
@@ -133,7 +133,7 @@ class PyBulletBatch:
         Parent of every robot's own generator (``rng.spawn(n_robots)``), unless ``rngs``.
     cells : CellSpace, optional
     noise : NoiseModel, optional
-        Rotation noise (default: the mix's §7 model at :meth:`run`, else exact).
+        Rotation noise (default: the mix's §16 model at :meth:`run`, else exact).
     speed : float
         Drive speed [m/s].
     rngs : sequence of numpy.random.Generator, optional
@@ -143,7 +143,7 @@ class PyBulletBatch:
         as ``execute`` does).
     fast_forward : FastForward or None
         Skip the physics steps of steady drives far from the walls and of the steady
-        middle of turns (docs/model.md §24; default ``FastForward()``); None simulates
+        middle of turns (docs/model.md Appendix C; default ``FastForward()``); None simulates
         every physics step.
     **robot_kw
         Physics settings of :class:`PyBulletRobot` (``time_step``, ``turn_speed``,
@@ -236,14 +236,14 @@ class PyBulletBatch:
         """Robot i's run as execute's mix loop; yields physics steps to wait.
 
         The robot keeps its own step clock: the world's steps plus the steps it has
-        fast-forwarded (§24). Robots ignore each other, so their clocks need not agree.
+        fast-forwarded (Appendix C). Robots ignore each other, so their clocks need not agree.
         """
         host, cells, rng, body = self.host, self.cells, self.rngs[i], self.bodies[i]
         dt, period, speed, h = host.time_step, host.spec.sensor_period, self.speed, cells.h
         coast, ff = self._coaster, self.fast_forward
         skipped = out["skipped"]
         off = 0                               # steps fast-forwarded so far
-        track: list = []                      # the last polls' poses (slides, §24)
+        track: list = []                      # the last polls' poses (slides, Appendix C)
         t_goal = self._steps * dt             # the robot's clock target (PyBulletRobot.wait)
 
         def wait_steps(duration: float) -> int:
@@ -272,7 +272,7 @@ class PyBulletBatch:
 
         def coast_drive(elapsed: float, T: float) -> int:
             """Jump the polls of a steady drive that keep the margin, or of a steady slide
-            along one wall (§24): 1 if it did, 0 if not now, -1 if not before the step's end.
+            along one wall (Appendix C): 1 if it did, 0 if not now, -1 if not before the step's end.
             """
             x, y, yaw = self._pose(body)
             gap, side = coast.near(x, y)
@@ -355,7 +355,7 @@ class PyBulletBatch:
                     left -= ff.turn_steps
                     if n > 0:
                         yield n
-                    if coast.steady(body, 0.0, rate):                 # the steady spin (§24)
+                    if coast.steady(body, 0.0, rate):                 # the steady spin (Appendix C)
                         n = wait_steps(left * dt)
                         left = 0
                         if n > 0:
@@ -374,14 +374,14 @@ class PyBulletBatch:
 
     def run(self, policy, steps: int, *, epoch: int = 1000, burn_in: int = 0,
             progress=None, record: bool = False) -> BatchRun:
-        """Run ``burn_in + steps`` steps on every robot; count the last ``steps`` (§9).
+        """Run ``burn_in + steps`` steps on every robot; count the last ``steps`` (§8).
 
         Each robot's body leaves the world when its run ends (``BatchRun.poses`` keeps
         where it stopped); the next call builds the bodies anew.
 
         Parameters
         ----------
-        policy : float or PolicyMix   one bouncing angle [deg] or a mix (epochs, §8)
+        policy : float or PolicyMix   one bouncing angle [deg] or a mix (epochs, §21)
         steps : int                   counted steps per robot
         epoch : int                   steps per epoch of a mix
         burn_in : int                 steps per robot run first and not counted

@@ -1,4 +1,4 @@
-"""Fast-forward of steady motion in a PyBullet world (docs/model.md §24).
+"""Fast-forward of steady motion in a PyBullet world (docs/model.md Appendix C).
 
 A Create 2 that drives straight far from every wall, slides steadily along one, or turns in
 place at its commanded rate moves with a constant twist (forward speed and yaw rate) as long
@@ -47,7 +47,7 @@ __all__ = ["FastForward", "Coaster", "DEFAULT_FAST_FORWARD"]
 
 @dataclass(frozen=True)
 class FastForward:
-    """Where a :class:`Coaster` may skip physics steps (docs/model.md §24).
+    """Where a :class:`Coaster` may skip physics steps (docs/model.md Appendix C).
 
     Attributes
     ----------
@@ -234,7 +234,7 @@ class Coaster:
         are kept, the base velocity turns with the heading, the wheel angles advance at their
         rates. (The command, not an instantaneous measurement: the body's velocity jitters by
         ~0.5 % from step to step, and in turns the wheels spin ~0.8 % faster than the body
-        turns; the steady physics averages to the command within ~0.1 %, docs/model.md §24.)
+        turns; the steady physics averages to the command within ~0.1 %, docs/model.md Appendix C.)
         """
         p, kw = self.p, self.kw
         (x, y, z), orn = p.getBasePositionAndOrientation(body, **kw)

@@ -89,7 +89,7 @@ def render_top_down(p, kw: dict, bounds, width: int, wall_height: float) -> np.n
 
 def plan_segments(plan, trace) -> list[tuple[float, str]]:
     """(start time [s] on the trace's clock, label) of each plan segment that ran: segment
-    i + 1 starts at the i-th ``turn`` of the trace (docs/model.md §8: drive the zeros, bump,
+    i + 1 starts at the i-th ``turn`` of the trace (docs/model.md §21: drive the zeros, bump,
     turn by the angle).
     """
     segs = plan.segments()

@@ -1,4 +1,4 @@
-"""The exact navigation planner (docs/model.md §15): plans over exact bump poses.
+"""The exact navigation planner (docs/model.md §13): plans over exact bump poses.
 
 One public front, :class:`ExactNavigator` (:mod:`.planner`), with three private helpers: the
 many-start search of all pairs (``_batch``), the scalar casts with walls culled per heading

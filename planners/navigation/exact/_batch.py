@@ -1,4 +1,4 @@
-"""The exact planner's search from many starts at once (docs/model.md §15, all pairs).
+"""The exact planner's search from many starts at once (docs/model.md §13, all pairs).
 
 Every tree of :meth:`planners.navigation.exact.ExactNavigator.search` keeps, per state, the
 exact pose of its best arrival; the flight from that pose depends on the pose and the heading only,
@@ -16,7 +16,7 @@ tree (and by every batch of starts): :class:`FlightTable`.
   landing's contact bin (as the m child states) and the goal arrivals along the flight (the
   chords of :func:`planners.navigation.exact._chords.chords` at least ``min_depth`` deep: goal
   configuration k·P + p, its cost w1·t/h and t).
-- The search itself is the Dial's-bucket search described in §15, with the same order,
+- The search itself is the Dial's-bucket search described in §13, with the same order,
   costs (the same floating-point operations) and ties, so its trees and all-pairs results
   are those of one search per start.
 """

@@ -1,5 +1,5 @@
 """Scalar ray casts along the Δ-grid headings with the walls culled per heading and origin
-(the exact planner's single queries, docs/model.md §15).
+(the exact planner's single queries, docs/model.md §13).
 
 The exact planner's flights leave every pose along one of the K headings θ_k. A disk of
 radius r that starts within ρ of a point c and moves along u can only touch wall points q

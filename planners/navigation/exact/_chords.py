@@ -1,4 +1,4 @@
-"""Flight chords through position cells (docs/model.md §15): where a straight flight
+"""Flight chords through position cells (docs/model.md §13): where a straight flight
 crosses each free cell, and the point of each crossing nearest the cell's centre (the exact
 planner's goal arrivals, and the feedback planner's).
 """

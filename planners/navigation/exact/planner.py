@@ -1,4 +1,4 @@
-"""The exact navigation planner: plans over exact bump poses (docs/model.md §15).
+"""The exact navigation planner: plans over exact bump poses (docs/model.md §13).
 
 The step model (:mod:`planners.navigation`) puts every bump at a cell centre; a continuous
 robot drives on to the real wall. This planner keeps the robot's exact pose after every bump:
@@ -14,11 +14,11 @@ the wall) and its heading after the turn. Flights are the exact ray casts of the
   once over many starts' trees, with one vectorised ray cast for the flights not cast yet
   (a flight depends on its pose and heading only: :mod:`planners.navigation.exact._batch`).
 - Cost: w1 per step-equivalent of travel (flight length / h) and per same-angle bump, w2 per
-  change of angle; the first bump costs min(w1, w2) (any start angle, as in §6).
+  change of angle; the first bump costs min(w1, w2) (any start angle, as in §12).
 - Goal: after the last turn the heading equals the goal heading and the flight passes through
   the goal cell; the plan ends with a final drive (``final_m``) by the clock to the point of
   that flight's chord through the cell nearest the cell's centre.
-- Contact rule (optional ``contact``, docs/model.md §23): a flight whose contact is outside
+- Contact rule (optional ``contact``, docs/model.md §9): a flight whose contact is outside
   the bumper arc slides on to its bump (:func:`envs.contact.contact_flights`); it costs and
   expects its clock length, and goal arrivals stay on its straight part.
 - Candidates: :meth:`ExactNavigator.plans` lists every goal arrival within a cost slack of
@@ -103,7 +103,7 @@ class ExactSearch:
 
 
 class ExactNavigator:
-    """Plans over exact bump poses (docs/model.md §15), with the shape of
+    """Plans over exact bump poses (docs/model.md §13), with the shape of
     :class:`planners.navigation.Navigator`.
 
     Parameters
@@ -115,7 +115,7 @@ class ExactNavigator:
     min_depth : float            [m] the final stop must lie at least this deep inside the
                                  goal cell (default 1e-3)
     contact : ContactParams, optional
-        The contact rule of the robot that executes the plans (docs/model.md §23): a flight
+        The contact rule of the robot that executes the plans (docs/model.md §9): a flight
         whose contact lies outside the bumper arc slides on (:func:`envs.contact.contact_flights`)
         to its bump, and costs and expects its clock length. Default None: every contact
         bumps (the front-half bumper).

@@ -1,4 +1,4 @@
-"""Feedback navigation (docs/model.md §22): a particle filter over bump poses
+"""Feedback navigation (docs/model.md §15): a particle filter over bump poses
 (:mod:`.filter`), plans from a pose (:mod:`.search`), the decision rule (:mod:`.navigator`)
 and the registry's planner with the policy that the run loop executes (:mod:`.planner`).
 """

@@ -1,4 +1,4 @@
-"""The particle filter of feedback navigation (docs/model.md §22): a belief over the robot's
+"""The particle filter of feedback navigation (docs/model.md §15): a belief over the robot's
 pose as weighted particles, updated by the readings a bump-and-clock robot has (the flight's
 distance by the clock, the bumper side) under the exact flights of the motion layer.
 
@@ -35,7 +35,7 @@ SIDES = ("both", "left", "right")
 # ============================================================================ configuration
 @dataclass(frozen=True)
 class FeedbackConfig:
-    """Parameters of the filter and the decision rule (docs/model.md §22).
+    """Parameters of the filter and the decision rule (docs/model.md §15).
 
     Attributes
     ----------
@@ -80,7 +80,7 @@ class FeedbackConfig:
         N(0, jitter_deg²) in heading and N(0, jitter_m²) in position (a regularised filter:
         copies of one pose explore around it instead of staying identical)
     votes : int                poses planned from after every bump
-    slack : float              plans within this of the cheapest (§15's cost) are candidates
+    slack : float              plans within this of the cheapest (§13's cost) are candidates
     per_pose : int             at most this many candidates (cheapest first) per pose
     eval_particles : int       particles pushed through each candidate plan
     margin_m : float           [m] the final stop prefers points this deep in the goal cell
@@ -93,14 +93,14 @@ class FeedbackConfig:
     correct_heading : bool     extension, off by default: command each turn as its angle
                                less the belief's mean heading offset from the Δ grid
     guided : bool              off by default: searches from a pose are guided by the cost
-                               to go of the contact-state graph (§22), not by §15's bound
+                               to go of the contact-state graph (§15), not by §13's bound
     reference : bool           the straightforward search (unguided) and scoring instead of
                                the fast ones (for benchmarks and tests)
     contact : ContactParams or None
-        the body's contact rule (docs/model.md §23) in the filter's motion model, the plan
+        the body's contact rule (docs/model.md §9) in the filter's motion model, the plan
         search's flights and the scores: a flight whose contact lies outside the bumper arc
         slides on to its bump, and only contacts inside the arc press the bumper. None
-        (default): the front-half bumper (§22 as before, bitwise)
+        (default): the front-half bumper (§15 as before, bitwise)
     """
 
     particles: int = 300
@@ -216,7 +216,7 @@ def flights(caster, pos, heading_deg, bearings: bool = True):
 
 
 def landings(caster, pos, heading_deg, contact: ContactParams | None, bearings: bool = True):
-    """Flights of poses to their bump under a contact rule (docs/model.md §22, §23).
+    """Flights of poses to their bump under a contact rule (docs/model.md §15, §9).
 
     Returns (clock [m], end (n, 2) [m], bearings (n, F) [deg] or None, slid (n,) bool or
     None, straight [m]): ``straight`` is :func:`flights`' drive to the first contact and
@@ -311,7 +311,7 @@ class FlightUpdate:
 
 
 class ParticleFilter:
-    """A belief over the robot's pose as weighted particles (docs/model.md §22).
+    """A belief over the robot's pose as weighted particles (docs/model.md §15).
 
     Parameters
     ----------
@@ -472,7 +472,7 @@ class ParticleFilter:
 
     def flight(self, distance: float, left: bool, right: bool) -> FlightUpdate:
         """Update with one flight that ended in a bump after ``distance`` [m] with the
-        bumper reading (left, right) (docs/model.md §22): every particle flies to its exact
+        bumper reading (left, right) (docs/model.md §15): every particle flies to its exact
         contact, or with the declared phantom-bump rate stops where the reading says; no
         reading zeroes the belief. When the reading is surprising (its marginal likelihood
         below ``surprise`` × the best possible), a re-initialised component is mixed in with

@@ -1,5 +1,5 @@
 """Feedback navigation: a particle Bayes filter over bump poses, and a decision rule that
-re-plans from the belief after every bump (docs/model.md §22).
+re-plans from the belief after every bump (docs/model.md §15).
 
 The robot senses only what a bump-and-clock robot has: the duration of every flight
 (distance = commanded speed × time) and which side of the bumper closed. This module turns
@@ -18,7 +18,7 @@ the loop that drives a robot is :func:`bouncesim.runs.execute.navigate_feedback`
   around the previous belief with headings widened by ``reinit_sigma_deg``, then, if still
   nothing fits, globally (poses uniform over the free space and headings, kept when their
   flight matches the reading).
-- :class:`FeedbackNavigator`: after every bump, plans exactly (the §15 search, started from
+- :class:`FeedbackNavigator`: after every bump, plans exactly (the §13 search, started from
   the pose of a particle with its heading's offset from the Δ grid kept) from the most likely
   particle and ``votes`` − 1 more drawn by weight; every distinct plan is scored by its
   success under the belief (the belief's particles pushed through the plan's turns and
@@ -89,7 +89,7 @@ def goal_intervals(pos, heading_deg, D, cell_box, goal_heading_deg: float, delta
     cell_box : (x0, y0, x1, y1) the goal cell's square [m]
     goal_heading_deg, delta_deg : a particle whose heading is more than Δ/2 from the goal
                                   heading gets no interval
-    slides : (n,) bool, optional   flights that slide on from their first contact (§23): the
+    slides : (n,) bool, optional   flights that slide on from their first contact (§9): the
                                   robot does not stop there, so the flight never lands in the
                                   cell (b <= D)
 
@@ -131,7 +131,7 @@ def final_drive(pos, heading_deg, D, w, cell_box, goal_heading_deg: float, delta
     that weight, then the weighted depth. Candidates: the ends of every particle's interval
     in the cell (:func:`goal_intervals`), their midpoints, and every flight's point nearest
     the cell's centre. ``slides`` (n,) bool: flights that slide on from their first contact
-    (§23); such a particle counts only for drives up to its D (it does not stop at D).
+    (§9); such a particle counts only for drives up to its D (it does not stop at D).
 
     Returns (d, mass): mass is the weight whose end point lies in the cell at all; nothing
     in the cell gives (0, 0).
@@ -173,7 +173,7 @@ def final_drive(pos, heading_deg, D, w, cell_box, goal_heading_deg: float, delta
 @dataclass(frozen=True)
 class Candidate:
     """A plan from one particle's pose: fly, then turn by each angle and fly, then the
-    final drive on the last flight (docs/model.md §22).
+    final drive on the last flight (docs/model.md §15).
 
     Attributes
     ----------
@@ -181,7 +181,7 @@ class Candidate:
     flights : tuple of float   expected flights from the planned-from pose [m] (the first
                                is the current flight: 0 right after a bump)
     final_m : float            the plan's own final drive [m]
-    cost : float               §15's cost
+    cost : float               §13's cost
     p_success : float          estimated success under the belief (nan: not scored)
     """
 
@@ -194,7 +194,7 @@ class Candidate:
 
 class FeedbackNavigator:
     """Chooses bouncing angles and the final drive from a :class:`ParticleFilter`'s belief
-    (docs/model.md §22).
+    (docs/model.md §15).
 
     Parameters
     ----------
@@ -202,7 +202,7 @@ class FeedbackNavigator:
     angles : sequence of float   bouncing angles Φ [deg]
     goal : int                   goal configuration z
     config : FeedbackConfig
-    w1, w2 : float               §15's weights
+    w1, w2 : float               §13's weights
     """
 
     def __init__(self, cells: CellSpace, angles, goal: int, config: FeedbackConfig | None = None,
@@ -221,14 +221,14 @@ class FeedbackNavigator:
 
     # ------------------------------------------------------------------ planning
     def plan_from(self, x: float, y: float, heading_deg: float) -> Candidate | None:
-        """§15's cheapest plan from a pose whose heading may lie off the Δ grid: the offset
+        """§13's cheapest plan from a pose whose heading may lie off the Δ grid: the offset
         ε = heading − kΔ is kept on every later heading (turns are multiples of Δ), so the
         flights are cast at kΔ + ε. The first flight is the current one (0 right after a
         bump). None when the goal is not reached.
 
         With turn noise (``edge_guard`` · turn spread = g > 0), a flight after a turn is not
         taken when the same flight at heading ± g bumps at once: it runs along a wall the
-        robot touches, a knife edge (§19) that a few degrees of turn error close.
+        robot touches, a knife edge (§10) that a few degrees of turn error close.
         """
         plans = self.plans_from(x, y, heading_deg, 0.0)
         return plans[0] if plans else None
@@ -239,7 +239,7 @@ class FeedbackNavigator:
         (one per settled state whose flight reaches the goal, distinct angle sequences
         only), cheapest first. ``bumped``: the robot is at a contact, the first flight is 0.
         With ``config.guided`` (and ``guided``) the search is guided by the cost to go
-        (§22) and its plans need not be the cheapest.
+        (§15) and its plans need not be the cheapest.
         """
         if self.cfg.reference:
             plans = search_reference(self, x, y, heading_deg, slack, bumped)
@@ -313,14 +313,14 @@ class FeedbackNavigator:
         """Whether, after the plan's last turn, the robot makes the final drive (the belief
         puts ``mass`` in the goal cell, :meth:`final`) or flies on to the next bump and
         decides again: it stops when ``mass`` > 0 and ``mass`` >= ``final_min``, or when
-        ``last`` (the bump budget allows no other try) and ``mass`` > 0 (§22).
+        ``last`` (the bump budget allows no other try) and ``mass`` > 0 (§15).
         """
         return mass > 0 and (mass >= self.cfg.final_min or last)
 
     def localizing_angle(self, belief: ParticleFilter, n: int = 400,
                          bin_m: float = 0.05) -> float:
         """The bouncing angle whose next reading tells most about where the robot is (an
-        unknown start, §22): ``n`` particles drawn by weight each predict the reading after
+        unknown start, §15): ``n`` particles drawn by weight each predict the reading after
         turning by each angle (the flight's distance in bins of ``bin_m`` [m] and the side
         it closes); the angle whose predicted readings are the most spread (the largest
         entropy, i.e. the most information for a nearly exact sensor) wins; ties: the first.
@@ -356,7 +356,7 @@ class FeedbackNavigator:
         :meth:`score` on ``eval_particles`` drawn from the belief (all at once,
         :meth:`scores`). Ties keep the cheaper plan.
         ``bumped``: the robot is at a contact (plans start with a turn); ``shift`` [deg]: the
-        next turn is commanded ``shift`` short of its angle (heading correction, §22), so
+        next turn is commanded ``shift`` short of its angle (heading correction, §15), so
         plans and scores see every heading less ``shift``.
         """
         cfg = self.cfg

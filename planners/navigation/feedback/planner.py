@@ -1,9 +1,9 @@
-"""The feedback planner (``"feedback"``, docs/model.md §22): the registry's closed-loop
+"""The feedback planner (``"feedback"``, docs/model.md §15): the registry's closed-loop
 planner.
 
 :class:`FeedbackPlanner` has the :class:`~planners.navigation.base.Planner` shape. Its
 ``plan(start, goal)`` is the plan the navigator would fly from a known start before any
-bump (the cheapest exact plan from the start pose, §22 "Planning from a pose"); its
+bump (the cheapest exact plan from the start pose, §15 "Planning from a pose"); its
 ``policy(start, goal)`` is a :class:`FeedbackPolicy`, which
 :func:`bouncesim.runs.execute.execute` runs: a particle filter re-plans after every bump.
 
@@ -47,8 +47,8 @@ DEFAULT_MAX_BUMPS = 40
 
 def declared_sigma(noise) -> float:
     """The turn noise σ [deg] the filter assumes for a noise model: a Gaussian's σ, the
-    standard deviation of the §7 model's offsets, 0 for exact turns; a number is σ itself;
-    a spec string is parsed (:func:`planners.noise.parse_noise_spec`; a §7 spec needs its
+    standard deviation of the §11 model's offsets, 0 for exact turns; a number is σ itself;
+    a spec string is parsed (:func:`planners.noise.parse_noise_spec`; a §11 spec needs its
     quantum, so give the body's noise model instead).
 
     >>> from planners.noise import TurnNoise
@@ -88,7 +88,7 @@ class FeedbackPolicy:
         Start configuration or pose [m, m, deg]: the belief starts there and simulators are
         placed there; None: the caller's ``execute(start=...)``, and when that is None too
         the start is unknown: the belief starts anywhere (in ``region``), the body where it
-        is, and the robot first turns angles that localize (§22).
+        is, and the robot first turns angles that localize (§15).
     region : (x0, y0, x1, y1) or None
         An unknown start's box [m] (default: the whole room).
     max_bumps : int                 give up after this many bumps
@@ -105,20 +105,20 @@ class FeedbackPolicy:
 
 
 class FeedbackPlanner:
-    """Feedback navigation (``"feedback"``, docs/model.md §22) as a registry planner.
+    """Feedback navigation (``"feedback"``, docs/model.md §15) as a registry planner.
 
     Parameters
     ----------
     cells : CellSpace
     angles : sequence of float      bouncing angles Φ [deg]
-    w1, w2 : float                  §15's weights
+    w1, w2 : float                  §13's weights
     noise : noise model, TurnNoise, float, spec or None
         The declared turn noise: the filter's motion model (:func:`declared_sigma`); not
         applied to the robot, which brings its own. None: exact turns.
     rng : numpy.random.Generator    the filter's and the decision rule's draws (needed to
                                     run a policy; ``plan`` draws nothing)
     contact : ContactParams, None or "auto"
-        The contact rule of the filter's motion model and the plan search (§22, §23).
+        The contact rule of the filter's motion model and the plan search (§15, §9).
         "auto": ``config.contact`` when set, else the executing body's (resolved when the
         policy runs: :func:`bouncesim.runs.feedback.body_contact`); None: the front-half
         bumper.
@@ -157,7 +157,7 @@ class FeedbackPlanner:
         return FeedbackNavigator(self.cells, self.angles, goal, cfg, self.w1, self.w2)
 
     def plan(self, start: int, goal: int) -> Route | None:
-        """The plan from the start configuration's pose before any bump (§22 "Planning from
+        """The plan from the start configuration's pose before any bump (§15 "Planning from
         a pose"; the body's contact rule unknown here: ``contact`` or ``config.contact``).
         Its poses are the straight flights' ends. None: no plan from the start.
         """

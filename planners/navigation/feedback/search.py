@@ -1,5 +1,5 @@
-"""The feedback planner's search from one pose (docs/model.md §22, "Planning from a pose"):
-§15's search rooted at a particle's pose, with the heading's offset from the Δ grid kept.
+"""The feedback planner's search from one pose (docs/model.md §15, "Planning from a pose"):
+§13's search rooted at a particle's pose, with the heading's offset from the Δ grid kept.
 
 Two implementations of the same search, with the same states, the same order of
 expansion and the same floating-point arithmetic, so they return the same plans:
@@ -17,14 +17,14 @@ expansion and the same floating-point arithmetic, so they return the same plans:
   whenever the flight's bounding box meets the goal cell): the tests and
   ``benchmarks/bench_feedback.py`` check :func:`search` against it.
 
-With a contact rule (``FeedbackConfig.contact``, docs/model.md §23) both continue a flight
-whose contact lies outside the bumper arc along its slide to the bump, as §15's planner does
+With a contact rule (``FeedbackConfig.contact``, docs/model.md §9) both continue a flight
+whose contact lies outside the bumper arc along its slide to the bump, as §13's planner does
 (:func:`envs.contact.slide_on`): the flight costs and expects its clock length and lands at
 the bump; goal arrivals stay on the straight part.
 
 Both return ``(angles, flights, final_m, cost)`` tuples, cheapest first, which
 :class:`planners.navigation.feedback.FeedbackNavigator` turns into candidates. :func:`search` with a
-``guide`` (:func:`cost_to_go`) is the guided search of §22, a different rule (off by
+``guide`` (:func:`cost_to_go`) is the guided search of §15, a different rule (off by
 default): it returns plans that need not be the cheapest.
 """
 
@@ -136,7 +136,7 @@ class ScalarWalls:
         over the sides ``dsides`` (with their :meth:`directions` terms for this heading) and
         the corners ``verts``; with ``near``, those within r + NEAR_M of (x, y) (else empty);
         cos b of the contact's bearing b on the first feature met (1 when none): a contact
-        with cos b >= sin β lies inside the bumper arc of a contact rule (§23).
+        with cos b >= sin β lies inside the bumper arc of a contact rule (§9).
         """
         r, lim = self.r, self.r + NEAR_M
         best, ns, nv, cos_b = math.inf, [], [], 1.0
@@ -230,7 +230,7 @@ def search(fnav, x: float, y: float, heading_deg: float, slack: float,
 
     ``guide`` (nested lists [bin][k][angle] of :func:`cost_to_go`): the states are taken in
     the order of their cost plus the guide's cost to go (plus ``UNGUIDED`` where it is
-    infinite) instead of §15's distance bound: few states are settled, and the first
+    infinite) instead of §13's distance bound: few states are settled, and the first
     arrivals found end the search (not necessarily the cheapest plan).
     """
     cs, nav = fnav.cells, fnav.nav
@@ -393,7 +393,7 @@ def search_reference(fnav, x: float, y: float, heading_deg: float, slack: float,
 
 
 def cost_to_go(fnav, fracs=(0.25, 0.75)) -> np.ndarray:
-    """(bins, K, m) §15's cost from each contact state (bin, heading k, last angle) to the
+    """(bins, K, m) §13's cost from each contact state (bin, heading k, last angle) to the
     goal on the grid headings (ε = 0), every state flown from points of its bin (at
     ``fracs`` of its length; the cheaper counts); inf where the goal is not reached.
 
