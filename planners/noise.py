@@ -1,4 +1,4 @@
-"""The rotation noise of a bump turn (docs/model.md §7, §18), validated once and shared by every
+"""The rotation noise of a bump turn (docs/model.md §11, §11a), validated once and shared by every
 model.
 
 A bump turn commanded as φ is exact with probability r; otherwise it is off by δ, drawn
@@ -18,7 +18,7 @@ the robot keeps its heading and bumps again at once (a valid self-loop); if 2ε 
 ...                                     delta_deg=1).tolist()))
 [88.0, 89.0, 91.0, 92.0]
 
-Gaussian turn noise (docs/model.md §18): the turn is φ + N(0, σ²), on the K grid the Gaussian
+Gaussian turn noise (docs/model.md §11a): the turn is φ + N(0, σ²), on the K grid the Gaussian
 integrated over each orientation bin, Φ((j + ½)Δ/σ) − Φ((j − ½)Δ/σ) for j steps:
 
 >>> g = TurnNoise.gauss(1.0)
@@ -37,6 +37,22 @@ bodies of :mod:`bouncesim.robots.noise`): :func:`parse_noise_spec`.
 NoiseSpec(kind='model', noise=TurnNoise(eps_deg=5.0, r=0.8, sigma_deg=0.0), delta_deg=None)
 >>> parse_noise_spec("gauss:sigma=2").noise, parse_noise_spec("off").kind
 (TurnNoise(eps_deg=0.0, r=1.0, sigma_deg=2.0), 'none')
+
+Every kind also takes the turn keys (:data:`TURN_KEYS`): a turn's constant factor f unknown
+within 1 ± S (``scale=S``) and constant offset b unknown within ±B [deg] (``bias=B``), which a
+planner or filter declares; or a simulated body's known ones (``factor=F``, ``offset=O``):
+
+>>> n = parse_noise_spec("gauss:2,scale=0.1").noise
+>>> n, str(n), n.exact
+(TurnNoise(eps_deg=0.0, r=1.0, sigma_deg=2.0, scale=0.1), 'gauss:2,scale=0.1', False)
+>>> parse_noise_spec("none:factor=1.08")
+NoiseSpec(kind='none', noise=TurnNoise(eps_deg=0.0, r=1.0, sigma_deg=0.0), delta_deg=None, \
+factor=1.08)
+>>> n.support(360)
+Traceback (most recent call last):
+...
+envs.errors.UserError: the coverage models assume an unbiased turn; scale and bias are for \
+navigation (got gauss:2,scale=0.1).
 """
 
 from __future__ import annotations
@@ -52,8 +68,8 @@ from envs import UserError
 
 from .cells import angle_steps
 
-__all__ = ["NOISE_FORMS", "NoiseSpec", "NoiseView", "R_RESOLUTION", "TurnNoise",
-           "as_commands", "parse_noise_spec"]
+__all__ = ["NOISE_FORMS", "NoiseSpec", "NoiseView", "R_RESOLUTION", "SCALE_MAX", "TURN_KEYS",
+           "TurnNoise", "as_commands", "parse_noise_spec", "spec_text"]
 
 
 def as_commands(commanded, n: int | None) -> np.ndarray:
@@ -75,6 +91,9 @@ def _fmt(x: float) -> str:
 R_RESOLUTION = 1e-9
 """Reliabilities closer than this to 0 or 1 (but not equal) are refused."""
 
+SCALE_MAX = 0.5
+"""The half-range S of an unknown turn factor (``scale=S``) must lie in [0, SCALE_MAX)."""
+
 GAUSS_TAIL = 1e-6
 """Gaussian noise on the K grid: offsets are kept out to the smallest ±M whose two tails
 beyond (M + ½)Δ hold at most this much probability; the kept ones are renormalised."""
@@ -82,9 +101,9 @@ beyond (M + ½)Δ hold at most this much probability; the kept ones are renormal
 
 @dataclass(frozen=True)
 class TurnNoise:
-    """docs/model.md §7 rotation noise: exact with probability ``r``, else off by a uniform non-zero
-    multiple of Δ within ±``eps_deg``; or, with ``sigma_deg`` > 0, the Gaussian noise of
-    docs/model.md §18 (:meth:`gauss`).
+    """docs/model.md §11 rotation noise: exact with probability ``r``, else off by a uniform
+    non-zero multiple of Δ within ±``eps_deg``; or, with ``sigma_deg`` > 0, the Gaussian noise
+    of docs/model.md §11a (:meth:`gauss`).
 
     Parameters
     ----------
@@ -92,18 +111,30 @@ class TurnNoise:
     r : float         reliability in [0, 1]: probability of turning by exactly φ
     sigma_deg : float standard deviation σ [deg] of a Gaussian turn error (default 0: none);
                       σ > 0 requires ε = 0 and r = 1 (one noise kind at a time)
+    scale : float     half-range S of the turn's constant factor f, unknown within 1 ± S for a
+                      whole run (default 0: f = 1); S in [0, 0.5)
+    bias_deg : float  half-range B [deg] of the turn's constant offset b, unknown within ±B for
+                      a whole run (default 0: b = 0); B >= 0
+
+    A run turns by f·φ + b plus the scatter (ε, r or σ). Scale and bias are what a planner or
+    filter declares (navigation); the coverage models assume an unbiased turn and refuse them
+    (:meth:`support`, :meth:`turns`, :meth:`quanta`; :attr:`scatter` drops them). A
+    simulated body draws f and b once per run (:class:`bouncesim.robots.noise.ScaledNoise`).
 
     Bad values raise a one-sentence :class:`envs.UserError` here, once; whether ε is a
-    multiple of Δ = 360°/K is checked where K is known (:meth:`quanta`).
+    multiple of Δ = 360°/K is checked where K is known (:meth:`quanta`). The repr leaves out
+    ``scale`` and ``bias_deg`` when they are 0.
     """
 
     eps_deg: float = 0.0
     r: float = 1.0
     sigma_deg: float = 0.0
+    scale: float = 0.0
+    bias_deg: float = 0.0
 
     @classmethod
     def gauss(cls, sigma_deg: float) -> "TurnNoise":
-        """Gaussian turn noise: the turn is φ + N(0, σ²) [deg] (docs/model.md §18)."""
+        """Gaussian turn noise: the turn is φ + N(0, σ²) [deg] (docs/model.md §11a)."""
         return cls(sigma_deg=sigma_deg)
 
     @classmethod
@@ -119,11 +150,16 @@ class TurnNoise:
         if spec.delta_deg is not None:
             raise UserError(f"noise {text!r} sets delta, the error quantum of a simulated "
                             "body; a coverage model's quantum is its orientation step.")
+        if spec.factor is not None or spec.offset_deg is not None:
+            raise UserError(f"noise {text!r} sets factor or offset, a simulated body's known "
+                            "turn error; a planner declares an unknown one with scale=S and "
+                            "bias=B.")
         return spec.noise
 
     def __post_init__(self) -> None:
         for name, what in (("eps_deg", "error range eps"), ("r", "reliability r"),
-                           ("sigma_deg", "Gaussian noise sigma")):
+                           ("sigma_deg", "Gaussian noise sigma"), ("scale", "turn scale"),
+                           ("bias_deg", "turn bias")):
             v = getattr(self, name)
             try:
                 v = float(v)
@@ -147,27 +183,67 @@ class TurnNoise:
         if self.sigma_deg > 0 and (self.eps_deg != 0 or self.r != 1.0):
             raise UserError("Gaussian noise (sigma) cannot be combined with eps and r; "
                             "give one noise kind.")
+        if not 0.0 <= self.scale < SCALE_MAX:
+            raise UserError(f"turn scale S (the factor's unknown half-range) must lie in "
+                            f"[0, {SCALE_MAX:g}), got {_fmt(self.scale)}.")
+        if self.bias_deg < 0:
+            raise UserError(f"turn bias B (the offset's unknown half-range) must be "
+                            f"non-negative, got {_fmt(self.bias_deg)}°.")
+
+    def __repr__(self) -> str:
+        extra = "".join(f", {name}={getattr(self, name)!r}" for name in ("scale", "bias_deg")
+                        if getattr(self, name) != 0)
+        return (f"TurnNoise(eps_deg={self.eps_deg!r}, r={self.r!r}, "
+                f"sigma_deg={self.sigma_deg!r}{extra})")
+
+    @property
+    def unbiased(self) -> bool:
+        """True when the turn has no unknown scale or bias (S = B = 0)."""
+        return self.scale == 0 and self.bias_deg == 0
+
+    @property
+    def scatter(self) -> "TurnNoise":
+        """The scatter alone (ε, r or σ), without the scale and bias.
+
+        >>> TurnNoise(5, 0.8, scale=0.1, bias_deg=2).scatter
+        TurnNoise(eps_deg=5.0, r=0.8, sigma_deg=0.0)
+        """
+        return self if self.unbiased else TurnNoise(self.eps_deg, self.r, self.sigma_deg)
 
     @property
     def exact(self) -> bool:
-        """True when no turn is ever perturbed (σ = 0, and ε = 0 or r = 1)."""
+        """True when no turn is ever perturbed (σ = 0, ε = 0 or r = 1, and S = B = 0)."""
+        return self._scatter_exact and self.unbiased
+
+    @property
+    def _scatter_exact(self) -> bool:
         return self.sigma_deg == 0 and (self.eps_deg == 0 or self.r == 1.0)
+
+    def _refuse_bias(self) -> None:
+        if not self.unbiased:
+            raise UserError("the coverage models assume an unbiased turn; scale and bias are "
+                            f"for navigation (got {self}).")
 
     @property
     def gaussian(self) -> bool:
-        """True for Gaussian noise (σ > 0): headings leave the Δ grid (docs/model.md §18)."""
+        """True for Gaussian noise (σ > 0): headings leave the Δ grid (docs/model.md §11a)."""
         return self.sigma_deg > 0
 
     def __str__(self) -> str:
         if self.gaussian:
-            return f"gauss:{_fmt(self.sigma_deg)}"
-        return "none" if self.exact else f"model:eps={_fmt(self.eps_deg)},r={_fmt(self.r)}"
+            base = f"gauss:{_fmt(self.sigma_deg)}"
+        else:
+            base = ("none" if self._scatter_exact
+                    else f"model:eps={_fmt(self.eps_deg)},r={_fmt(self.r)}")
+        return spec_text(base, scale=self.scale, bias_deg=self.bias_deg)
 
     # ------------------------------------------------------------------ support over K
     def quanta(self, K: int | None = None, *, delta_deg: float | None = None) -> int:
         """ε / Δ at K orientations (Δ = 360°/K), or for an error quantum ``delta_deg`` [deg]
-        (UserError unless ε is a whole multiple of Δ, below 360° for K).
+        (UserError unless ε is a whole multiple of Δ, below 360° for K; and with a scale or
+        bias, which the coverage models do not model).
         """
+        self._refuse_bias()
         if K is not None:
             return angle_steps(self.eps_deg, K, what="error range eps", allow_zero=True)
         if delta_deg is None:
@@ -180,9 +256,11 @@ class TurnNoise:
         orientations or for the quantum ``delta_deg`` (see :meth:`quanta`).
 
         Zero-probability offsets (r = 1 with ε > 0, or r = 0) are kept. Gaussian noise: the
-        discretised Gaussian of docs/model.md §18 (offsets ±M, tails beyond ±(M + ½)Δ of at
-        most :data:`GAUSS_TAIL` dropped and the rest renormalised).
+        discretised Gaussian of docs/model.md §11a (offsets ±M, tails beyond ±(M + ½)Δ of at
+        most :data:`GAUSS_TAIL` dropped and the rest renormalised). A scale or bias is
+        refused (UserError): the coverage models assume an unbiased turn.
         """
+        self._refuse_bias()
         if self.gaussian:
             delta = 360.0 / K if K is not None else delta_deg
             if delta is None:
@@ -194,8 +272,10 @@ class TurnNoise:
               ) -> tuple[np.ndarray, np.ndarray]:
         """Turns of one bump commanded as ``angle_deg`` (a multiple of Δ in (0°, 360°)):
         (φ + δ)/Δ mod K [orientation steps] and their probabilities, one per offset of
-        :meth:`support`; with ``positive`` only those with positive probability.
+        :meth:`support`; with ``positive`` only those with positive probability (a scale or
+        bias is refused, as by :meth:`support`).
         """
+        self._refuse_bias()
         s = angle_steps(angle_deg, K)
         d, p = self.support(K)
         steps = (s + d) % K
@@ -211,8 +291,14 @@ class TurnNoise:
         one per array element. Randomness comes only from ``rng``.
 
         ``delta_deg`` is the error quantum Δ [deg] (the environment's 360°/K); ε must be a
-        multiple of it.
+        multiple of it. A scale or bias is refused (UserError): the draws here are independent
+        turns, while f and b are constant over a run (a simulated body draws them:
+        :class:`bouncesim.robots.noise.ScaledNoise`).
         """
+        if not self.unbiased:
+            raise UserError(f"TurnNoise.sample draws independent turns, not a run's constant "
+                            f"scale and bias (got {self}); sample the scatter or the body's "
+                            f"noise model (bouncesim.robots.noise.parse_noise).")
         c = as_commands(commanded_deg, n)
         if self.gaussian:
             return c + rng.normal(0.0, self.sigma_deg, size=c.shape)
@@ -234,7 +320,7 @@ def _support(m: int, r: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _gauss_support(sigma: float, delta: float) -> tuple[np.ndarray, np.ndarray]:
-    """Offsets −M … M [quanta] and Φ((j + ½)Δ/σ) − Φ((j − ½)Δ/σ), renormalised (§18)."""
+    """Offsets −M … M [quanta] and Φ((j + ½)Δ/σ) − Φ((j − ½)Δ/σ), renormalised (§11a)."""
     if not (math.isfinite(delta) and delta > 0):
         raise UserError(f"the noise quantum delta must be positive, got {delta:g}°.")
     z = -float(ndtri(GAUSS_TAIL / 2))                    # 2·(1 − Φ(z)) = GAUSS_TAIL
@@ -272,8 +358,31 @@ class NoiseView:
         return self.noise.r
 
 
-NOISE_FORMS = "use none, gauss:SIGMA or model:eps=E,r=R (degrees)"
+TURN_KEYS = ("scale", "bias", "factor", "offset")
+"""The keys every kind of noise spec takes after its own (:func:`parse_noise_spec`)."""
+
+NOISE_FORMS = ("use none, gauss:SIGMA or model:eps=E,r=R (degrees), each optionally followed "
+               "by scale=S,bias=B (a turn factor unknown within 1 ± S, 0 <= S < 0.5, and an "
+               "offset unknown within ±B degrees) or factor=F,offset=O (a simulated body's "
+               "known ones), e.g. gauss:2,scale=0.1 or none:factor=1.08")
 """The accepted forms, as error messages name them."""
+
+
+def spec_text(base: str, *, scale: float = 0.0, bias_deg: float = 0.0,
+              factor: float | None = None, offset_deg: float | None = None) -> str:
+    """A noise spec's text: ``base`` (``none``, ``gauss:SIGMA`` or ``model:eps=E,r=R``) with
+    the turn keys that are set (non-zero scale and bias, given factor and offset).
+
+    >>> spec_text("gauss:2", scale=0.1), spec_text("none", factor=0.92, offset_deg=1)
+    ('gauss:2,scale=0.1', 'none:factor=0.92,offset=1')
+    """
+    keys = [f"{k}={_fmt(v)}" for k, v, use in (
+        ("scale", scale, scale != 0), ("bias", bias_deg, bias_deg != 0),
+        ("factor", factor, factor is not None), ("offset", offset_deg, offset_deg is not None))
+        if use]
+    if not keys:
+        return base
+    return base + (":" if ":" not in base else ",") + ",".join(keys)
 
 
 @dataclass(frozen=True)
@@ -283,61 +392,135 @@ class NoiseSpec:
     Attributes
     ----------
     kind : str            ``"none"``, ``"gauss"`` or ``"model"`` (the word the spec used)
-    noise : TurnNoise     the turn noise
+    noise : TurnNoise     the turn noise (with the declared ``scale`` and ``bias_deg``)
     delta_deg : float or None
         ``model`` only: the error quantum Δ [deg] the spec sets (``delta=D``); None: the
         environment's 360°/K
+    factor : float or None
+        A simulated body's known turn factor F (``factor=F``); None: none given (1, or
+        unknown within the noise's scale)
+    offset_deg : float or None
+        A simulated body's known turn offset O [deg] (``offset=O``); None: none given
+
+    The repr leaves out ``factor`` and ``offset_deg`` when they are None; ``str()`` is the
+    spec in the grammar.
     """
 
     kind: str
     noise: TurnNoise
     delta_deg: float | None = None
+    factor: float | None = None
+    offset_deg: float | None = None
+
+    def __repr__(self) -> str:
+        extra = "".join(f", {name}={getattr(self, name)!r}" for name in ("factor", "offset_deg")
+                        if getattr(self, name) is not None)
+        return (f"NoiseSpec(kind={self.kind!r}, noise={self.noise!r}, "
+                f"delta_deg={self.delta_deg!r}{extra})")
+
+    def __str__(self) -> str:
+        n = self.noise
+        if self.kind == "model":
+            base = f"model:eps={_fmt(n.eps_deg)},r={_fmt(n.r)}"
+            if self.delta_deg is not None:
+                base += f",delta={_fmt(self.delta_deg)}"
+        elif self.kind == "gauss":
+            base = f"gauss:{_fmt(n.sigma_deg)}"
+        else:
+            base = "none"
+        return spec_text(base, scale=n.scale, bias_deg=n.bias_deg, factor=self.factor,
+                         offset_deg=self.offset_deg)
 
 
 _KINDS = {"": "none", "none": "none", "off": "none", "exact": "none",
           "gauss": "gauss", "gaussian": "gauss", "normal": "gauss",
           "model": "model", "stepped": "model"}
 
+_OWN_KEYS = {"none": (), "gauss": ("sigma",), "model": ("eps", "r", "delta")}
+
 
 def parse_noise_spec(text) -> NoiseSpec:
     """A noise spec in the one grammar, parsed (case and spaces ignored).
 
-
     - ``none`` (also ``off``, ``exact`` or empty): exact turns;
     - ``gauss:SIGMA`` (also ``gauss:sigma=SIGMA``; ``gaussian``, ``normal``): Gaussian turn
-      noise N(0, σ²) [deg] (docs/model.md §18);
-    - ``model:eps=E,r=R`` (also ``stepped:``), optionally ``,delta=D``: the §7 model with
+      noise N(0, σ²) [deg] (docs/model.md §11a);
+    - ``model:eps=E,r=R`` (also ``stepped:``), optionally ``,delta=D``: the §11 model with
       error range ε [deg] and reliability r; D [deg] sets a simulated body's error quantum
       (default: the environment's Δ = 360°/K).
 
+    Every kind then takes the turn keys (:data:`TURN_KEYS`), comma-separated after its own
+    (keys in any order; ``none`` takes them after a colon or a comma: ``none:factor=1.08``,
+    ``none,factor=1.08``): ``scale=S`` (the turn's constant factor f unknown within 1 ± S,
+    0 <= S < 0.5) and ``bias=B`` (its constant offset b unknown within ±B [deg], B >= 0), in
+    :attr:`NoiseSpec.noise`; or a simulated body's known ``factor=F`` (F > 0) and
+    ``offset=O`` [deg], in :attr:`NoiseSpec.factor` and :attr:`NoiseSpec.offset_deg` (not
+    together with scale, respectively bias). E.g. ``gauss:2,scale=0.1``,
+    ``gauss:sigma=2,scale=0.1,bias=1``, ``model:eps=5,r=0.8,scale=0.05``,
+    ``gauss:0,factor=1.08``.
+
     Raises :class:`envs.UserError` (one sentence naming the accepted forms) on anything else.
+
+    >>> parse_noise_spec("model:eps=5,r=0.8,delta=1,bias=2,factor=0.92")
+    NoiseSpec(kind='model', noise=TurnNoise(eps_deg=5.0, r=0.8, sigma_deg=0.0, bias_deg=2.0), \
+delta_deg=1.0, factor=0.92)
+    >>> parse_noise_spec("gauss:2,scale=0.1,factor=1.1")           # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    envs.errors.UserError: noise 'gauss:2,scale=0.1,factor=1.1' gives both scale (an unknown \
+turn factor) and factor (a known one); give one of them: use none, ...
     """
     s = str(text).strip().lower().replace(" ", "")
-    word, colon, rest = s.partition(":")
+    cut = min((i for i in (s.find(":"), s.find(",")) if i >= 0), default=len(s))
+    word, sep, rest = s[:cut], s[cut:cut + 1], s[cut + 1:]
     kind = _KINDS.get(word)
-    if kind is None or (kind == "none" and colon):
+    if kind is None or (sep == "," and kind != "none") or \
+            (kind == "none" and sep and not (word and rest)):
         raise UserError(f"unknown noise {text!r}; {NOISE_FORMS}.")
-    if kind == "none":
-        return NoiseSpec("none", TurnNoise())
-    if kind == "gauss":
-        try:
-            sigma = float(rest.removeprefix("sigma="))
-        except ValueError:
-            raise UserError(f"noise {text!r} needs a number of degrees after '{word}:'; "
-                            f"{NOISE_FORMS}.") from None
-        return NoiseSpec("gauss", TurnNoise.gauss(sigma))
+    allowed = _OWN_KEYS[kind] + TURN_KEYS
     params: dict = {}
-    for tok in rest.split(","):
+    for i, tok in enumerate(rest.split(",") if (rest or kind != "none") else ()):
         key, eq, val = tok.partition("=")
-        if not eq or key not in {"eps", "r", "delta"} or key in params:
+        if not eq and kind == "gauss" and i == 0:
+            key, val = "sigma", tok                       # gauss:SIGMA
+        elif not eq or key not in allowed:
             raise UserError(f"noise {text!r} is not understood; {NOISE_FORMS}.")
+        if key in params:
+            raise UserError(f"noise {text!r} gives {key} twice; {NOISE_FORMS}.")
         try:
             params[key] = float(val)
         except ValueError:
-            raise UserError(f"noise parameter {key} in {text!r} is not a number.") from None
-    if not {"eps", "r"} <= set(params):
+            if key == "sigma":
+                raise UserError(f"noise {text!r} needs a number of degrees after '{word}:'; "
+                                f"{NOISE_FORMS}.") from None
+            raise UserError(f"noise parameter {key} in {text!r} is not a number; "
+                            f"{NOISE_FORMS}.") from None
+    if kind == "gauss" and "sigma" not in params:
+        raise UserError(f"noise {text!r} needs a number of degrees after '{word}:'; "
+                        f"{NOISE_FORMS}.")
+    if kind == "model" and not {"eps", "r"} <= set(params):
         raise UserError(f"noise {text!r} needs both eps and r; {NOISE_FORMS}.")
     delta = params.get("delta")
     if delta is not None and not (math.isfinite(delta) and delta > 0):
         raise UserError(f"the noise quantum delta must be positive, got {delta:g}°.")
-    return NoiseSpec("model", TurnNoise(params["eps"], params["r"]), delta)
+    for unknown, known in (("scale", "factor"), ("bias", "offset")):
+        if unknown in params and known in params:
+            raise UserError(f"noise {text!r} gives both {unknown} (an unknown turn {known}) "
+                            f"and {known} (a known one); give one of them: {NOISE_FORMS}.")
+    scale, bias = params.get("scale", 0.0), params.get("bias", 0.0)
+    if not 0.0 <= scale < SCALE_MAX:
+        raise UserError(f"the turn scale S must lie in [0, {SCALE_MAX:g}), got {scale:g}; "
+                        f"{NOISE_FORMS}.")
+    if not (math.isfinite(bias) and bias >= 0):
+        raise UserError(f"the turn bias B must be a non-negative number of degrees, got "
+                        f"{bias:g}; {NOISE_FORMS}.")
+    factor, offset = params.get("factor"), params.get("offset")
+    if factor is not None and not (math.isfinite(factor) and factor > 0):
+        raise UserError(f"the turn factor F must be a positive number, got {factor:g}; "
+                        f"{NOISE_FORMS}.")
+    if offset is not None and not math.isfinite(offset):
+        raise UserError(f"the turn offset O must be a finite number of degrees, got "
+                        f"{offset:g}; {NOISE_FORMS}.")
+    noise = TurnNoise(params.get("eps", 0.0), params.get("r", 1.0), params.get("sigma", 0.0),
+                      scale, bias)
+    return NoiseSpec(kind, noise, delta, factor, offset)

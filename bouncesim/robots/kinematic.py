@@ -1,4 +1,4 @@
-"""The kinematic twin: exact continuous geometry, simulated time (docs/model.md §8-9).
+"""The kinematic twin: exact continuous geometry, simulated time (docs/model.md §8, §21).
 
 The robot is a disk of radius r moving inside the C-space (E eroded by r). Everything about
 how it moves, stops and is counted comes from the motion layer :mod:`envs.motion`, which
@@ -11,7 +11,7 @@ Two bodies use it:
   advances the pose under the current wheel command, ``drive_until_bump`` jumps straight to
   the contact (or the timeout), ``turn`` is exact plus a seeded noise sample.
 - :class:`KinematicBatch`, thousands of independent robots stepped at once under the
-  docs/model.md §9 step semantics, for Monte-Carlo coverage.
+  docs/model.md §8 step semantics, for Monte-Carlo coverage.
 
 Contact conventions (shared by both)
 ------------------------------------
@@ -29,7 +29,7 @@ Contact conventions (shared by both)
   β < −10° the right one. A contact behind the centre line (driving backwards into a wall) is
   not a bump: the robot stalls there, its clock runs on and the bumper stays open.
 - Opt-in (``KinematicRobot(contact=...)``, ``KinematicBatch(..., contact=...)``): the contact
-  rule of :mod:`envs.contact` (docs/model.md §23, shared with the event model): contacts met
+  rule of :mod:`envs.contact` (docs/model.md §9, shared with the event model): contacts met
   below the incidence β do not press the bumper; the body slides along the wall.
   ``glance_deg=g`` is the same rule with β = 90° − g and no friction. The default keeps the
   front-half bumper above.
@@ -109,8 +109,8 @@ class KinematicRobot(Robot):
         Accepted for parity with the PyBullet robot; in the twin both are exact (the wheels
         turn by exactly the commanded arc) and take the same time.
     contact : envs.motion.ContactParams, optional
-        Opt-in contact rule (docs/model.md §23, :mod:`envs.contact`). Default None: every
-        contact on the front half stops the robot and closes the bumper (the docs/model.md §8
+        Opt-in contact rule (docs/model.md §9, :mod:`envs.contact`). Default None: every
+        contact on the front half stops the robot and closes the bumper (the docs/model.md §21
         twin). With β = ``contact.beta_deg``, a wall met at incidence below β does not press
         the bumper: the body slides along the wall (heading kept, speed
         v·(cos α − μ sin α) along it; around a corner it wraps on the corner's circle until it
@@ -362,7 +362,7 @@ class KinematicRobot(Robot):
 # ============================================================================ many robots
 @dataclass(frozen=True)
 class BatchCoverage:
-    """Step-sampled visit histogram of a batch run (docs/model.md §9).
+    """Step-sampled visit histogram of a batch run (docs/model.md §22).
 
     Attributes
     ----------
@@ -398,7 +398,7 @@ class BatchCoverage:
 
 
 class KinematicBatch:
-    """Many independent kinematic robots stepped together (docs/model.md §9 step semantics).
+    """Many independent kinematic robots stepped together (docs/model.md §8 step semantics).
 
     A step (the step rule, :func:`envs.motion.step`): if the wall ahead is at least h away,
     move h forward (counted in the cell where the step starts); otherwise move to contact,
@@ -418,7 +418,7 @@ class KinematicBatch:
     starts : (n_robots,) int array, optional
         Start configurations z (default: drawn uniformly from the N configurations).
     contact : envs.motion.ContactParams, optional
-        The contact rule of docs/model.md §23 (default None: the front-half bumper). A step
+        The contact rule of docs/model.md §9 (default None: the front-half bumper). A step
         is then h of clock: a robot that slides covers h·f of wall in it, and a step is a bump
         step when its bump comes more than STEP_TOL before the clock's h.
 
@@ -431,7 +431,7 @@ class KinematicBatch:
     Notes
     -----
     Starts are uniform over the N free configurations: the centre of position cell p facing
-    θ_k, (p, k) drawn uniformly (as docs/model.md §7 starts the chain).
+    θ_k, (p, k) drawn uniformly (as docs/model.md §16 starts the chain).
 
     Examples
     --------
@@ -493,10 +493,10 @@ class KinematicBatch:
                              for (x, y), (a, b) in zip(self.pos.tolist(), u.tolist())])
         else:
             free = self.local.cast(self.pos, u)
-        move, bumped = step(drive_distance(free), self.h)     # docs/model.md §9
+        move, bumped = step(drive_distance(free), self.h)     # docs/model.md §8
         counted = self.cell_of(self.pos)
         self.pos += move[:, None] * u
-        if self.contact is not None and bumped.any():         # slides: docs/model.md §23
+        if self.contact is not None and bumped.any():         # slides: docs/model.md §9
             self._slide(bumped, move, u)
         if bumped.any():
             idx = np.flatnonzero(bumped)
@@ -526,11 +526,11 @@ class KinematicBatch:
         Parameters
         ----------
         policy : float or PolicyMix
-            One bouncing angle [deg], or a mix time-shared in epochs (docs/model.md §8): every robot
-            draws, independently, one angle with probabilities α per epoch.
+            One bouncing angle [deg], or a mix time-shared in epochs (docs/model.md §21): every
+            robot draws, independently, one angle with probabilities α per epoch.
         steps : int          counted steps per robot
         epoch : int          steps per epoch (required for a mix of two or more angles)
-        noise : NoiseModel   rotation noise; default the mix's §7 model (eps, r), else exact
+        noise : NoiseModel   rotation noise; default the mix's §16 model (eps, r), else exact
         burn_in : int        steps run first and not counted
         """
         if isinstance(policy, PolicyMix):
@@ -542,7 +542,7 @@ class KinematicBatch:
         else:
             angles, alpha = np.array([float(policy)]), np.ones(1)
         for a in angles:
-            self.cells.angle_steps(a)                  # a multiple of 360°/K (docs/model.md §5)
+            self.cells.angle_steps(a)                  # a multiple of 360°/K (docs/model.md §7)
         noise = noise if noise is not None else NoNoise()
         mixed = np.count_nonzero(alpha > 0) > 1
         if mixed and (epoch is None or int(epoch) < 1):

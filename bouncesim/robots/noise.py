@@ -1,4 +1,4 @@
-"""Seeded rotation-noise models for simulated turns (docs/model.md §7-8).
+"""Seeded rotation-noise models for simulated turns (docs/model.md §16, §21).
 
 A noise model maps a commanded in-place turn [deg] to the turn the body actually makes.
 Every model is a frozen dataclass with
@@ -13,10 +13,13 @@ seed gives the same turns.
 Models
 ------
 - :class:`NoNoise`: exact turns.
-- :class:`SteppedNoise`: the docs/model.md §7 model. Exact with probability ``r``; otherwise
+- :class:`SteppedNoise`: the docs/model.md §11 model. Exact with probability ``r``; otherwise
   the turn is off by a uniform non-zero multiple of Δ in [−ε, ε]. It is the coverage models'
   :class:`planners.coverage.TurnNoise` at a fixed quantum Δ, and samples through it.
 - :class:`GaussianNoise`: commanded + N(0, σ²).
+- :class:`ScaledNoise`: another model applied to a scaled and offset command, f·φ + b; f and
+  b known (``factor=F``, ``offset=O``) or drawn once per body within 1 ± S and ±B
+  (``scale=S``, ``bias=B``).
 
 Examples
 --------
@@ -30,6 +33,10 @@ Examples
 SteppedNoise(eps_deg=5.0, r=0.8, delta_deg=1.0)
 >>> parse_noise("gauss:2")
 GaussianNoise(sigma_deg=2.0)
+>>> m = parse_noise("gauss:0,factor=1.08")
+>>> m, m.sample(np.random.default_rng(0), 90.0)
+(ScaledNoise(base=GaussianNoise(sigma_deg=0.0), factor=1.08, offset_deg=None, scale=0.0, \
+bias_deg=0.0), 97.2)
 """
 
 from __future__ import annotations
@@ -41,14 +48,14 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from envs import UserError
-from planners.noise import TurnNoise, parse_noise_spec
+from planners.noise import TurnNoise, parse_noise_spec, spec_text
 from planners.noise import as_commands as _commands
 
 if TYPE_CHECKING:
     from planners.plan import PolicyMix
 
-__all__ = ["NoiseModel", "NoNoise", "SteppedNoise", "GaussianNoise", "body_noise",
-           "parse_noise", "noise_for_mix", "noise_and_rng"]
+__all__ = ["NoiseModel", "NoNoise", "SteppedNoise", "GaussianNoise", "ScaledNoise",
+           "body_noise", "parse_noise", "noise_for_mix", "noise_and_rng"]
 
 
 class NoiseModel:
@@ -67,6 +74,11 @@ class NoiseModel:
     def exact(self) -> bool:
         """True when the model never perturbs a turn."""
         return False
+
+    @property
+    def needs_rng(self) -> bool:
+        """True when sampling draws random numbers (default: unless :attr:`exact`)."""
+        return not self.exact
 
 
 @dataclass(frozen=True)
@@ -92,7 +104,7 @@ class NoNoise(NoiseModel):
 
 @dataclass(frozen=True)
 class SteppedNoise(NoiseModel):
-    """The docs/model.md §7 rotation model.
+    """The docs/model.md §11 rotation model.
 
     With probability ``r`` the turn is exact; otherwise it is off by δ drawn uniformly from
     {−ε, …, −Δ, Δ, …, ε} (non-zero multiples of Δ), i.e. each such δ has probability
@@ -144,7 +156,7 @@ class SteppedNoise(NoiseModel):
         return d[order] * self.delta_deg, p[order]
 
     def sample_many(self, rng, commanded, n=None) -> np.ndarray:
-        """Executed turns [deg] for the commanded ones under the §7 model."""
+        """Executed turns [deg] for the commanded ones under the §16 model."""
         return self.turn.sample(rng, commanded, n, delta_deg=self.delta_deg)
 
     def __str__(self) -> str:
@@ -189,29 +201,212 @@ class GaussianNoise(NoiseModel):
         return f"gauss:{self.sigma_deg:g}"
 
 
+@dataclass(frozen=True)
+class ScaledNoise(NoiseModel):
+    """A turn with a constant factor f and offset b [deg]: commanded φ becomes
+    ``base.sample(rng, f·φ + b)``, i.e. the base model's noise is drawn on the scaled and
+    offset command (for Gaussian and exact bases: f·φ + b + δ).
+
+    f and b are known (``factor``, ``offset_deg``) or unknown within 1 ± ``scale`` and
+    ±``bias_deg``: then the body draws them, uniformly, once per rng: at its first turn (or
+    :meth:`draw`), from that rng, factor first, before the base's draw; every later turn with
+    the same rng keeps them. A body's randomness thus comes only from its rng (the same seed
+    gives the same f and b), and one model shared by several bodies (each with its own rng,
+    as :class:`~bouncesim.robots.pybullet.PyBulletBatch` has) gives each its own f and b; the
+    robots of a :class:`~bouncesim.robots.kinematic.KinematicBatch` share one rng, hence one
+    f and b. The model keeps a reference to every rng it drew for.
+
+    Parameters
+    ----------
+    base : NoiseModel        the scatter (default exact turns)
+    factor : float or None   known factor F > 0; None: 1, or drawn within 1 ± ``scale``
+    offset_deg : float or None
+        known offset O [deg]; None: 0, or drawn within ±``bias_deg``
+    scale : float            half-range S in [0, 0.5) of an unknown factor (not with ``factor``)
+    bias_deg : float         half-range B >= 0 [deg] of an unknown offset (not with
+                             ``offset_deg``)
+
+    Examples
+    --------
+    >>> m = parse_noise("gauss:2,scale=0.1")
+    >>> str(m), m.exact, m.drawn_factor
+    ('gauss:2,scale=0.1', False, None)
+    >>> rng = np.random.default_rng(0)
+    >>> x = m.sample_many(rng, 90.0, 3)
+    >>> f = m.drawn_factor; 0.9 <= f <= 1.1 and m.draw(rng) == (f, 0.0)
+    True
+    """
+
+    base: NoiseModel = field(default_factory=NoNoise)
+    factor: float | None = None
+    offset_deg: float | None = None
+    scale: float = 0.0
+    bias_deg: float = 0.0
+    _draws: dict = field(default_factory=dict, init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        if not hasattr(self.base, "sample_many"):
+            raise UserError(f"the base of a scaled turn must be a noise model, got "
+                            f"{self.base!r}.")
+        for name in ("factor", "offset_deg", "scale", "bias_deg"):
+            v = getattr(self, name)
+            if v is None and name in ("factor", "offset_deg"):
+                continue
+            try:
+                v = float(v)
+            except (TypeError, ValueError):
+                raise UserError(f"turn parameter {name} must be a number, got {v!r}.") \
+                    from None
+            if not math.isfinite(v):
+                raise UserError(f"turn parameter {name} must be finite, got {v}.")
+            object.__setattr__(self, name, v)
+        TurnNoise(scale=self.scale, bias_deg=self.bias_deg)      # checks S and B
+        if self.factor is not None and self.factor <= 0:
+            raise UserError(f"the turn factor F must be positive, got {self.factor:g}.")
+        if self.factor is not None and self.scale:
+            raise UserError("a turn factor is either known (factor) or unknown within a scale "
+                            "(scale), not both.")
+        if self.offset_deg is not None and self.bias_deg:
+            raise UserError("a turn offset is either known (offset) or unknown within a bias "
+                            "(bias), not both.")
+
+    @property
+    def _unknown(self) -> bool:
+        return (self.factor is None and self.scale > 0) or \
+            (self.offset_deg is None and self.bias_deg > 0)
+
+    @property
+    def _known(self) -> tuple[float, float]:
+        return (1.0 if self.factor is None else self.factor,
+                0.0 if self.offset_deg is None else self.offset_deg)
+
+    @property
+    def exact(self) -> bool:
+        """True only with f = 1, b = 0 known and an exact base."""
+        return (not self._unknown and self._known == (1.0, 0.0)
+                and bool(getattr(self.base, "exact", False)))
+
+    @property
+    def needs_rng(self) -> bool:
+        """True when f or b is drawn, or the base draws."""
+        return self._unknown or bool(getattr(self.base, "needs_rng",
+                                             not getattr(self.base, "exact", False)))
+
+    def draw(self, rng: np.random.Generator | None) -> tuple[float, float]:
+        """(f, b [deg]) of the body drawing from ``rng``: the known values, or those drawn
+        from ``rng`` at its first call (f ~ U[1 − S, 1 + S], then b ~ U[−B, B]) and kept.
+        """
+        if not self._unknown:
+            return self._known
+        if rng is None:
+            raise UserError("a robot whose turn scale or bias is unknown needs an rng (a numpy "
+                            "Generator or an int seed) to draw it.")
+        got = self._draws.get(id(rng))
+        if got is None:
+            f, b = self._known
+            if self.factor is None and self.scale > 0:
+                f = float(rng.uniform(1.0 - self.scale, 1.0 + self.scale))
+            if self.offset_deg is None and self.bias_deg > 0:
+                b = float(rng.uniform(-self.bias_deg, self.bias_deg))
+            got = self._draws[id(rng)] = (rng, f, b)       # the rng kept: its id stays unique
+        self._draws[None] = got
+        return got[1], got[2]
+
+    def drawn(self, rng: np.random.Generator | None = None) -> tuple[float, float] | None:
+        """(f, b [deg]) of the body drawing from ``rng`` (None: of the body that turned
+        last), without drawing: None before its first turn; the known values when both are
+        known.
+        """
+        if not self._unknown:
+            return self._known
+        got = self._draws.get(None if rng is None else id(rng))
+        return None if got is None else (got[1], got[2])
+
+    @property
+    def drawn_factor(self) -> float | None:
+        """The factor f of the body that turned last (None before any turn unless known)."""
+        d = self.drawn()
+        return None if d is None else d[0]
+
+    @property
+    def drawn_offset_deg(self) -> float | None:
+        """The offset b [deg] of the body that turned last (None before any turn unless
+        known).
+        """
+        d = self.drawn()
+        return None if d is None else d[1]
+
+    def sample(self, rng, commanded_deg: float) -> float:
+        """The actual turn [deg]: the base's draw on f·commanded + b."""
+        f, b = self.draw(rng)
+        return float(self.base.sample(rng, f * float(commanded_deg) + b))
+
+    def sample_many(self, rng, commanded, n=None) -> np.ndarray:
+        """Actual turns [deg]: the base's draws on f·commanded + b (f and b the same for all)."""
+        c = _commands(commanded, n)
+        f, b = self.draw(rng)
+        return np.asarray(self.base.sample_many(rng, f * c + b), dtype=float)
+
+    def __str__(self) -> str:
+        return spec_text(str(self.base), scale=self.scale, bias_deg=self.bias_deg,
+                         factor=self.factor, offset_deg=self.offset_deg)
+
+
+def _with_turn_error(base: NoiseModel, *, factor: float | None = None,
+                     offset_deg: float | None = None, scale: float = 0.0,
+                     bias_deg: float = 0.0) -> NoiseModel:
+    """``base`` wrapped in a :class:`ScaledNoise` unless f = 1 and b = 0 are known."""
+    if (factor is None or factor == 1.0) and (offset_deg is None or offset_deg == 0.0) \
+            and scale == 0 and bias_deg == 0:
+        return base
+    return ScaledNoise(base, factor, offset_deg, scale, bias_deg)
+
+
 def parse_noise(text: str, delta_deg: float | None = None) -> NoiseModel:
     """A simulated body's noise model from a spec in the one grammar
     (:func:`planners.noise.parse_noise_spec`): ``none`` | ``gauss:SIGMA`` |
     ``model:eps=E,r=R`` (optionally ``,delta=D``; by default Δ is ``delta_deg``, the
-    environment's 360°/K).
+    environment's 360°/K), each optionally followed by the turn keys: ``scale=S``,
+    ``bias=B`` (the body draws f within 1 ± S and b within ±B once, at its first turn) or the
+    known ``factor=F``, ``offset=O`` (``none:factor=F``), giving a :class:`ScaledNoise` (the
+    plain model when f = 1 and b = 0 are known).
 
     Raises
     ------
     UserError
         One sentence naming the accepted forms.
+
+    Examples
+    --------
+    >>> parse_noise("none:factor=0.92,offset=1")
+    ScaledNoise(base=NoNoise(), factor=0.92, offset_deg=1.0, scale=0.0, bias_deg=0.0)
+    >>> parse_noise("gauss:1,factor=1")
+    GaussianNoise(sigma_deg=1.0)
     """
     spec = parse_noise_spec(text)
+    scatter = spec.noise.scatter
     if spec.kind == "none":
-        return NoNoise()
-    if spec.kind == "gauss":
-        return GaussianNoise(spec.noise.sigma_deg)
-    return body_noise(spec.noise, spec.delta_deg if spec.delta_deg is not None else delta_deg)
+        base: NoiseModel = NoNoise()
+    elif spec.kind == "gauss":
+        base = GaussianNoise(scatter.sigma_deg)
+    else:
+        base = body_noise(scatter, spec.delta_deg if spec.delta_deg is not None else delta_deg)
+    return _with_turn_error(base, factor=spec.factor, offset_deg=spec.offset_deg,
+                            scale=spec.noise.scale, bias_deg=spec.noise.bias_deg)
 
 
 def body_noise(noise: TurnNoise, delta_deg: float | None) -> NoiseModel:
     """The noise model of a simulated body for a :class:`~planners.noise.TurnNoise`: exact
-    turns, Gaussian σ, or the §7 model at the error quantum Δ = ``delta_deg`` [deg].
+    turns, Gaussian σ, or the §11 model at the error quantum Δ = ``delta_deg`` [deg]; with a
+    scale or bias, that model in a :class:`ScaledNoise` that draws f and b once per body.
+
+    >>> body_noise(TurnNoise(sigma_deg=2, scale=0.1), None)
+    ScaledNoise(base=GaussianNoise(sigma_deg=2.0), factor=None, offset_deg=None, scale=0.1, \
+bias_deg=0.0)
     """
+    if not noise.unbiased:
+        return _with_turn_error(body_noise(noise.scatter, delta_deg), scale=noise.scale,
+                                bias_deg=noise.bias_deg)
     if noise.gaussian:
         return GaussianNoise(noise.sigma_deg)
     if noise.exact:
@@ -227,8 +422,8 @@ def body_noise(noise: TurnNoise, delta_deg: float | None) -> NoiseModel:
 
 
 def noise_for_mix(mix: PolicyMix, delta_deg: float) -> NoiseModel:
-    """The noise model of a :class:`planners.plan.PolicyMix` (its ε and r, §7, or its
-    Gaussian σ, §18) at Δ [deg].
+    """The noise model of a :class:`planners.plan.PolicyMix` (its ε and r, §11, or its
+    Gaussian σ, §11a) at Δ [deg].
 
     >>> from planners.plan import PolicyMix
     >>> noise_for_mix(PolicyMix((90.0,), (1.0,), sigma=3.0), 1.0)
@@ -244,9 +439,10 @@ def noise_and_rng(noise: NoiseModel | None, rng) -> tuple[NoiseModel, np.random.
     :class:`~bouncesim.robots.create2.OIEmulator`.
 
     ``noise`` None means exact turns; any object with ``sample(rng, commanded_deg)`` will do
-    (its ``exact`` property, when it has one, says it never perturbs a turn). ``rng`` is a numpy
-    Generator, an int seed, or None. A body with rotation noise needs an rng: seeding is never
-    implicit.
+    (its ``exact`` property, when it has one, says it never perturbs a turn; its
+    ``needs_rng``, when it has one, whether it draws random numbers: a known turn factor
+    perturbs every turn without them). ``rng`` is a numpy Generator, an int seed, or None. A
+    body whose noise draws needs an rng: seeding is never implicit.
 
     >>> noise_and_rng(None, None)
     (NoNoise(), None)
@@ -257,7 +453,7 @@ def noise_and_rng(noise: NoiseModel | None, rng) -> tuple[NoiseModel, np.random.
     """
     noise = noise if noise is not None else NoNoise()
     if rng is None:
-        if not getattr(noise, "exact", False):      # any object with sample(rng, deg)
+        if getattr(noise, "needs_rng", not getattr(noise, "exact", False)):   # any sampler
             raise UserError("a robot with rotation noise needs an rng (a numpy Generator or an "
                             "int seed).")
         return noise, None
