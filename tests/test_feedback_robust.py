@@ -122,3 +122,79 @@ def test_both_bumper_conventions_navigate_a_rectilinear_room(rule):
         ok += bool(run.success) or run.reason.startswith("gave up") and run.no_plan > 0
         assert run.reinits <= 1, (rule, s, g, run.reason)
     assert ok >= 5
+
+
+# ---------------------------------------------------------------- turn scale, unknown start
+L_ROOM = Environment.from_dict({
+    "name": "l-room", "boundary": [[0, 0], [3.06, 0], [3.06, 1.36], [1.70, 1.36], [1.70, 2.38],
+                                   [0, 2.38]],
+    "obstacles": [[[0.68, 1.36], [1.02, 1.36], [1.02, 1.70], [0.68, 1.70]]],
+    "robot_radius": 0.17, "discretization": {"cell_size": 0.34, "orientations": 8}})
+
+
+def test_the_turn_factor_estimate_converges_on_a_body_with_a_known_factor():
+    # the body turns 8 % too far (and 2° of scatter); the filter is told only that the
+    # factor lies within 1 ± 0.1: every particle carries one, and the runs end with the
+    # estimate within 0.02 of 1.08 and a spread far below the prior's (0.1/√3 = 0.058)
+    from bouncesim.robots.noise import parse_noise
+    env = envs.load("lab")
+    cs = CellSpace(env)
+    for i, (s, g) in enumerate([(8, 0), (103, 40), (200, 17)]):
+        body = KinematicRobot(env, parse_noise("gauss:2,factor=1.08", cs.delta_deg),
+                              np.random.default_rng(100 + i))
+        run = navigate_feedback(body, env, s, g, "gauss:2,scale=0.1",
+                                np.random.default_rng(i), cells=cs)
+        f, sd, b, _ = run.turn_estimate
+        assert abs(f - 1.08) < 0.02 and sd < 0.02 and b == 0.0, (s, g, run.turn_estimate)
+        assert run.to_json()["turn_factor"] == pytest.approx(f, abs=1e-5)
+
+
+def test_an_unknown_start_localizes_in_a_small_asymmetric_room():
+    # the body is put at random poses and the navigator is told nothing: it turns angles
+    # that localize, then navigates (noise-free twin, nearest-point bumper)
+    from bouncesim.commands.run_plan import random_pose
+    cs = CellSpace(L_ROOM)
+    rng = np.random.default_rng(0)
+    localized = arrived = 0
+    for i in range(4):
+        body = KinematicRobot(L_ROOM, side_rule="nearest")
+        body.place(*random_pose(L_ROOM, rng))
+        run = navigate_feedback(body, L_ROOM, None, 20, None, np.random.default_rng(i),
+                                cells=cs)
+        assert run.start_pose is None
+        localized += run.bumps_to_localize is not None
+        arrived += bool(run.success)
+    assert localized >= 3 and arrived >= 2
+
+
+def test_cli_runs_an_unknown_start_with_an_unknown_turn_scale(tmp_path, capsys):
+    import json
+
+    from bouncesim.cli import main
+    path = tmp_path / "l-room.json"
+    path.write_text(json.dumps(L_ROOM.to_dict()))
+    argv = ["run-plan", str(path), "--angles", "45,90,135", "--planner", "feedback",
+            "--noise", "gauss:2,scale=0.1", "--start", "unknown", "--goal", "20",
+            "--seed", "3", "--json"]
+    code = main(argv)
+    out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert code in (0, 4) and out["start"] == "unknown" and len(out["true_start"]) == 3
+    assert out["bumps_to_localize"] is None or out["bumps_to_localize"] >= 1
+    assert 0.9 <= out["turn_factor"] <= 1.1 and out["turn_factor_sd"] < 0.058
+    # a planner that needs its start refuses the unknown one in one sentence
+    assert main(argv[:4] + ["--planner", "exact", "--start", "unknown", "--goal", "20"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "closed-loop planner" in err and err.count("\n") == 0
+
+
+def test_an_unknown_start_reaches_its_goal_on_the_create2_emulator(tmp_path, capsys):
+    import json
+
+    from bouncesim.cli import main
+    path = tmp_path / "l-room.json"
+    path.write_text(json.dumps(L_ROOM.to_dict()))
+    code = main(["run-plan", str(path), "--angles", "45,90,135", "--planner", "feedback",
+                 "--start", "unknown", "--goal", "20", "--seed", "3", "--robot", "emulator",
+                 "--lockstep", "--json", "--quiet"])
+    out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert code == 0 and out["success"] and out["bumps_to_localize"] >= 1

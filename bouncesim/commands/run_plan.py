@@ -8,7 +8,7 @@ import argparse
 
 from bouncesim.robots import KINDS, make_robot
 from bouncesim.robots.noise import parse_noise
-from bouncesim.runs.execute import check_speed, execute
+from bouncesim.runs.execute import check_speed, execute, place_if_simulated
 from envs import UserError
 from planners.navigation import planner_class
 
@@ -58,7 +58,10 @@ def register(sub) -> None:
     p.add_argument("--turn-sigma", type=float, default=None, metavar="DEG",
                    help="closed-loop planners (feedback): the turn noise σ [deg] the filter "
                    "assumes (default: the σ of --noise; set it on a real robot)")
-    p.add_argument("--start", required=True, metavar="S", help="start: z or X,Y,DEG")
+    p.add_argument("--start", required=True, metavar="S",
+                   help="start: z or X,Y,DEG; unknown (--planner feedback): the robot does not "
+                   "know where it starts (a simulated body is put at a random pose from "
+                   "--seed) and localizes from its bumps first")
     p.add_argument("--goal", required=True, metavar="G", help="goal: z or X,Y,DEG")
     p.add_argument("--robot", choices=ROBOTS, default="kinematic",
                    help="the exact kinematic twin (default), PyBullet, a real Create 2 over "
@@ -127,7 +130,11 @@ def run(args) -> int:
     env = load_env(args)
     cells = make_cells(args, env)
     cls = planner_class(args.planner)
-    start = parse_config(args.start, cells, "start")
+    unknown_start = str(args.start).strip().lower() == "unknown"
+    if unknown_start and not cls.closed_loop:
+        raise UserError(f"--start unknown needs a closed-loop planner (--planner feedback); "
+                        f"the {args.planner} planner plans from a known start.")
+    start = None if unknown_start else parse_config(args.start, cells, "start")
     goal = parse_config(args.goal, cells, "goal")
     noise = parse_noise(args.noise, cells.delta_deg)
     if args.robot == "kinematic" and (args.gui or args.record):
@@ -261,24 +268,53 @@ def _run_closed_loop(args, env, cells, start: int, goal: int, noise) -> int:
     with robot:
         check_speed(args.speed, robot)
         flush_warnings()
+        true_start = None
+        if start is None:           # unknown: a simulated body goes to a random pose
+            true_start = random_pose(env, make_rng(args.seed).spawn(3)[2])
+            if not place_if_simulated(robot, true_start):
+                true_start = None   # hardware: wherever a person put it
         if say:
-            say(f"{args.planner} navigation on the {args.robot} robot")
+            say(f"{args.planner} navigation on the {args.robot} robot"
+                + (" from an unknown start" if start is None else ""))
         result = execute(planner.policy(start, goal), robot, cells=cells, speed=args.speed,
                          back_off=args.back_off)
     if args.trace:
         result.trace.to_csv(args.trace)
     unknown = result.final_pose is None and result.completed
     if args.json:
-        out = {"start": start, "goal": goal, "robot": args.robot, "noise": str(noise),
-               "seed": args.seed, "glance": args.glance}
+        out = {"start": "unknown" if start is None else start, "goal": goal,
+               "robot": args.robot, "noise": str(noise), "seed": args.seed,
+               "glance": args.glance}
+        if true_start is not None:
+            out["true_start"] = [round(v, 6) for v in true_start]
         out.update(result.to_json())
         print_json(out)
     else:
-        print(f"{start} -> {goal}: {args.planner}, executed {result.plan.exact_text()}")
+        print(f"{'unknown' if start is None else start} -> {goal}: {args.planner}, executed "
+              f"{result.plan.exact_text()}")
         ms = max(result.decision_ms, default=0.0)
         err = "" if result.position_error is None else (
             f" (final pose error {result.position_error:.3f} m, {result.heading_error:+.1f}°)")
         status = ("success" if result.success else "finished" if unknown
                   else f"failure: {result.reason}")
         print(f"{status}{err}; {result.bumps} bump(s), slowest decision {ms:.1f} ms")
+        if start is None:
+            where = ("never localized" if result.bumps_to_localize is None
+                     else f"localized after {result.bumps_to_localize} bump(s)")
+            print(f"unknown start: {where}")
+        if planner.turn_model["scale"] or planner.turn_model["bias"]:
+            f, sf, b, sb = result.turn_estimate
+            print(f"turn estimate: factor {f:.3f} ± {sf:.3f}, offset {b:+.2f}° ± {sb:.2f}°")
     return 0 if result.success or unknown else EXIT_FAILURE
+
+
+def random_pose(env, rng) -> tuple[float, float, float]:
+    """A pose uniform over the robot's free space with a uniform heading [m, m, deg]."""
+    x0, y0, x1, y1 = env.bounds
+    for _ in range(10_000):
+        pt = rng.uniform([x0, y0], [x1, y1], size=(64, 2))
+        free = pt[env.points_free(pt)]
+        if len(free):
+            return float(free[0, 0]), float(free[0, 1]), float(rng.uniform(0.0, 360.0))
+    raise UserError(f"{env.name} has no free space for the robot.")
+

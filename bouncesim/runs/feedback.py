@@ -56,6 +56,8 @@ class FeedbackRun(PlanRun):
                                    angle was turned)
     bumps_to_localize : int or None  bumps until the belief had localized (0 for a known
                                    start; None: it never did)
+    turn_estimate : tuple          the belief's final estimate of the turn's constant factor
+                                   and offset: (factor, its std, offset [deg], its std)
     """
 
     decision_ms: tuple = ()
@@ -64,6 +66,7 @@ class FeedbackRun(PlanRun):
     p_success: tuple = ()
     no_plan: int = 0
     bumps_to_localize: int | None = 0
+    turn_estimate: tuple = (1.0, 0.0, 0.0, 0.0)
 
     @property
     def reinits(self) -> int:
@@ -81,6 +84,10 @@ class FeedbackRun(PlanRun):
                     "decision_cpu_ms": [round(float(v), 3) for v in self.decision_cpu_ms],
                     "reinits": self.reinits, "no_plan": self.no_plan,
                     "bumps_to_localize": self.bumps_to_localize,
+                    "turn_factor": round(self.turn_estimate[0], 5),
+                    "turn_factor_sd": round(self.turn_estimate[1], 5),
+                    "turn_offset_deg": round(self.turn_estimate[2], 4),
+                    "turn_offset_sd": round(self.turn_estimate[3], 4),
                     "lost": sum(1 for u in self.updates if u.lost),
                     "p_success": [round(float(v), 4) for v in self.p_success]})
         return out
@@ -208,10 +215,14 @@ class FeedbackRunner:
         self.decision_cpu.append(1e3 * (time.process_time() - self._cpu))
 
     def _turn(self, angle: float):
-        """Turn by ``angle`` [deg] and predict it in the belief."""
-        yield Turn(angle)
-        self.belief.turn(angle)
-        self.turns.append(angle)
+        """Turn so that the robot turns by ``angle`` [deg] under the belief's estimate of the
+        turn's factor and offset (the command itself when nothing is uncertain), and predict
+        the command in the belief.
+        """
+        command = self.belief.command_for(angle)
+        yield Turn(command)
+        self.belief.turn(command)
+        self.turns.append(command)
         if self.policy.on_belief is not None:
             self.policy.on_belief("turn", self.belief)
 
@@ -251,4 +262,5 @@ class FeedbackRunner:
                            trace, cls=FeedbackRun, decision_ms=tuple(self.decision_ms),
                            decision_cpu_ms=tuple(self.decision_cpu),
                            updates=tuple(self.updates), p_success=tuple(self.p_succ),
-                           no_plan=self.no_plan, bumps_to_localize=self.bumps_to_localize)
+                           no_plan=self.no_plan, bumps_to_localize=self.bumps_to_localize,
+                           turn_estimate=self.belief.turn_estimate())

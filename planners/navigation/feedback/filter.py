@@ -12,270 +12,15 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.special import ndtr
 
 from envs import Environment, UserError
-from envs.contact import contact_flights
-from envs.motion import (
-    BUMP_RANGE,
-    CENTRE_ZONE_DEG,
-    ContactParams,
-    casters,
-    drive_distance,
-    unit,
-)
+from envs.motion import casters, unit
+
+from .config import FeedbackConfig
+from .observe import SIDES, flights, landings, side_of, side_probs
 
 __all__ = ["FeedbackConfig", "FlightUpdate", "ParticleFilter", "side_of", "side_probs", "flights",
            "landings", "SIDES"]
-
-SIDES = ("both", "left", "right")
-"""Bumper readings: both switches, the left one only, the right one only."""
-
-
-# ============================================================================ configuration
-@dataclass(frozen=True)
-class FeedbackConfig:
-    """Parameters of the filter and the decision rule (docs/model.md §15).
-
-    Attributes
-    ----------
-    particles : int            n, particles of the belief
-    turn_sigma_deg : float     declared turn noise σ [deg] (Gaussian per turn)
-    sigma_floor_deg : float    [deg] added in quadrature to σ, so that resampled copies
-                               spread and small unmodelled turn errors stay covered
-    dist_sigma_m, dist_sigma_rel : float
-        distance reading error σ_d = dist_sigma_m + dist_sigma_rel · d [m]
-    centre_zone_deg : float    [deg] contacts within ± this of the heading close both
-                               switches (the twin's ``CENTRE_ZONE_DEG``)
-    side_blur_deg : float      [deg] width of the soft side boundary
-    side_union : float         in a corner (several walls touched), the weight of the
-                               twin's convention (every switch any wall selects closes)
-                               against one wall's reading (a body that reads one point)
-    p_side : float             the declared rate of wrong bumper-side readings: a reading is
-                               one of the two others with this probability (a real bumper's
-                               switches in a corner are no more predictable than either
-                               convention); no side reading can zero the belief
-    p_phantom : float          the declared rate of phantom bumps: the bumper closes with no
-                               wall, the robot stopped mid-flight (the reading is uniform
-                               over the flight, the side any of the three)
-    p_miss : float             the declared rate of missed bumps: the robot pushed on
-                               against the wall until the drive's timeout
-    p_lost : float             prior probability that the belief has lost track at a
-                               reading: the weight of the re-initialised component mixed in
-                               (the posterior's share is p_lost·m_r / ((1 − p_lost)·m_b +
-                               p_lost·m_r), m the readings' marginal likelihoods)
-    surprise : float           a re-initialised component is tried only when the belief's
-                               marginal likelihood of a reading is below this fraction of
-                               the best possible one
-    consistent_z : float       a particle counts as fitting a reading (reported, not used to
-                               weigh) within this many σ_d and with the side it predicts
-    resample_ess : float       resample when ESS < this · n
-    reinit_sigma_deg : float   [deg] heading spread of the local re-initialisation
-    global_particles : int     particles of a belief that starts anywhere (unknown start),
-                               kept until it has localized
-    localized_mass : float     the belief has localized when this share of its weight lies
-                               within h/2 of its mean position and Δ/2 of its mean heading
-    jitter_deg, jitter_m : float
-        while an unknown start has not localized, every resampled copy is moved by
-        N(0, jitter_deg²) in heading and N(0, jitter_m²) in position (a regularised filter:
-        copies of one pose explore around it instead of staying identical)
-    votes : int                poses planned from after every bump
-    slack : float              plans within this of the cheapest (§13's cost) are candidates
-    per_pose : int             at most this many candidates (cheapest first) per pose
-    eval_particles : int       particles pushed through each candidate plan
-    margin_m : float           [m] the final stop prefers points this deep in the goal cell
-    edge_guard : float         plans avoid flights that bump at once when turned by ± this
-                               many turn spreads (knife edges along a touched wall; 0: off)
-    final_min : float          after the last turn the robot stops in the goal cell only
-                               when the belief's mass there is at least this; else it flies
-                               on to the next bump and decides again (0: whenever any mass
-                               does, the rule before)
-    correct_heading : bool     extension, off by default: command each turn as its angle
-                               less the belief's mean heading offset from the Δ grid
-    guided : bool              off by default: searches from a pose are guided by the cost
-                               to go of the contact-state graph (§15), not by §13's bound
-    reference : bool           the straightforward search (unguided) and scoring instead of
-                               the fast ones (for benchmarks and tests)
-    contact : ContactParams or None
-        the body's contact rule (docs/model.md §9) in the filter's motion model, the plan
-        search's flights and the scores: a flight whose contact lies outside the bumper arc
-        slides on to its bump, and only contacts inside the arc press the bumper. None
-        (default): the front-half bumper (§15 as before, bitwise)
-    """
-
-    particles: int = 300
-    turn_sigma_deg: float = 0.0
-    sigma_floor_deg: float = 0.0
-    dist_sigma_m: float = 0.01
-    dist_sigma_rel: float = 0.01
-    centre_zone_deg: float = CENTRE_ZONE_DEG
-    side_blur_deg: float = 1.0
-    side_union: float = 0.5
-    p_side: float = 0.05
-    p_phantom: float = 0.01
-    p_miss: float = 0.01
-    p_lost: float = 0.01
-    surprise: float = 0.01
-    consistent_z: float = 5.0
-    resample_ess: float = 0.5
-    reinit_sigma_deg: float = 10.0
-    global_particles: int = 3000
-    localized_mass: float = 0.9
-    jitter_deg: float = 1.0
-    jitter_m: float = 0.005
-    votes: int = 2
-    slack: float = 0.0
-    per_pose: int = 1
-    eval_particles: int = 64
-    margin_m: float = 0.02
-    edge_guard: float = 2.0
-    final_min: float = 0.5
-    correct_heading: bool = False
-    guided: bool = False
-    reference: bool = False
-    contact: ContactParams | None = None
-
-    def __post_init__(self) -> None:
-        for name in ("particles", "votes", "per_pose", "eval_particles", "global_particles"):
-            v = getattr(self, name)
-            if int(v) != v or v < 1:
-                raise UserError(f"feedback {name} must be a positive whole number, got {v}.")
-        for name in ("turn_sigma_deg", "sigma_floor_deg", "dist_sigma_m", "dist_sigma_rel", "slack",
-                     "centre_zone_deg", "side_blur_deg", "reinit_sigma_deg", "margin_m",
-                     "edge_guard", "jitter_deg", "jitter_m"):
-            v = float(getattr(self, name))
-            if not (math.isfinite(v) and v >= 0):
-                raise UserError(f"feedback {name} must be a non-negative number, got {v}.")
-        if self.dist_sigma_m <= 0:
-            raise UserError("feedback dist_sigma_m must be positive.")
-        if not 0 <= self.final_min <= 1:
-            raise UserError("feedback final_min must lie in [0, 1].")
-        if not 0 < self.localized_mass <= 1:
-            raise UserError("feedback localized_mass must lie in (0, 1].")
-        for name in ("p_side", "p_phantom", "p_miss", "p_lost", "surprise", "side_union"):
-            v = float(getattr(self, name))
-            if not 0 <= v < 1:
-                raise UserError(f"feedback {name} must lie in [0, 1), got {v}.")
-        if self.p_side > 2 / 3:
-            raise UserError("feedback p_side above 2/3 would make a wrong side likelier than "
-                            "the right one.")
-        if self.p_phantom + self.p_miss >= 1:
-            raise UserError("feedback p_phantom + p_miss must stay below 1.")
-        if not 0 < self.resample_ess <= 1:
-            raise UserError("feedback resample_ess must lie in (0, 1].")
-        if self.contact is not None and not isinstance(self.contact, ContactParams):
-            raise UserError(f"feedback contact must be a ContactParams or None, got "
-                            f"{self.contact!r}.")
-
-    @property
-    def turn_spread_deg(self) -> float:
-        """[deg] the heading spread the filter adds per turn: √(σ² + σ_floor²)."""
-        return math.hypot(self.turn_sigma_deg, self.sigma_floor_deg)
-
-
-# ============================================================================ flights
-def side_of(left: bool, right: bool) -> int:
-    """Index into :data:`SIDES` of a bumper reading (both, left only, right only)."""
-    if left and right:
-        return 0
-    if left:
-        return 1
-    if right:
-        return 2
-    raise UserError("a bump needs at least one closed bumper switch.")
-
-
-def flights(caster, pos, heading_deg, bearings: bool = True):
-    """Exact flights of poses: (drive [m], unit headings, contact bearings [deg] or None).
-
-    The bearings (n, F) are those of every wall feature (side or corner) the disk touches at
-    its contact (within ``BUMP_RANGE`` of the first), relative to the heading, + to the
-    left; NaN for the features it does not touch (two walls at once in a corner).
-    """
-    pos = np.asarray(pos, dtype=float).reshape(-1, 2)
-    u = unit(heading_deg)
-    if not bearings:
-        t = caster.cast(pos, u)
-        t = np.where(np.isfinite(t), t, 1e6)
-        return np.where(t <= BUMP_RANGE, 0.0, drive_distance(t)), u, None
-    fd = caster.feature_distances(pos, u)
-    t = fd.min(axis=1)
-    t = np.where(np.isfinite(t), t, 1e6)
-    D = np.where(t <= BUMP_RANGE, 0.0, drive_distance(t))
-    c = pos + t[:, None] * u
-    rel = c[:, None, :] - caster.A[None]                               # (n, ns, 2)
-    lam = np.clip((rel * caster.e[None]).sum(2), 0.0, caster.L[None])
-    touch = np.concatenate([caster.A[None] + lam[..., None] * caster.e[None],
-                            np.broadcast_to(caster.vertices[None],
-                                            (len(c), len(caster.vertices), 2))], axis=1)
-    w = touch - c[:, None, :]
-    beta = np.degrees(np.arctan2(u[:, None, 0] * w[..., 1] - u[:, None, 1] * w[..., 0],
-                                 u[:, None, 0] * w[..., 0] + u[:, None, 1] * w[..., 1]))
-    near = (fd <= t[:, None] + BUMP_RANGE) & (np.abs(beta) < 90.0)
-    return D, u, np.where(near, beta, np.nan)
-
-
-def landings(caster, pos, heading_deg, contact: ContactParams | None, bearings: bool = True):
-    """Flights of poses to their bump under a contact rule (docs/model.md §15, §9).
-
-    Returns (clock [m], end (n, 2) [m], bearings (n, F) [deg] or None, slid (n,) bool or
-    None, straight [m]): ``straight`` is :func:`flights`' drive to the first contact and
-    ``clock`` the clock length to the bump, where the robot ends (``end``). With a contact
-    rule, a flight whose first contact lies outside the bumper arc ±(90° − β) slides on
-    (:func:`envs.contact.contact_flights`, ``slid``), and its bearings are those at the
-    bump; bearings outside the arc are NaN (they press no switch). ``contact`` None: the
-    front-half bumper, bitwise :func:`flights` (clock = straight, slid None).
-    """
-    pos = np.asarray(pos, dtype=float).reshape(-1, 2)
-    D, u, beta = flights(caster, pos, heading_deg, bearings)
-    if contact is None:
-        return D, pos + D[:, None] * u, beta, None, D
-    head = np.broadcast_to(np.asarray(heading_deg, dtype=float).reshape(-1), (len(pos),))
-    # resampled copies share a pose: slide each distinct (x, y, heading) once
-    _, first, inv = np.unique(np.column_stack([pos, head]), axis=0, return_index=True,
-                              return_inverse=True)
-    inv = inv.reshape(-1)
-    fl = contact_flights(caster, pos[first], u[first], D[first], contact)
-    slid = np.zeros(len(first), dtype=bool)
-    slid[np.fromiter(fl.legs, np.int64, len(fl.legs))] = True
-    clock, end, slid = fl.clock[inv], fl.end[inv], slid[inv]
-    if beta is not None:
-        arc = 90.0 - contact.beta_deg
-        if slid.any():
-            beta = beta.copy()
-            beta[slid] = flights(caster, end[slid], head[slid])[2]
-        with np.errstate(invalid="ignore"):
-            beta = np.where(np.abs(beta) <= arc, beta, np.nan)
-    return clock, end, beta, slid, D
-
-
-def side_probs(beta, cfg: FeedbackConfig) -> np.ndarray:
-    """(n, 3) probability of each reading of :data:`SIDES` given the touched features'
-    bearings (n, F) [deg] (NaN: not touched).
-
-    A feature at bearing β closes the left switch when β >= −zone and the right one when
-    β <= zone, blurred by a normal CDF of width ``side_blur_deg``. Where several features
-    are touched (a corner) bodies differ: the twin closes every switch any of them selects
-    (the union), a body whose switches read one wall point the switches of one of them. The
-    model weighs the two conventions ``side_union`` : 1 − ``side_union`` (one touched
-    feature at random for the second); then a wrong reading with probability ``p_side``,
-    spread evenly over the two others: (1 − p_side)·p + p_side·(1 − p)/2.
-    """
-    s = max(cfg.side_blur_deg, 1e-9)
-    z = cfg.centre_zone_deg
-    with np.errstate(invalid="ignore"):
-        fl = ndtr((beta + z) / s)                      # (n, F): NaN where not touched
-        fr = ndtr((z - beta) / s)
-        left = np.nan_to_num(np.nanmax(fl, axis=1, initial=0.0))
-        right = np.nan_to_num(np.nanmax(fr, axis=1, initial=0.0))
-        touched = np.isfinite(beta).sum(axis=1)
-        one = np.stack([np.nansum(fl * fr, axis=1), np.nansum(fl * (1 - fr), axis=1),
-                        np.nansum((1 - fl) * fr, axis=1)], axis=1)
-    p = np.column_stack([left * right, left * (1 - right), (1 - left) * right])
-    p = cfg.side_union * p + (1 - cfg.side_union) * one / np.maximum(touched, 1)[:, None]
-    total = p.sum(1, keepdims=True)
-    p = np.where(total > 0, p / np.maximum(total, 1e-300), 1.0 / 3)    # nothing touched
-    return (1 - cfg.p_side) * p + cfg.p_side * (1 - p) / 2
 
 
 # ============================================================================ the filter
@@ -349,6 +94,7 @@ class ParticleFilter:
         self.pos = poses[:, :2].copy()
         self.heading = poses[:, 2] % 360.0
         self.w = np.full(len(poses), 1.0 / len(poses))
+        self.factor, self.offset = self._prior_turns(len(poses))
 
     def uniform_poses(self, n: int, region=None) -> np.ndarray:
         """(n, 3) poses uniform over the robot's free space (within the box ``region``
@@ -398,6 +144,7 @@ class ParticleFilter:
             logw = np.where(inside, logw, -np.inf)
         w = np.exp(logw - logw.max()) if np.isfinite(logw).any() else np.ones(n)
         self.pos, self.heading, self.w = start, head % 360.0, w / w.sum()
+        self.factor, self.offset = self._prior_turns(n)
         self.fresh = False
 
     def localized(self, radius: float, heading_tol_deg: float) -> bool:
@@ -432,10 +179,40 @@ class ParticleFilter:
         return np.column_stack([self.pos, self.heading])
 
     def turn(self, angle_deg: float) -> None:
-        """Predict a commanded CCW turn by ``angle_deg`` [deg] with the declared noise."""
+        """Predict a commanded CCW turn by ``angle_deg`` [deg]: each particle turns by its
+        own f·φ + b plus the declared noise.
+        """
         s = self.cfg.turn_spread_deg
         noise = self.rng.normal(0.0, s, self.n) if s > 0 else 0.0
-        self.heading = (self.heading + float(angle_deg) + noise) % 360.0
+        self.heading = (self.heading + self.factor * float(angle_deg) + self.offset
+                        + noise) % 360.0
+
+    def turn_estimate(self) -> tuple[float, float, float, float]:
+        """(factor, its std, offset [deg], its std): the belief's weighted estimate of the
+        turn's constant factor f and offset b.
+        """
+        w = self.w
+        f, b = float(w @ self.factor), float(w @ self.offset)
+        return (f, math.sqrt(max(float(w @ (self.factor - f) ** 2), 0.0)), b,
+                math.sqrt(max(float(w @ (self.offset - b) ** 2), 0.0)))
+
+    @property
+    def turns_uncertain(self) -> bool:
+        """True when the declared turns have a factor or offset (unknown, or known but not
+        1 and 0): commands then correct for the estimate (:meth:`command_for`).
+        """
+        c = self.cfg
+        return not (c.turn_scale == 0 and c.turn_bias_deg == 0 and c.turn_factor == 1
+                    and c.turn_offset_deg == 0)
+
+    def command_for(self, angle_deg: float) -> float:
+        """The turn to command for an actual turn of ``angle_deg`` [deg] under the estimated
+        factor and offset: (φ − b̂) / f̂ (φ itself when nothing is unknown or off).
+        """
+        if not self.turns_uncertain:
+            return float(angle_deg)
+        f, _, b, _ = self.turn_estimate()
+        return (float(angle_deg) - b) / f
 
     def back_off(self, distance: float) -> None:
         """Predict a reverse drive of ``distance`` [m] (the executor's back-off)."""
@@ -526,7 +303,7 @@ class ParticleFilter:
         if self.cfg.p_lost > 0 and log_mb < best + math.log(self.cfg.surprise):
             rec = self._recovery(recovery_ll, best + math.log(self.cfg.surprise))
             if rec is not None:
-                stage, rpos, rhead, rll = rec
+                stage, rpos, rhead, rll, rfactor, roffset = rec
                 log_mr = float(np.logaddexp.reduce(rll)) - math.log(len(rll))
                 a = math.log1p(-self.cfg.p_lost) + log_mb
                 b = math.log(self.cfg.p_lost) + log_mr
@@ -538,6 +315,8 @@ class ParticleFilter:
                                        + math.log(max(mixed, 1e-300))])
                 pos = np.vstack([pos, rpos])
                 head = np.concatenate([head, rhead])
+                self.factor = np.concatenate([self.factor, rfactor])
+                self.offset = np.concatenate([self.offset, roffset])
         w = np.exp(logw - logw.max())
         w /= w.sum()
         self.pos, self.heading, self.w = pos, head % 360.0, w
@@ -555,19 +334,29 @@ class ParticleFilter:
         belief with headings widened by ``reinit_sigma_deg`` (stage 1); if none of them
         explains the reading (log-likelihood at least ``fits``), ``8n`` poses uniform over
         the free space and all headings (stage 2). Returns (stage, landing poses, headings,
-        log-likelihoods).
+        log-likelihoods, turn factors, turn offsets).
         """
         n = self.cfg.particles
         idx = self.rng.choice(self.n, size=4 * n, p=self.w)
         head0 = self.heading[idx] + self.rng.normal(0.0, self.cfg.reinit_sigma_deg, 4 * n)
-        pos0 = self.pos[idx]
+        pos0, factor, offset = self.pos[idx], self.factor[idx], self.offset[idx]
         ll, stage = loglik(pos0, head0), 1
         if float(ll.max()) < fits:
             poses = self.uniform_poses(8 * n)
             pos0, head0 = poses[:, :2], poses[:, 2]
+            factor, offset = self._prior_turns(len(poses))
             ll, stage = loglik(pos0, head0), 2
         D, end, _, _, _ = landings(self.caster, pos0, head0, self.cfg.contact, bearings=False)
-        return stage, end, head0 % 360.0, ll
+        return stage, end, head0 % 360.0, ll, factor, offset
+
+    def _prior_turns(self, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """``n`` turn factors and offsets [deg] drawn from the declared ranges."""
+        c = self.cfg
+        f = np.full(n, c.turn_factor) + (self.rng.uniform(-c.turn_scale, c.turn_scale, n)
+                                         if c.turn_scale > 0 else 0.0)
+        b = np.full(n, c.turn_offset_deg) + (self.rng.uniform(-c.turn_bias_deg, c.turn_bias_deg, n)
+                                             if c.turn_bias_deg > 0 else 0.0)
+        return f, b
 
     def _jitter(self) -> None:
         """Move every particle by N(0, jitter_m²) per axis and N(0, jitter_deg²) in heading,
@@ -586,11 +375,27 @@ class ParticleFilter:
         c[-1] = 1.0
         idx = np.searchsorted(c, (self.rng.random() + np.arange(n)) / n)
         self.pos, self.heading = self.pos[idx].copy(), self.heading[idx].copy()
+        self.factor, self.offset = self.factor[idx].copy(), self.offset[idx].copy()
         self.w = np.full(n, 1.0 / n)
+        cfg = self.cfg
+        if cfg.turn_scale > 0:          # regularised: copies of one factor spread a little
+            lo, hi = cfg.turn_factor - cfg.turn_scale, cfg.turn_factor + cfg.turn_scale
+            self.factor = np.clip(self.factor + self.rng.normal(0.0, cfg.turn_scale / 50, n),
+                                  lo, hi)
+        if cfg.turn_bias_deg > 0:
+            b0, db = cfg.turn_offset_deg, cfg.turn_bias_deg
+            lo, hi = b0 - db, b0 + db
+            self.offset = np.clip(self.offset + self.rng.normal(0.0, cfg.turn_bias_deg / 50, n),
+                                  lo, hi)
 
-    def sample(self, n: int) -> tuple[np.ndarray, np.ndarray]:
-        """``n`` poses drawn by weight (systematic): positions (n, 2), headings (n,) [deg]."""
+    def sample(self, n: int, turns: bool = False):
+        """``n`` poses drawn by weight (systematic): positions (n, 2), headings (n,) [deg];
+        with ``turns`` also their turn factors and offsets [deg].
+        """
         c = np.cumsum(self.w)
         c[-1] = 1.0
         idx = np.searchsorted(c, (self.rng.random() + np.arange(n)) / n)
+        if turns:
+            return (self.pos[idx].copy(), self.heading[idx].copy(), self.factor[idx].copy(),
+                    self.offset[idx].copy())
         return self.pos[idx].copy(), self.heading[idx].copy()

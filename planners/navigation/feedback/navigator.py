@@ -250,10 +250,12 @@ class FeedbackNavigator:
 
     # ------------------------------------------------------------------ scoring
     def score(self, pos, heading, angles, rng: np.random.Generator,
-              bumped: bool = False) -> float:
+              bumped: bool = False, gain=None, bias=None) -> float:
         """Estimated success of flying (not when ``bumped``: at a contact), then turning by
         each angle and flying, then the best final drive, for equally weighted particles
-        (pos (n, 2), heading (n,) [deg]) under the declared noise.
+        (pos (n, 2), heading (n,) [deg]) under the declared noise. ``gain`` and ``bias``
+        (n,): each particle turns gain·φ + bias for a turn meant as φ (its turn factor and
+        offset against the ones the commands correct for; default 1 and 0).
         """
         caster, contact = self.nav.caster, self.cfg.contact
         pos, head = np.array(pos, dtype=float), np.array(heading, dtype=float)
@@ -261,17 +263,18 @@ class FeedbackNavigator:
         for j, a in enumerate(angles):
             if not (bumped and j == 0):
                 pos = landings(caster, pos, head, contact, bearings=False)[1]
-            head = head + a + (rng.normal(0.0, s, len(head)) if s > 0 else 0.0)
+            turn = a if gain is None else gain * a + bias
+            head = head + turn + (rng.normal(0.0, s, len(head)) if s > 0 else 0.0)
         return self.final(pos, head, np.full(len(head), 1.0 / len(head)))[1]
 
     def scores(self, pos, heading, plans, rng: np.random.Generator,
-               bumped: bool = False) -> list[float]:
+               bumped: bool = False, gain=None, bias=None) -> list[float]:
         """:meth:`score` of every angle sequence of ``plans`` in turn, computed together:
         the noise is drawn in the same order and every flight is cast for all plans at once,
         so the numbers are the same as one :meth:`score` after another.
         """
         if self.cfg.reference or not plans:
-            return [self.score(pos, heading, a, rng, bumped) for a in plans]
+            return [self.score(pos, heading, a, rng, bumped, gain, bias) for a in plans]
         pos0, head0 = np.array(pos, dtype=float), np.array(heading, dtype=float)
         n, lens = len(head0), np.array([len(a) for a in plans])
         s = self.cfg.turn_spread_deg
@@ -289,6 +292,8 @@ class FeedbackNavigator:
                 pos[act] = landings(caster, p, th, self.cfg.contact,
                                     bearings=False)[1].reshape(len(act), n, 2)
             turn = np.array([plans[c][j] for c in act], dtype=float)[:, None]
+            if gain is not None:
+                turn = gain[None] * turn + bias[None]
             head[act] = head[act] + turn + noise[act, j] if s > 0 else head[act] + turn
         _, _, _, sl, D = landings(caster, pos.reshape(-1, 2), head.reshape(-1),
                                   self.cfg.contact, bearings=False)
@@ -385,9 +390,14 @@ class FeedbackNavigator:
             plans[tuple(keep)] = Candidate(tuple(keep), (), float("nan"), math.inf)
         if not plans:
             return []
-        epos, ehead = belief.sample(cfg.eval_particles)
+        epos, ehead, ef, eb = belief.sample(cfg.eval_particles, turns=True)
+        gain = bias = None
+        if belief.turns_uncertain:          # commands correct for the estimate (f̂, b̂)
+            f_hat, _, b_hat, _ = belief.turn_estimate()
+            gain, bias = ef / f_hat, eb - ef * b_hat / f_hat
         cands = list(plans.values())
-        p = self.scores(epos, ehead - shift, [c.angles for c in cands], rng, bumped)
+        p = self.scores(epos, ehead - shift, [c.angles for c in cands], rng, bumped, gain,
+                        bias)
         scored = [Candidate(c.angles, c.flights, c.final_m, c.cost, ps)
                   for c, ps in zip(cands, p)]
         scored.sort(key=lambda c: (-round(c.p_success, 9), c.cost))

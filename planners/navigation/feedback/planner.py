@@ -39,10 +39,41 @@ from ..exact import ExactNavigator
 from .filter import FeedbackConfig
 from .navigator import FeedbackNavigator
 
-__all__ = ["FeedbackPlanner", "FeedbackPolicy", "declared_sigma"]
+__all__ = ["FeedbackPlanner", "FeedbackPolicy", "declared_sigma", "declared_turn"]
 
 DEFAULT_MAX_BUMPS = 40
 """A feedback run gives up after this many bumps."""
+
+
+def declared_turn(noise) -> dict:
+    """What the filter assumes about the robot's turns, from a declared noise: ``sigma``
+    (:func:`declared_sigma`), the half-ranges ``scale`` and ``bias`` [deg] of an unknown
+    factor and offset, and a known ``factor`` and ``offset`` [deg] (a spec's
+    ``factor=``/``offset=``, or a body noise model's).
+
+    >>> declared_turn("gauss:2,scale=0.1")
+    {'sigma': 2.0, 'scale': 0.1, 'bias': 0.0, 'factor': 1.0, 'offset': 0.0}
+    """
+    out = {"sigma": 0.0, "scale": 0.0, "bias": 0.0, "factor": 1.0, "offset": 0.0}
+    if noise is None:
+        return out
+    if isinstance(noise, str):
+        from ...noise import parse_noise_spec
+        spec = parse_noise_spec(noise)
+        out.update(scale=spec.noise.scale, bias=spec.noise.bias_deg,
+                   factor=1.0 if spec.factor is None else spec.factor,
+                   offset=0.0 if spec.offset_deg is None else spec.offset_deg)
+        out["sigma"] = declared_sigma(noise)
+        return out
+    for attr, key in (("scale", "scale"), ("bias_deg", "bias")):
+        out[key] = float(getattr(noise, attr, 0.0) or 0.0)
+    if getattr(noise, "factor", None) is not None:
+        out["factor"] = float(noise.factor)
+    if getattr(noise, "offset_deg", None) is not None:
+        out["offset"] = float(noise.offset_deg)
+    base = getattr(noise, "base", None)
+    out["sigma"] = declared_sigma(base if base is not None else noise)
+    return out
 
 
 def declared_sigma(noise) -> float:
@@ -60,12 +91,15 @@ def declared_sigma(noise) -> float:
     if isinstance(noise, str):
         from ...noise import parse_noise_spec
         spec = parse_noise_spec(noise)
-        if spec.kind == "model" and not spec.noise.exact:
+        if spec.kind == "model" and not spec.noise.scatter.exact:
             raise UserError(f"the feedback planner needs the body's noise model for "
                             f"{noise!r} (its error quantum), not the spec.")
         return float(spec.noise.sigma_deg)
     if isinstance(noise, (int, float)):
         return float(noise)
+    base = getattr(noise, "base", None)
+    if base is not None:                    # a scaled turn: the scatter of its base
+        return declared_sigma(base)
     if getattr(noise, "exact", False):
         return 0.0
     if getattr(noise, "sigma_deg", 0.0):
@@ -141,7 +175,8 @@ class FeedbackPlanner:
             raise UserError(f"contact must be 'auto', a ContactParams or None, got {contact!r}.")
         self.noise, self.rng, self.contact = noise, rng, contact
         self.config = config if config is not None else FeedbackConfig()
-        self.sigma = declared_sigma(noise)
+        self.turn_model = declared_turn(noise)
+        self.sigma = self.turn_model["sigma"]
 
     def resolved(self, body_rule: ContactParams | None = None) -> ContactParams | None:
         """The contact rule the filter and the search use: the planner's own, or for "auto"
@@ -153,7 +188,10 @@ class FeedbackPlanner:
 
     def navigator(self, goal: int, contact: ContactParams | None) -> FeedbackNavigator:
         """The decision rule for ``goal`` under ``contact`` (the declared σ in its config)."""
-        cfg = replace(self.config, turn_sigma_deg=self.sigma, contact=contact)
+        t = self.turn_model
+        cfg = replace(self.config, turn_sigma_deg=self.sigma, contact=contact,
+                      turn_scale=t["scale"], turn_bias_deg=t["bias"],
+                      turn_factor=t["factor"], turn_offset_deg=t["offset"])
         return FeedbackNavigator(self.cells, self.angles, goal, cfg, self.w1, self.w2)
 
     def plan(self, start: int, goal: int) -> Route | None:
