@@ -198,3 +198,48 @@ def test_an_unknown_start_reaches_its_goal_on_the_create2_emulator(tmp_path, cap
                  "--lockstep", "--json", "--quiet"])
     out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert code == 0 and out["success"] and out["bumps_to_localize"] >= 1
+
+
+# ---------------------------------------------------------------- plans with margin
+def test_the_clearance_rule_rejects_a_zero_clearance_flight():
+    from planners.navigation.feedback.search import grazes
+    corner = [(1.0, 1.0)]
+    r = 0.17
+    # flying east along y = 1 − r − 1e-6: the disk passes the corner 1 µm clear
+    assert grazes(0.0, 1.0 - r - 1e-6, 1.0, 0.0, 2.0, corner, r, 0.005, 0.0)
+    # 1 cm clear is enough at σ = 0, not with 2° of spread 1 m before the corner
+    assert not grazes(0.0, 1.0 - r - 0.01, 1.0, 0.0, 2.0, corner, r, 0.005, 0.0)
+    assert grazes(0.0, 1.0 - r - 0.01, 1.0, 0.0, 2.0, corner, r, 0.005, math.radians(2))
+    # the corner it bumps into, or one behind or beyond the flight, is not passed
+    assert not grazes(0.0, 1.0 - r, 1.0, 0.0, 2.0, corner, r, 0.005, 0.0)
+    assert not grazes(1.5, 1.0 - r - 1e-6, 1.0, 0.0, 2.0, corner, r, 0.005, 0.0)
+    assert not grazes(0.0, 1.0 - r - 1e-6, 1.0, 0.0, 0.9, corner, r, 0.005, 0.0)
+
+
+def test_plans_from_a_pose_keep_their_clearance():
+    # a room with a pillar off the grid: every flight after a turn of every plan found from
+    # random poses passes every corner at least 5 mm clear (or touches it: its bump)
+    from planners.navigation.feedback import FeedbackNavigator
+    from planners.navigation.feedback.search import grazes
+    room = Environment.from_dict({
+        "name": "pillar", "boundary": [[0, 0], [2.72, 0], [2.72, 2.04], [0, 2.04]],
+        "obstacles": [[[1.2, 0.8], [1.55, 0.8], [1.55, 1.15], [1.2, 1.15]]],
+        "robot_radius": 0.17, "discretization": {"cell_size": 0.34, "orientations": 8}})
+    cs = CellSpace(room)
+    rng = np.random.default_rng(4)
+    checked = 0
+    for goal in rng.choice(cs.N, 6, replace=False):
+        fnav = FeedbackNavigator(cs, (45, 90, 135), int(goal), FeedbackConfig())
+        verts, r = fnav.walls.verts, fnav.walls.r
+        for z in rng.choice(cs.N, 4, replace=False):
+            x, y, th = cs.pose(int(z))
+            for cand in fnav.plans_from(x, y, th, 50.0)[:3]:
+                px, py, head = x, y, th
+                for j, (a, f) in enumerate(zip((0.0, *cand.angles), cand.flights)):
+                    head += a
+                    ux, uy = math.cos(math.radians(head)), math.sin(math.radians(head))
+                    if j > 0:
+                        assert not grazes(px, py, ux, uy, f, verts, r, 0.005 - 1e-9, 0.0)
+                        checked += 1
+                    px, py = px + f * ux, py + f * uy
+    assert checked > 10

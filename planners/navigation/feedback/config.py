@@ -74,6 +74,11 @@ class FeedbackConfig:
     margin_m : float           [m] the final stop prefers points this deep in the goal cell
     edge_guard : float         plans avoid flights that bump at once when turned by ± this
                                many turn spreads (knife edges along a touched wall; 0: off)
+    clearance_m : float        [m] plans avoid flights (after a turn) that pass a wall corner
+                               closer than this plus s·tan(turn spread) at distance s along
+                               the flight without touching it: a corner a metre-scale error
+                               or one turn spread of heading would touch (0 with no spread:
+                               off; the default 5 mm keeps µm tolerances from deciding)
     final_min : float          after the last turn the robot stops in the goal cell only
                                when the belief's mass there is at least this; else it flies
                                on to the next bump and decides again (0: whenever any mass
@@ -121,6 +126,7 @@ class FeedbackConfig:
     eval_particles: int = 64
     margin_m: float = 0.02
     edge_guard: float = 2.0
+    clearance_m: float = 0.005
     final_min: float = 0.5
     correct_heading: bool = False
     guided: bool = False
@@ -134,7 +140,8 @@ class FeedbackConfig:
                 raise UserError(f"feedback {name} must be a positive whole number, got {v}.")
         for name in ("turn_sigma_deg", "sigma_floor_deg", "dist_sigma_m", "dist_sigma_rel", "slack",
                      "centre_zone_deg", "side_blur_deg", "reinit_sigma_deg", "margin_m",
-                     "edge_guard", "jitter_deg", "jitter_m", "turn_scale", "turn_bias_deg"):
+                     "edge_guard", "jitter_deg", "jitter_m", "turn_scale", "turn_bias_deg",
+                     "clearance_m"):
             v = float(getattr(self, name))
             if not (math.isfinite(v) and v >= 0):
                 raise UserError(f"feedback {name} must be a non-negative number, got {v}.")

@@ -51,7 +51,7 @@ from envs.motion import (
 from ..exact import chords
 
 __all__ = ["MAX_SETTLED", "MAX_SETTLED_GUIDED", "NEAR_M", "BAND_PAD_M", "STRIP_M", "UNGUIDED",
-           "ScalarWalls", "cost_to_go", "search", "search_reference"]
+           "ScalarWalls", "cost_to_go", "grazes", "search", "search_reference"]
 
 MAX_SETTLED = 3000
 """A search from one pose gives up after this many settled states."""
@@ -176,6 +176,26 @@ class ScalarWalls:
         return best, ns, nv, cos_b
 
 
+def grazes(px: float, py: float, ux: float, uy: float, D: float, verts, r: float,
+           clearance: float, spread_rad: float) -> bool:
+    """Whether the flight of a disk of radius ``r`` from (px, py) along (ux, uy) for ``D``
+    [m] passes a wall corner of ``verts`` closer than its clearance without touching it: a
+    corner beside the flight at distance s along it needs r + ``clearance`` +
+    s·tan(``spread_rad``) [m] across it (a heading off by the declared spread would touch
+    it). Corners the disk touches (its bump) and those behind or beyond it do not count.
+    """
+    slope = math.tan(spread_rad)
+    for vx, vy in verts:
+        wx, wy = vx - px, vy - py
+        s = wx * ux + wy * uy
+        if not 0.0 < s < D:
+            continue
+        gap = abs(wx * uy - wy * ux) - r
+        if GRAZE_TOL < gap < clearance + s * slope:
+            return True
+    return False
+
+
 def _meets(px, py, ux, uy, D, x0, y0, x1, y1) -> bool:
     """Whether the segment from (px, py) along (ux, uy) for D [m] meets the box (slab test,
     1e-9 m of slack).
@@ -254,6 +274,7 @@ def search(fnav, x: float, y: float, heading_deg: float, slack: float,
     bin_of, angles, min_depth = nav.bin_of_point, nav.angles, nav.min_depth
     hyp, k_h = math.hypot, w1 / h
     contact, caster = fnav.cfg.contact, nav.caster
+    clear_m, clear_rad = fnav.cfg.clearance_m, math.radians(fnav.cfg.turn_spread_deg)
     # a first contact with cos b above this closes the bumper: no slide (the margin keeps
     # the test conservative, so the slides are those of the reference search)
     sin_beta = -1.0 if contact is None else math.sin(math.radians(contact.beta_deg)) + 1e-6
@@ -274,6 +295,8 @@ def search(fnav, x: float, y: float, heading_deg: float, slack: float,
                 cast_some(px, py, *plus[k], ns, nv) <= BUMP_RANGE or
                 cast_some(px, py, *minus[k], ns, nv) <= BUMP_RANGE):
             return D, True, 0.0, 0.0, 0, 0.0, ()      # along a wall it touches: a knife edge
+        if not first and grazes(px, py, ux, uy, D, walls.verts, r, clear_m, clear_rad):
+            return D, True, 0.0, 0.0, 0, 0.0, ()      # passes a corner with too little room
         lx, ly = px + D * ux, py + D * uy
         goal_t = ()
         if k == gk and min(px, lx) <= gx1 and max(px, lx) >= gx0 and \
@@ -367,6 +390,10 @@ def search_reference(fnav, x: float, y: float, heading_deg: float, slack: float,
                 cast(px, py, *plus[k]) <= BUMP_RANGE or
                 cast(px, py, *minus[k]) <= BUMP_RANGE):
             continue                       # along a wall it touches: a knife edge
+        if st is not None and grazes(px, py, ux, uy, D, fnav.walls.verts, fnav.walls.r,
+                                     fnav.cfg.clearance_m,
+                                     math.radians(fnav.cfg.turn_spread_deg)):
+            continue                       # passes a corner with too little room
         if k == gk and min(px, px + D * ux) <= gx1 and max(px, px + D * ux) >= gx0 and \
                 min(py, py + D * uy) <= gy1 and max(py, py + D * uy) >= gy0:
             _, p, tt, depth = chords(cs, [[px, py]], [[ux, uy]], [D])
