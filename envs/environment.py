@@ -34,7 +34,7 @@ from numpy.typing import ArrayLike
 from shapely.geometry import Polygon
 from shapely.validation import explain_validity
 
-from .errors import InvalidEnvironment
+from .errors import InvalidEnvironment, UserError
 
 __all__ = ["MAX_GRID_CELLS", "Environment", "InvalidEnvironment", "grid_shape"]
 
@@ -302,6 +302,23 @@ class Environment:
             d = shapely.distance(geoms[inside], self.walls)
             out[inside] = d >= self.robot_radius - self.tol
         return out
+
+    def random_pose(self, rng: np.random.Generator) -> tuple[float, float, float]:
+        """A pose uniform over the robot's free space, with a uniform heading:
+        (x [m], y [m], heading [deg]), every draw from ``rng``.
+
+        >>> from envs import load
+        >>> x, y, h = load("lab").random_pose(np.random.default_rng(0))
+        >>> bool(load("lab").points_free([[x, y]])[0]) and 0 <= h < 360
+        True
+        """
+        x0, y0, x1, y1 = self.bounds
+        for _ in range(10_000):
+            pts = rng.uniform([x0, y0], [x1, y1], size=(64, 2))
+            free = pts[self.points_free(pts)]
+            if len(free):
+                return float(free[0, 0]), float(free[0, 1]), float(rng.uniform(0.0, 360.0))
+        raise UserError(f"{self.name} has no free space for the robot.")
 
     def segments_free(self, starts: ArrayLike, ends: ArrayLike) -> np.ndarray:
         """Whether the disk can slide along each segment [start, end] without a wall.

@@ -152,13 +152,12 @@ def test_the_turn_factor_estimate_converges_on_a_body_with_a_known_factor():
 def test_an_unknown_start_localizes_in_a_small_asymmetric_room():
     # the body is put at random poses and the navigator is told nothing: it turns angles
     # that localize, then navigates (noise-free twin, nearest-point bumper)
-    from bouncesim.commands.run_plan import random_pose
     cs = CellSpace(L_ROOM)
     rng = np.random.default_rng(0)
     localized = arrived = 0
     for i in range(4):
         body = KinematicRobot(L_ROOM, side_rule="nearest")
-        body.place(*random_pose(L_ROOM, rng))
+        body.place(*L_ROOM.random_pose(rng))
         run = navigate_feedback(body, L_ROOM, None, 20, None, np.random.default_rng(i),
                                 cells=cs)
         assert run.start_pose is None

@@ -270,7 +270,7 @@ def _run_closed_loop(args, env, cells, start: int, goal: int, noise) -> int:
         flush_warnings()
         true_start = None
         if start is None:           # unknown: a simulated body goes to a random pose
-            true_start = random_pose(env, make_rng(args.seed).spawn(3)[2])
+            true_start = env.random_pose(make_rng(args.seed).spawn(3)[2])
             if not place_if_simulated(robot, true_start):
                 true_start = None   # hardware: wherever a person put it
         if say:
@@ -306,15 +306,4 @@ def _run_closed_loop(args, env, cells, start: int, goal: int, noise) -> int:
             f, sf, b, sb = result.turn_estimate
             print(f"turn estimate: factor {f:.3f} ± {sf:.3f}, offset {b:+.2f}° ± {sb:.2f}°")
     return 0 if result.success or unknown else EXIT_FAILURE
-
-
-def random_pose(env, rng) -> tuple[float, float, float]:
-    """A pose uniform over the robot's free space with a uniform heading [m, m, deg]."""
-    x0, y0, x1, y1 = env.bounds
-    for _ in range(10_000):
-        pt = rng.uniform([x0, y0], [x1, y1], size=(64, 2))
-        free = pt[env.points_free(pt)]
-        if len(free):
-            return float(free[0, 0]), float(free[0, 1]), float(rng.uniform(0.0, 360.0))
-    raise UserError(f"{env.name} has no free space for the robot.")
 
