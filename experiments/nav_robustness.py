@@ -1,0 +1,391 @@
+"""Navigation a real robot can trust: every planner on several bodies, under biased turns,
+sensor faults and an unknown start, on maps nobody tuned on (docs/model.md §15).
+
+    python -m experiments.nav_robustness [--quick] [--seed 0] [--out results/nav_robustness]
+        [--maps lab,lroom,...] [--pairs N] [--bodies twin,nearest,...]
+        [--conditions sigma0,sigma2,...] [--workers N | --dask-local N | --dask ADDRESS]
+        [--restart] [--plot-only]
+
+Bodies (the robot that runs; the navigator is never told which):
+
+- ``twin``: the kinematic twin with the front-half bumper (docs/model.md §21);
+- ``twin-rule``: the twin with PyBullet's fitted contact rule (glancing contacts slide, §9);
+- ``nearest``: the twin whose bumper side comes from the wall point nearest its centre;
+- ``pybullet``: the PyBullet Create 2 (needs the ``sim`` extra; slow).
+
+Conditions (``CONDITIONS``): Gaussian turn noise σ = 0, 2, 5°; a body that turns 8 % short or
+long while the navigator knows only 1 ± 10 % (``gauss:2,scale=0.1``); 5 % of bumper sides
+misread; 2 % of bumps missed (:class:`bouncesim.robots.faulty.FaultyRobot`); an unknown start
+(σ = 2°: the body at a random pose, the navigator told nothing). Planners: ``feedback`` in
+every condition; the open-loop ``exact`` and ``reliable`` plans under the noise conditions
+(the headline figure).
+
+Maps: the catalogue (``lab``, ``fig1``, ``studio``) and held-out ones generated without
+tuning: ``lroom`` (an L-shaped room with an octagonal pillar off the grid), ``office40`` (two
+rooms and a 0.40 m door), ``pentahex`` (a pentagon with a hexagonal pillar) and ``slantedN``
+(random rooms with slanted walls and pillars), all at h = 0.34 m, K = 8, Φ = {45°, 90°, 135°}.
+Pairs: drawn uniformly from the (start, goal) pairs the exact planner reaches.
+
+Outputs in ``--out``: ``runs.csv`` (one row per run: success, bumps, bumps to localize, the
+turn estimate, decision CPU times), ``summary.csv`` (per planner, body and condition, pooled
+over the maps and per map: Wilson 95 % intervals, median bumps, median bumps to localize,
+decision CPU p50/p95/max), ``config.json`` and ``success_vs_sigma.png`` (success against σ
+for the open-loop exact and reliable plans and feedback), drawn from runs.csv alone.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import dataclass, replace
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+import envs
+from bouncesim.robots.kinematic import KinematicRobot
+from bouncesim.robots.noise import parse_noise
+from bouncesim.runs.drivers import NavConfig, declared_noise
+from bouncesim.runs.execute import execute
+from bouncesim.runs.executors import add_executor_args, make_executor
+from bouncesim.runs.sweep import Sweep
+from envs.motion import PYBULLET_CONTACT
+from planners.cells import CellSpace
+from planners.navigation import make_planner, planner_class
+
+from .common import experiment_parser, name_list, output_dir
+from .nav_montecarlo import wilson
+from .nav_planners import world
+
+__all__ = ["BODIES", "CONDITIONS", "Config", "build_trials", "draw", "main", "maps_of", "run",
+           "sample_pairs", "summarise", "trial"]
+
+ANGLES = (45.0, 90.0, 135.0)
+BODIES = ("twin", "twin-rule", "nearest", "pybullet")
+CONDITIONS = {
+    # name: (body's turn noise, the navigator's declared noise, p_side, p_miss, unknown start)
+    "sigma0": ("gauss:0", "gauss:0", 0.0, 0.0, False),
+    "sigma1": ("gauss:1", "gauss:1", 0.0, 0.0, False),
+    "sigma2": ("gauss:2", "gauss:2", 0.0, 0.0, False),
+    "sigma5": ("gauss:5", "gauss:5", 0.0, 0.0, False),
+    "scale0.92": ("gauss:2,factor=0.92", "gauss:2,scale=0.1", 0.0, 0.0, False),
+    "scale1.08": ("gauss:2,factor=1.08", "gauss:2,scale=0.1", 0.0, 0.0, False),
+    "side5": ("gauss:2", "gauss:2", 0.05, 0.0, False),
+    "miss2": ("gauss:2", "gauss:2", 0.0, 0.02, False),
+    "unknown": ("gauss:2", "gauss:2", 0.0, 0.0, True),
+}
+NOISE_ONLY = ("sigma0", "sigma1", "sigma2", "sigma5")
+"""Conditions the open-loop planners run in (they know neither faults nor unknown starts)."""
+MAPS = ("lab", "fig1", "studio", "lroom", "office40", "pentahex", "slanted1", "slanted2")
+QUICK_MAPS = ("lab", "lroom")
+CONFIDENCE = 0.95
+
+
+@lru_cache(maxsize=32)
+def maps_of(name: str, seed: int = 0) -> envs.Environment:
+    """A map by name: :func:`experiments.nav_planners.world`'s names, and the held-out
+    generated rooms of :mod:`envs.generated` (``lroom``, ``office40``, ``pentahex``,
+    ``slantedN``), all at K = 8.
+    """
+    from envs import generated
+    if name == "lroom":
+        return generated.l_room_octagon(orientations=8)
+    if name == "office40":
+        return generated.office_door(orientations=8, door=0.40)
+    if name == "pentahex":
+        return generated.pentagon_hex(orientations=8)
+    if name.startswith("slanted") and name[7:].isdigit():
+        rng = np.random.default_rng(np.random.SeedSequence([seed, 27, int(name[7:])]))
+        return generated.slanted_room(rng, orientations=8)
+    return world(name, seed)
+
+
+@lru_cache(maxsize=32)
+def _cells(name: str, seed: int) -> CellSpace:
+    return CellSpace(maps_of(name, seed))
+
+
+# ============================================================================ the trial
+def _body(kind: str, env, noise, rng, p_side: float, p_miss: float):
+    if kind == "twin":
+        body = KinematicRobot(env, noise, rng)
+    elif kind == "twin-rule":
+        body = KinematicRobot(env, noise, rng, contact=PYBULLET_CONTACT)
+    elif kind == "nearest":
+        body = KinematicRobot(env, noise, rng, side_rule="nearest")
+    elif kind == "pybullet":
+        from bouncesim.robots import make_robot
+        body = make_robot("pybullet", env, noise=noise, rng=rng)
+    else:
+        raise envs.UserError(f"unknown body {kind!r}; choose from {', '.join(BODIES)}.")
+    if p_side or p_miss:
+        from bouncesim.robots.faulty import FaultyRobot
+        body = FaultyRobot(body, p_side=p_side, p_miss=p_miss, rng=rng)
+    return body
+
+
+def trial(params: dict, rng: np.random.Generator) -> dict:
+    """Drive one pair once: the sweep's trial function (pure in ``params`` and ``rng``).
+
+    ``params``: env, map_seed, start, goal, planner, body, condition (a :data:`CONDITIONS`
+    name). The rng drives the body's noise and faults, its random start and the navigator.
+    """
+    env = maps_of(params["env"], int(params["map_seed"]))
+    cs = _cells(params["env"], int(params["map_seed"]))
+    body_spec, declared, p_side, p_miss, unknown = CONDITIONS[params["condition"]]
+    body_rng, nav_rng, start_rng = rng.spawn(3)
+    noise = parse_noise(body_spec, cs.delta_deg)
+    body = _body(params["body"], env, noise, body_rng, p_side, p_miss)
+    s, g, name = int(params["start"]), int(params["goal"]), params["planner"]
+    rule = PYBULLET_CONTACT if params["body"] in ("twin-rule", "pybullet") else None
+    t0 = time.perf_counter()
+    try:
+        if planner_class(name).closed_loop:
+            planner = make_planner(name, cs, ANGLES, noise=declared, rng=nav_rng,
+                                   contact="auto")
+            start = None
+            if unknown:
+                body.place(*env.random_pose(start_rng))
+            else:
+                start = s
+            run = execute(planner.policy(start, g), body, cells=cs)
+        else:
+            spec = declared_noise(NavConfig(noise=declared, contact=rule))
+            kw = {"noise": spec, "rng": nav_rng} if "rng" in planner_class(name).needs else {}
+            if "contact" in planner_class(name).needs:
+                kw["contact"] = rule
+            route = make_planner(name, cs, ANGLES, **kw).plan(s, g)
+            run = None if route is None else execute(route.plan, body, start=s, goal=g,
+                                                     cells=cs)
+    finally:
+        body.close()
+    wall = time.perf_counter() - t0
+    if run is None:
+        return {"success": False, "reason": "no plan", "bumps": 0, "bumps_to_localize": -1,
+                "turn_factor": np.nan, "decisions": 0, "decision_cpu_ms": "",
+                "position_error_m": np.nan, "wall_s": wall}
+    cpu = getattr(run, "decision_cpu_ms", ())
+    loc = getattr(run, "bumps_to_localize", 0)
+    return {"success": bool(run.success), "reason": run.reason, "bumps": int(run.bumps),
+            "bumps_to_localize": -1 if loc is None else int(loc),
+            "turn_factor": float(getattr(run, "turn_estimate", (np.nan,))[0]),
+            "decisions": len(cpu), "decision_cpu_ms": " ".join(f"{v:.2f}" for v in cpu),
+            "position_error_m": np.nan if run.position_error is None
+            else float(run.position_error), "wall_s": wall}
+
+
+# ============================================================================ pairs and trials
+def sample_pairs(name: str, seed: int, n: int, rng: np.random.Generator) -> pd.DataFrame:
+    """``n`` ordered pairs (start ≠ goal) the exact planner reaches noise-free, drawn
+    uniformly (rejection over random pairs; all reachable pairs are not enumerated).
+    """
+    cs = _cells(name, seed)
+    nav = make_planner("exact", cs, ANGLES)
+    rows, tries = [], 0
+    while len(rows) < n and tries < 50 * n:
+        tries += 1
+        s, g = (int(v) for v in rng.choice(cs.N, 2, replace=False))
+        if (s, g) not in {(r[0], r[1]) for r in rows} and nav.plan(s, g) is not None:
+            rows.append((s, g))
+    return pd.DataFrame({"env": name, "pair": np.arange(len(rows)),
+                         "start": [r[0] for r in rows], "goal": [r[1] for r in rows]})
+
+
+def build_trials(pairs: pd.DataFrame, planners, bodies, conditions, map_seed: int,
+                 reps: int) -> list[dict]:
+    """Every (pair, planner, body, condition, repetition) as sweep parameters; the
+    open-loop planners only under the noise conditions, and σ = 0 runs once.
+    """
+    out = []
+    for _, p in pairs.iterrows():
+        for name in planners:
+            closed = planner_class(name).closed_loop
+            for body in bodies:
+                for cond in conditions:
+                    if not closed and cond not in NOISE_ONLY:
+                        continue
+                    for rep in range(1 if cond == "sigma0" else reps):
+                        out.append({"env": p["env"], "map_seed": int(map_seed),
+                                    "pair": int(p["pair"]), "start": int(p["start"]),
+                                    "goal": int(p["goal"]), "planner": name, "body": body,
+                                    "condition": cond, "rep": rep})
+    return out
+
+
+# ============================================================================ statistics
+def _p(values: pd.Series, q: float) -> float:
+    v = np.concatenate([np.array(s.split(), dtype=float) for s in values.fillna("") if s]
+                       or [np.array([])])
+    return float(np.percentile(v, q)) if v.size else np.nan
+
+
+def summarise(runs: pd.DataFrame) -> pd.DataFrame:
+    """Per (planner, body, condition), pooled over the maps (env = 'all') and per map: runs,
+    successes, success rate with its Wilson interval, median bumps, median bumps to localize
+    (unknown starts that localized), the share that never localized, and the decision CPU
+    p50, p95 and maximum [ms] over every decision.
+    """
+    parts = []
+    for by in (["planner", "body", "condition"], ["planner", "body", "condition", "env"]):
+        g = runs.groupby(by, sort=True)
+        out = g.agg(runs=("success", "size"), successes=("success", "sum"),
+                    median_bumps=("bumps", "median")).reset_index()
+        loc = g["bumps_to_localize"].agg(
+            lambda s: float(np.median(s[s >= 0])) if (s >= 0).any() else np.nan)
+        out["median_bumps_to_localize"] = loc.to_numpy()
+        out["never_localized"] = g["bumps_to_localize"].agg(
+            lambda s: float((s < 0).mean())).to_numpy()
+        for q, col in ((50, "cpu_p50_ms"), (95, "cpu_p95_ms"), (100, "cpu_max_ms")):
+            out[col] = g["decision_cpu_ms"].agg(lambda s, q=q: _p(s, q)).to_numpy()
+        if "env" not in by:
+            out.insert(3, "env", "all")
+        parts.append(out)
+    out = pd.concat(parts, ignore_index=True)
+    out["successes"] = out["successes"].astype(int)
+    out["success_rate"] = out["successes"] / out["runs"]
+    out["ci_low"], out["ci_high"] = wilson(out["successes"].to_numpy(), out["runs"].to_numpy())
+    return out
+
+
+def draw(summary: pd.DataFrame, path: Path) -> Path:
+    """Success against σ (pooled over the maps, the twin body): open-loop exact and reliable
+    plans and feedback, with 95 % Wilson intervals.
+    """
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from bouncesim.plots import save_figure
+    s = summary[(summary.env == "all") & summary.condition.isin(NOISE_ONLY)].copy()
+    s["sigma"] = s.condition.str.removeprefix("sigma").astype(float)
+    fig, ax = plt.subplots(figsize=(6.4, 4.2), layout="constrained")
+    for (planner, body), d in s.groupby(["planner", "body"], sort=True):
+        d = d.sort_values("sigma")
+        ax.errorbar(d.sigma, d.success_rate, yerr=[d.success_rate - d.ci_low,
+                                                    d.ci_high - d.success_rate],
+                    marker="o", capsize=3, label=f"{planner} ({body})")
+    ax.set_xlabel("Gaussian turn noise σ [deg]")
+    ax.set_ylabel("success rate (95 % Wilson interval)")
+    ax.set_ylim(0, 1.02)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="lower left")
+    ax.set_title("reaching the goal cell and heading, pooled over the maps")
+    return save_figure(fig, path, dpi=130)
+
+
+# ============================================================================ the sweep
+@dataclass(frozen=True)
+class Config:
+    """One run of the experiment (see the module; ``main`` builds it from the command line).
+
+    Attributes
+    ----------
+    maps, bodies, conditions, planners : tuple of str
+    pairs : int          pairs per map
+    reps : int           noisy repetitions per pair (σ = 0 runs once)
+    seed : int           root seed (random maps, pairs and the sweep)
+    out : Path           output folder
+    restart, plot_only, quick : bool
+    workers, dask_local, dask : the executor (``add_executor_args``)
+    progress : bool
+    """
+
+    maps: tuple = MAPS
+    bodies: tuple = ("twin", "nearest", "twin-rule")
+    conditions: tuple = tuple(CONDITIONS)
+    planners: tuple = ("feedback", "exact", "reliable")
+    pairs: int = 30
+    reps: int = 1
+    seed: int = 0
+    out: Path = Path("results") / "nav_robustness"
+    restart: bool = False
+    plot_only: bool = False
+    quick: bool = False
+    workers: int | None = None
+    dask_local: int | None = None
+    dask: str | None = None
+    progress: bool = True
+
+
+def run(config: Config) -> Path:
+    """Sample the pairs, run (or resume) the sweep, write the summary and the figure."""
+    out = output_dir(config.out)
+    if config.plot_only:
+        runs = pd.read_csv(out / "runs.csv")
+        _report(out, runs)
+        return out
+    for what, names, known in (("body", config.bodies, BODIES),
+                               ("condition", config.conditions, tuple(CONDITIONS))):
+        bad = [n for n in names if n not in known]
+        if bad or not names:
+            raise envs.UserError(f"unknown {what} {', '.join(bad) or '(none)'}; choose from "
+                                 f"{', '.join(known)}.")
+    for name in config.planners:
+        planner_class(name)
+    pair_rng = np.random.default_rng(np.random.SeedSequence([config.seed, 27]))
+    pairs = pd.concat([sample_pairs(m, config.seed, config.pairs, pair_rng)
+                       for m in config.maps], ignore_index=True)
+    trials = build_trials(pairs, config.planners, config.bodies, config.conditions,
+                          config.seed, config.reps)
+    if config.restart:
+        for f in ("runs.jsonl", "runs.csv", "config.json"):
+            (out / f).unlink(missing_ok=True)
+    record = {"experiment": "nav_robustness", "seed": config.seed, "quick": config.quick,
+              "maps": list(config.maps), "bodies": list(config.bodies),
+              "conditions": {c: list(CONDITIONS[c]) for c in config.conditions},
+              "planners": list(config.planners), "angles": list(ANGLES),
+              "pairs_per_map": config.pairs, "reps": config.reps,
+              "discretisation": "0.34 m cells, K = 8 on every map"}
+    sweep = Sweep(trial, trials, config.seed, out, record)
+    runs = sweep.run(make_executor(config), progress=config.progress).table
+    _report(out, runs)
+    return out
+
+
+def _report(out: Path, runs: pd.DataFrame) -> None:
+    summary = summarise(runs)
+    summary.to_csv(out / "summary.csv", index=False)
+    draw(summary, out / "success_vs_sigma.png")
+    pooled = summary[summary.env == "all"]
+    cols = ["planner", "body", "condition", "runs", "success_rate", "ci_low", "ci_high",
+            "median_bumps", "median_bumps_to_localize", "cpu_p95_ms"]
+    print(pooled[cols].to_string(index=False, float_format=lambda v: f"{v:.3g}"))
+    print(f"wrote {out}/summary.csv, {out}/success_vs_sigma.png")
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Command line: ``python -m experiments.nav_robustness --help``."""
+    p = experiment_parser("nav_robustness", __doc__.split("\n\n")[0])
+    p.add_argument("--maps", type=name_list, default=None, metavar="M1,M2,...")
+    p.add_argument("--bodies", type=name_list, default=None, metavar="B1,B2,...",
+                   help=f"bodies ({', '.join(BODIES)})")
+    p.add_argument("--conditions", type=name_list, default=None, metavar="C1,C2,...",
+                   help=f"conditions ({', '.join(CONDITIONS)})")
+    p.add_argument("--planners", type=name_list, default=None, metavar="P1,P2,...")
+    p.add_argument("--pairs", type=int, default=None, help="pairs per map (default 30)")
+    p.add_argument("--reps", type=int, default=None, help="noisy repetitions (default 1)")
+    p.add_argument("--restart", action="store_true", help="start the sweep again")
+    p.add_argument("--plot-only", action="store_true", help="redraw from runs.csv")
+    add_executor_args(p)
+    args = p.parse_args(argv)
+    base = Config(maps=QUICK_MAPS, pairs=3, bodies=("twin", "nearest"),
+                  conditions=("sigma0", "sigma2", "side5", "unknown")) if args.quick \
+        else Config()
+    config = replace(base, **{k: v for k, v in {
+        "maps": args.maps, "bodies": args.bodies, "conditions": args.conditions,
+        "planners": args.planners, "pairs": args.pairs, "reps": args.reps}.items()
+        if v is not None}, seed=args.seed, out=args.out, restart=args.restart,
+        plot_only=args.plot_only, quick=args.quick, workers=args.workers,
+        dask_local=args.dask_local, dask=args.dask)
+    try:
+        run(config)
+    except envs.UserError as exc:
+        print(f"nav_robustness: error: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
