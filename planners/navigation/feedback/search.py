@@ -91,15 +91,16 @@ class ScalarWalls:
         return [[(ax, ay, ex, ey, L, uy * ex - ux * ey, ux * ex + uy * ey)
                  for ax, ay, ex, ey, L in self.sides] for ux, uy in units]
 
-    def bands(self, units, dsides, width: float):
+    def bands(self, units, dsides, width: float, extra: float = 0.0):
         """A lookup ``(k, x, y) -> (sides, corners)``: the walls a disk at (x, y) flying along
         ``units[k]`` can touch, a superset found by strips of ``width`` [m] across each
         heading (a wall belongs to a strip when its offset across the heading comes within
-        r + BAND_PAD_M of it); with ``dsides[k]``'s direction terms. Every wall within
-        r + NEAR_M of (x, y) is among them.
+        r + BAND_PAD_M + ``extra`` of it); with ``dsides[k]``'s direction terms. Every wall
+        within r + NEAR_M of (x, y) is among them, and with ``extra`` every wall that passes
+        within r + ``extra`` of the flight's line.
         """
         U = np.asarray(units, dtype=float).reshape(-1, 2)
-        pad = self.r + BAND_PAD_M
+        pad = self.r + BAND_PAD_M + extra
 
         def across(q):             # offset across each heading: u × q, shape (K, n)
             return U[:, :1] * q[None, :, 1] - U[:, 1:] * q[None, :, 0]
@@ -260,6 +261,11 @@ def search(fnav, x: float, y: float, heading_deg: float, slack: float,
     dirs = walls.directions(units)
     near_walls = walls.bands(units, dirs, STRIP_M)
     cast_near = walls.cast_near
+    clear_m, clear_rad = fnav.cfg.clearance_m, math.radians(fnav.cfg.turn_spread_deg)
+    x0, y0, x1, y1 = cs.env.bounds            # no flight is longer than the diagonal
+    reach = clear_m + math.hypot(x1 - x0, y1 - y0) * math.tan(clear_rad)
+    beside = walls.bands(units, dirs, STRIP_M, reach) if clear_m > 0 or clear_rad > 0 \
+        else None
     r, r2, graze = walls.r, walls.r2, walls.graze
 
     def cast_some(px, py, ux, uy, sides, verts):      # the motion layer's scalar cast
@@ -274,7 +280,6 @@ def search(fnav, x: float, y: float, heading_deg: float, slack: float,
     bin_of, angles, min_depth = nav.bin_of_point, nav.angles, nav.min_depth
     hyp, k_h = math.hypot, w1 / h
     contact, caster = fnav.cfg.contact, nav.caster
-    clear_m, clear_rad = fnav.cfg.clearance_m, math.radians(fnav.cfg.turn_spread_deg)
     # a first contact with cos b above this closes the bumper: no slide (the margin keeps
     # the test conservative, so the slides are those of the reference search)
     sin_beta = -1.0 if contact is None else math.sin(math.radians(contact.beta_deg)) + 1e-6
@@ -295,7 +300,8 @@ def search(fnav, x: float, y: float, heading_deg: float, slack: float,
                 cast_some(px, py, *plus[k], ns, nv) <= BUMP_RANGE or
                 cast_some(px, py, *minus[k], ns, nv) <= BUMP_RANGE):
             return D, True, 0.0, 0.0, 0, 0.0, ()      # along a wall it touches: a knife edge
-        if not first and grazes(px, py, ux, uy, D, walls.verts, r, clear_m, clear_rad):
+        if beside is not None and not first and \
+                grazes(px, py, ux, uy, D, beside(k, px, py)[1], r, clear_m, clear_rad):
             return D, True, 0.0, 0.0, 0, 0.0, ()      # passes a corner with too little room
         lx, ly = px + D * ux, py + D * uy
         goal_t = ()
