@@ -77,6 +77,15 @@ def test_a_phantom_bump_is_not_taken_for_a_wall():
     assert x == pytest.approx([1.83, 1.0], abs=0.01)
 
 
+def test_a_bump_without_a_closed_switch_is_read_for_its_distance_only():
+    # a body may stop on a glancing contact and report a bump with neither switch closed
+    pf = _converged()
+    up = pf.flight(1.33, False, False)
+    assert up.side == "none" and up.reinit == 0
+    x, h = _mean_pose(pf)
+    assert x == pytest.approx([1.83, 1.0], abs=0.01) and abs(h) < 1
+
+
 def test_a_missed_bump_keeps_the_belief_at_the_wall():
     # no bump within the timeout: the robot pushed on against the wall (p_miss); the belief
     # stays at its contacts

@@ -31,7 +31,8 @@ class FlightUpdate:
     Attributes
     ----------
     distance : float     the reading [m]
-    side : str           one of :data:`SIDES`, or "missed" (no bump before the timeout)
+    side : str           one of :data:`SIDES`, "none" (a bump without a closed switch: no
+                         side reading) or "missed" (no bump before the timeout)
     consistent : int     particles that fitted the reading (within ``consistent_z`` σ_d and
                          with the side they predict), before any re-initialisation
     reinit : int         0: no re-initialised component mixed in; 1: one drawn around the
@@ -231,7 +232,7 @@ class ParticleFilter:
         sd = self._sigma_d(d)
         z = (d - D) / sd
         ps = side_probs(beta, cfg)
-        p_read = ps[:, side]
+        p_read = ps[:, side] if side is not None else np.ones(len(D))     # no switch read
         real = (math.log1p(-(cfg.p_phantom + cfg.p_miss)) - 0.5 * z * z
                 - math.log(sd * math.sqrt(2 * math.pi)) + np.log(p_read))
         with np.errstate(divide="ignore"):
@@ -255,7 +256,9 @@ class ParticleFilter:
         below ``surprise`` × the best possible), a re-initialised component is mixed in with
         the share Bayes gives it under the prior ``p_lost``.
         """
-        d, side = float(distance), side_of(left, right)
+        # a body may report a bump with no switch closed (a glancing stop): no side reading
+        d = float(distance)
+        side = side_of(left, right) if (left or right) else None
         if self.fresh:                  # an unknown start: propose poses the reading explains
             self._propose_contacts(d)
         D, end, beta, _, _ = landings(self.caster, self.pos, self.heading, self.cfg.contact)
@@ -264,7 +267,8 @@ class ParticleFilter:
         stop = self.pos + np.minimum(d, D)[:, None] * unit(self.heading)
         phantom = np.log(self.rng.random(self.n)) < ghost - ll      # which branch it took
         pos = np.where(phantom[:, None], stop, end)
-        return self._posterior(d, SIDES[side], ll, pos, int(ok.sum()),
+        return self._posterior(d, "none" if side is None else SIDES[side], ll, pos,
+                               int(ok.sum()),
                                lambda p, h: self._loglik(d, side, *self._cast(p, h))[0])
 
     def missed(self, distance: float) -> FlightUpdate:
