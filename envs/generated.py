@@ -1,7 +1,9 @@
 """Generated maps that are not in the catalogue, shared by the benchmarks, experiments and
 tests: the slowly mixing two-room office, random rectilinear rooms with blocks
 (:func:`random_rectilinear_room`), the pentagon room with a hexagonal pillar
-(:data:`PENTAGON`) and random regular-polygon rooms with a hole (:func:`random_polygon_room`).
+(:data:`PENTAGON`), random regular-polygon rooms with a hole (:func:`random_polygon_room`),
+an L-shaped room with an octagonal pillar off the grid (:func:`l_room_octagon`) and random
+rooms with slanted walls and pillars (:func:`slanted_room`): held-out maps nobody tuned for.
 
 :func:`office` is the map of the issue that found the event model's performance cliff: a
 4.08 m × 2.72 m office (12 × 8 cells of 0.34 m) split by a partition with one door, and a
@@ -21,8 +23,8 @@ import shapely
 from . import load
 from .environment import Environment
 
-__all__ = ["MAPS", "PENTAGON", "load_map", "office", "random_polygon_room",
-           "random_rectilinear_room"]
+__all__ = ["MAPS", "PENTAGON", "l_room_octagon", "load_map", "office", "random_polygon_room",
+           "random_rectilinear_room", "slanted_room"]
 
 H = 0.34                     # [m] cell size = robot diameter
 R = 0.17                     # [m] robot radius
@@ -112,6 +114,79 @@ def random_polygon_room(rng: np.random.Generator, name: str = "random",
     return Environment.from_dict({
         "name": name, "boundary": outer.tolist(), "obstacles": [hole.tolist()],
         "robot_radius": 0.17, "discretization": {"cell_size": 0.34, "orientations": 8}})
+
+
+def _regular(centre, radius: float, n: int, rotation: float) -> list:
+    t = rotation + 2 * np.pi * np.arange(n) / n
+    return (np.asarray(centre) + radius * np.column_stack([np.cos(t), np.sin(t)])
+            ).round(6).tolist()
+
+
+def l_room_octagon(orientations: int = 8) -> Environment:
+    """An L-shaped room with an octagonal pillar off the grid: 4.08 m × 2.72 m (12 × 8 cells
+    of 0.34 m) less its north-east 1.70 m × 1.19 m, and a regular octagon of circumradius
+    0.30 m centred at (1.23, 1.07) m, turned by 10° so that none of its faces is axis-aligned.
+
+    >>> env = l_room_octagon()
+    >>> env.grid_shape, len(env.obstacles[0].exterior.coords) - 1
+    ((8, 12), 8)
+    >>> round(env.free_space.area, 3)
+    8.82
+    """
+    W, Hh = 12 * H, 8 * H
+    boundary = [[0, 0], [W, 0], [W, Hh - 3.5 * H], [W - 5 * H, Hh - 3.5 * H],
+                [W - 5 * H, Hh], [0, Hh]]
+    return Environment.from_dict({
+        "name": "lroom", "description": "an L-shaped room with an octagonal pillar "
+        "(envs.generated.l_room_octagon)", "boundary": boundary,
+        "obstacles": [_regular((1.23, 1.07), 0.30, 8, np.radians(10.0))],
+        "robot_radius": R, "discretization": {"cell_size": H, "orientations": int(orientations)}})
+
+
+def slanted_room(rng: np.random.Generator, orientations: int = 8,
+                 name: str = "slanted") -> Environment:
+    """A random room with slanted walls: a convex quadrilateral to hexagon (a rectangle of
+    3.0-4.4 m × 2.2-3.2 m whose corners move inwards by up to 0.6 m, some cut off), and one or
+    two pillars (regular 3- to 8-gons of circumradius 0.18-0.35 m, turned at random) that keep
+    2.2 r clear of the walls and of each other, so every part of the room stays joined.
+
+    >>> env = slanted_room(np.random.default_rng(1))
+    >>> 1 <= len(env.obstacles) <= 2, env.free_space.geom_type
+    (True, 'Polygon')
+    """
+    W, Hh = float(rng.uniform(3.0, 4.4)), float(rng.uniform(2.2, 3.2))
+    corners = np.array([[0, 0], [W, 0], [W, Hh], [0, Hh]], float)
+    inward = np.array([[1, 1], [-1, 1], [-1, -1], [1, -1]], float)
+    ring = []
+    for c, d in zip(corners, inward, strict=True):
+        if rng.random() < 0.4:        # cut the corner off: two vertices
+            a, b = rng.uniform(0.3, 0.7, size=2)
+            ring += [c + d * [0, a], c + d * [b, 0]] if d[0] * d[1] > 0 else \
+                [c + d * [b, 0], c + d * [0, a]]
+        else:                         # move it inwards along one axis: a slanted wall
+            ring.append(c + d * rng.uniform(0, 0.6, size=2) * (rng.random(2) < 0.5))
+    boundary = shapely.Polygon(np.round(ring, 6))
+    if not boundary.is_valid or not boundary.exterior.is_ccw:
+        boundary = shapely.Polygon(np.round(ring, 6)[::-1])
+    pillars: list = []
+    want = int(rng.integers(1, 3))
+    room = boundary.buffer(-2.2 * R)
+    for _ in range(200):
+        if len(pillars) == want:
+            break
+        rad = float(rng.uniform(0.18, 0.35))
+        c = rng.uniform([0.5, 0.5], [W - 0.5, Hh - 0.5])
+        p = shapely.Polygon(_regular(c, rad, int(rng.integers(3, 9)), rng.uniform(0, 2 * np.pi)))
+        if room.contains(p) and all(p.distance(q) > 2.2 * R for q in pillars):
+            pillars.append(p)
+    if not pillars:
+        raise RuntimeError("slanted_room: no pillar fits (should not happen for these sizes)")
+    return Environment.from_dict({
+        "name": name, "description": "a room with slanted walls and pillars "
+        "(envs.generated.slanted_room)",
+        "boundary": np.asarray(boundary.exterior.coords)[:-1].tolist(),
+        "obstacles": [np.asarray(p.exterior.coords)[:-1].tolist() for p in pillars],
+        "robot_radius": R, "discretization": {"cell_size": H, "orientations": int(orientations)}})
 
 
 MAPS = {"office": lambda K: office(2 * R, K),

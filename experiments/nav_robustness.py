@@ -54,8 +54,9 @@ from bouncesim.runs.sweep import Sweep
 from envs.motion import PYBULLET_CONTACT
 from planners.cells import CellSpace
 from planners.navigation import make_planner, planner_class
+from planners.navigation.feedback import FeedbackConfig
 
-from .common import experiment_parser, name_list, output_dir
+from .common import experiment_parser, name_list, output_dir, run_main
 from .nav_montecarlo import wilson
 from .nav_planners import world
 
@@ -93,9 +94,9 @@ def maps_of(name: str, seed: int = 0) -> envs.Environment:
     if name == "lroom":
         return generated.l_room_octagon(orientations=8)
     if name == "office40":
-        return generated.office_door(orientations=8, door=0.40)
+        return generated.office(door=0.40, orientations=8)
     if name == "pentahex":
-        return generated.pentagon_hex(orientations=8)
+        return envs.Environment.from_dict(generated.PENTAGON)
     if name.startswith("slanted") and name[7:].isdigit():
         rng = np.random.default_rng(np.random.SeedSequence([seed, 27, int(name[7:])]))
         return generated.slanted_room(rng, orientations=8)
@@ -130,7 +131,8 @@ def trial(params: dict, rng: np.random.Generator) -> dict:
     """Drive one pair once: the sweep's trial function (pure in ``params`` and ``rng``).
 
     ``params``: env, map_seed, start, goal, planner, body, condition (a :data:`CONDITIONS`
-    name). The rng drives the body's noise and faults, its random start and the navigator.
+    name), feedback (``FeedbackConfig`` fields as "key=value,..."; "" for the defaults). The
+    rng drives the body's noise and faults, its random start and the navigator.
     """
     env = maps_of(params["env"], int(params["map_seed"]))
     cs = _cells(params["env"], int(params["map_seed"]))
@@ -144,7 +146,8 @@ def trial(params: dict, rng: np.random.Generator) -> dict:
     try:
         if planner_class(name).closed_loop:
             planner = make_planner(name, cs, ANGLES, noise=declared, rng=nav_rng,
-                                   contact="auto")
+                                   contact="auto",
+                                   config=feedback_config(params.get("feedback", "")))
             start = None
             if unknown:
                 body.place(*env.random_pose(start_rng))
@@ -176,6 +179,17 @@ def trial(params: dict, rng: np.random.Generator) -> dict:
             else float(run.position_error), "wall_s": wall}
 
 
+def feedback_config(text: str) -> FeedbackConfig:
+    """A :class:`FeedbackConfig` from "key=value,..." (numbers; "" for the defaults)."""
+    kw = {}
+    for item in filter(None, (t.strip() for t in str(text).split(","))):
+        key, _, value = item.partition("=")
+        if key not in FeedbackConfig.__dataclass_fields__:
+            raise envs.UserError(f"--feedback: FeedbackConfig has no field {key!r}.")
+        kw[key] = int(value) if value.lstrip("-").isdigit() else float(value)
+    return FeedbackConfig(**kw)
+
+
 # ============================================================================ pairs and trials
 def sample_pairs(name: str, seed: int, n: int, rng: np.random.Generator) -> pd.DataFrame:
     """``n`` ordered pairs (start ≠ goal) the exact planner reaches noise-free, drawn
@@ -194,7 +208,7 @@ def sample_pairs(name: str, seed: int, n: int, rng: np.random.Generator) -> pd.D
 
 
 def build_trials(pairs: pd.DataFrame, planners, bodies, conditions, map_seed: int,
-                 reps: int) -> list[dict]:
+                 reps: int, feedback: str = "") -> list[dict]:
     """Every (pair, planner, body, condition, repetition) as sweep parameters; the
     open-loop planners only under the noise conditions, and σ = 0 runs once.
     """
@@ -210,7 +224,7 @@ def build_trials(pairs: pd.DataFrame, planners, bodies, conditions, map_seed: in
                         out.append({"env": p["env"], "map_seed": int(map_seed),
                                     "pair": int(p["pair"]), "start": int(p["start"]),
                                     "goal": int(p["goal"]), "planner": name, "body": body,
-                                    "condition": cond, "rep": rep})
+                                    "condition": cond, "rep": rep, "feedback": feedback})
     return out
 
 
@@ -260,17 +274,22 @@ def draw(summary: pd.DataFrame, path: Path) -> Path:
     from bouncesim.plots import save_figure
     s = summary[(summary.env == "all") & summary.condition.isin(NOISE_ONLY)].copy()
     s["sigma"] = s.condition.str.removeprefix("sigma").astype(float)
-    fig, ax = plt.subplots(figsize=(6.4, 4.2), layout="constrained")
+    fig, ax = plt.subplots(figsize=(6.8, 4.4), layout="constrained")
+    colours = {"exact": "C0", "reliable": "C1", "feedback": "C2"}
+    styles = {"twin": "-", "nearest": "--", "twin-rule": ":", "pybullet": "-."}
+    bodies = sorted(s.body.unique(), key=lambda b: list(styles).index(b) if b in styles else 9)
     for (planner, body), d in s.groupby(["planner", "body"], sort=True):
         d = d.sort_values("sigma")
-        ax.errorbar(d.sigma, d.success_rate, yerr=[d.success_rate - d.ci_low,
-                                                    d.ci_high - d.success_rate],
-                    marker="o", capsize=3, label=f"{planner} ({body})")
+        dx = 0.06 * (bodies.index(body) - (len(bodies) - 1) / 2)    # error bars side by side
+        ax.errorbar(d.sigma + dx, d.success_rate, yerr=[d.success_rate - d.ci_low,
+                                                         d.ci_high - d.success_rate],
+                    marker="o", ms=4, capsize=2, color=colours.get(planner),
+                    ls=styles.get(body, "-"), label=f"{planner}, {body}")
     ax.set_xlabel("Gaussian turn noise σ [deg]")
     ax.set_ylabel("success rate (95 % Wilson interval)")
     ax.set_ylim(0, 1.02)
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=8, loc="lower left")
+    ax.legend(fontsize=7, loc="lower left", ncol=len(colours))
     ax.set_title("reaching the goal cell and heading, pooled over the maps")
     return save_figure(fig, path, dpi=130)
 
@@ -285,6 +304,8 @@ class Config:
     maps, bodies, conditions, planners : tuple of str
     pairs : int          pairs per map
     reps : int           noisy repetitions per pair (σ = 0 runs once)
+    feedback : str       the feedback navigator's settings, "key=value,..." of
+                         :class:`FeedbackConfig` ("" for the defaults)
     seed : int           root seed (random maps, pairs and the sweep)
     out : Path           output folder
     restart, plot_only, quick : bool
@@ -298,6 +319,7 @@ class Config:
     planners: tuple = ("feedback", "exact", "reliable")
     pairs: int = 30
     reps: int = 1
+    feedback: str = ""
     seed: int = 0
     out: Path = Path("results") / "nav_robustness"
     restart: bool = False
@@ -324,11 +346,12 @@ def run(config: Config) -> Path:
                                  f"{', '.join(known)}.")
     for name in config.planners:
         planner_class(name)
+    feedback_config(config.feedback)
     pair_rng = np.random.default_rng(np.random.SeedSequence([config.seed, 27]))
     pairs = pd.concat([sample_pairs(m, config.seed, config.pairs, pair_rng)
                        for m in config.maps], ignore_index=True)
     trials = build_trials(pairs, config.planners, config.bodies, config.conditions,
-                          config.seed, config.reps)
+                          config.seed, config.reps, config.feedback)
     if config.restart:
         for f in ("runs.jsonl", "runs.csv", "config.json"):
             (out / f).unlink(missing_ok=True)
@@ -337,6 +360,7 @@ def run(config: Config) -> Path:
               "conditions": {c: list(CONDITIONS[c]) for c in config.conditions},
               "planners": list(config.planners), "angles": list(ANGLES),
               "pairs_per_map": config.pairs, "reps": config.reps,
+              "feedback": config.feedback,
               "discretisation": "0.34 m cells, K = 8 on every map"}
     sweep = Sweep(trial, trials, config.seed, out, record)
     runs = sweep.run(make_executor(config), progress=config.progress).table
@@ -366,6 +390,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--planners", type=name_list, default=None, metavar="P1,P2,...")
     p.add_argument("--pairs", type=int, default=None, help="pairs per map (default 30)")
     p.add_argument("--reps", type=int, default=None, help="noisy repetitions (default 1)")
+    p.add_argument("--feedback", default=None, metavar="KEY=VAL,...",
+                   help="the feedback navigator's FeedbackConfig settings (default: its own)")
     p.add_argument("--restart", action="store_true", help="start the sweep again")
     p.add_argument("--plot-only", action="store_true", help="redraw from runs.csv")
     add_executor_args(p)
@@ -375,16 +401,12 @@ def main(argv: list[str] | None = None) -> int:
         else Config()
     config = replace(base, **{k: v for k, v in {
         "maps": args.maps, "bodies": args.bodies, "conditions": args.conditions,
-        "planners": args.planners, "pairs": args.pairs, "reps": args.reps}.items()
+        "planners": args.planners, "pairs": args.pairs, "reps": args.reps,
+        "feedback": args.feedback}.items()
         if v is not None}, seed=args.seed, out=args.out, restart=args.restart,
         plot_only=args.plot_only, quick=args.quick, workers=args.workers,
-        dask_local=args.dask_local, dask=args.dask)
-    try:
-        run(config)
-    except envs.UserError as exc:
-        print(f"nav_robustness: error: {exc}", file=sys.stderr)
-        return 2
-    return 0
+        dask_local=args.dask_local, dask=args.dask, progress=not args.no_progress)
+    return run_main("nav_robustness", lambda: config, run)
 
 
 if __name__ == "__main__":

@@ -77,3 +77,28 @@ def test_config_is_frozen_and_help_exits_0(mod, capsys):
 def test_bad_angles_exit_2(tmp_path, capsys):
     assert nav_fig3.main(["--angles", "7", "--no-physics", "--out", str(tmp_path)]) == 2
     assert "nav_fig3: error:" in capsys.readouterr().err
+
+
+def test_nav_robustness_quick(tmp_path):
+    from experiments import nav_robustness
+    argv = ["--quick", "--pairs", "2", "--workers", "1", "--no-progress", "--out", str(tmp_path)]
+    assert nav_robustness.main(argv) == 0
+    runs = pd.read_csv(tmp_path / "runs.csv")
+    # feedback runs every condition; exact and reliable only the noise ones
+    fb = runs[runs["planner"] == "feedback"]
+    assert set(fb["condition"]) == {"sigma0", "sigma2", "side5", "unknown"}
+    assert set(runs[runs["planner"] != "feedback"]["condition"]) == {"sigma0", "sigma2"}
+    assert set(runs["env"]) == {"lab", "lroom"} and runs["success"].dtype == bool
+    assert (fb[fb["condition"] == "unknown"]["bumps_to_localize"] >= 0).all()
+    summary = pd.read_csv(tmp_path / "summary.csv")
+    assert ((summary["ci_low"] <= summary["success_rate"])
+            & (summary["success_rate"] <= summary["ci_high"])).all()
+    assert (tmp_path / "success_vs_sigma.png").stat().st_size > 0
+    assert _config(tmp_path)["pairs_per_map"] == 2
+
+
+def test_nav_robustness_bad_feedback_setting_exits_2(tmp_path, capsys):
+    from experiments import nav_robustness
+    assert nav_robustness.main(["--quick", "--feedback", "particels=10",
+                                "--out", str(tmp_path)]) == 2
+    assert "particels" in capsys.readouterr().err

@@ -7,6 +7,8 @@
 - :mod:`.pybullet`: the Create 2 in PyBullet (extra ``sim``);
 - :mod:`.create2`: a real Create 2 over its Open Interface and an emulator of it (extra
   ``hardware``);
+- :mod:`.faulty`: :class:`~.faulty.FaultyRobot` wraps a simulated body with bump-sensor
+  faults (wrong side, missed and phantom bumps) at declared rates;
 - :func:`make_robot` builds any of them by name with one constructor contract;
 - :func:`check_robot` runs the conformance checks against any body, yours included.
 

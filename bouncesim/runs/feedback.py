@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from envs import UserError
-from envs.motion import PYBULLET_CONTACT, STEP_TOL, ContactParams
+from envs.motion import STEP_TOL, ContactParams
 from planners.cells import CellSpace
 from planners.measures import flight_cap
 from planners.navigation.feedback import ParticleFilter
@@ -95,13 +95,11 @@ class FeedbackRun(PlanRun):
 
 def body_contact(robot) -> ContactParams | None:
     """The contact rule (docs/model.md §9) a body declares, as ``validate --contact auto``
-    takes it: a PyBullet body has ``envs.motion.PYBULLET_CONTACT``; a body with a
-    ``contact`` attribute that is a :class:`~envs.motion.ContactParams` (the twin made with
-    ``contact=`` or ``glance_deg=``) has that one; any other body (the twin by default, the
-    Create 2 and its emulator, a user's own) the front-half bumper (None).
+    takes it: its ``contact`` attribute when that is a :class:`~envs.motion.ContactParams`
+    (PyBullet's fitted ``envs.motion.PYBULLET_CONTACT``, the twin made with ``contact=`` or
+    ``glance_deg=``, a wrapper's body's); for any other body (the twin by default, the Create 2
+    and its emulator, a user's own) the front-half bumper (None).
     """
-    if type(robot).__module__.startswith("bouncesim.robots.pybullet"):
-        return PYBULLET_CONTACT
     rule = getattr(robot, "contact", None)
     return rule if isinstance(rule, ContactParams) else None
 

@@ -32,6 +32,7 @@ from shapely.geometry import Polygon
 from shapely.geometry.polygon import orient
 
 from envs import Environment, UserError
+from envs.motion import PYBULLET_CONTACT
 
 from ..base import CREATE2, Robot, RobotError, RobotSpec
 from ..noise import NoiseModel, noise_and_rng
@@ -168,6 +169,11 @@ class PyBulletRobot(Robot):
     ...     ev = bot.drive_until_bump(0.2, timeout=30.0)
     ...     bot.turn(90)
     """
+
+    contact = PYBULLET_CONTACT
+    """The contact rule (docs/model.md §9) this body follows: the one fitted to it
+    (:func:`bouncesim.runs.feedback.body_contact` reads it)."""
+
 
     def __init__(self, env: Environment | str, noise: NoiseModel | None = None,
                  rng: np.random.Generator | int | None = None, *,
