@@ -29,8 +29,9 @@ Pairs: drawn uniformly from the (start, goal) pairs the exact planner reaches.
 Outputs in ``--out``: ``runs.csv`` (one row per run: success, bumps, bumps to localize, the
 turn estimate, decision CPU times), ``summary.csv`` (per planner, body and condition, pooled
 over the maps and per map: Wilson 95 % intervals, median bumps, median bumps to localize,
-decision CPU p50/p95/max), ``config.json`` and ``success_vs_sigma.png`` (success against σ
-for the open-loop exact and reliable plans and feedback), drawn from runs.csv alone.
+decision CPU p50/p95/max), ``config.json``, ``success_vs_sigma.png`` (success against σ
+for the open-loop exact and reliable plans and feedback) and ``maps.png`` (every map with
+feedback's success at σ = 2° per body), drawn from runs.csv alone.
 """
 
 from __future__ import annotations
@@ -60,7 +61,8 @@ from .common import experiment_parser, name_list, output_dir, run_main
 from .nav_montecarlo import wilson
 from .nav_planners import world
 
-__all__ = ["BODIES", "CONDITIONS", "Config", "build_trials", "draw", "main", "maps_of", "run",
+__all__ = ["BODIES", "CONDITIONS", "Config", "build_trials", "draw", "draw_maps", "main",
+           "maps_of", "run",
            "sample_pairs", "summarise", "trial"]
 
 ANGLES = (45.0, 90.0, 135.0)
@@ -81,6 +83,9 @@ NOISE_ONLY = ("sigma0", "sigma1", "sigma2", "sigma5")
 """Conditions the open-loop planners run in (they know neither faults nor unknown starts)."""
 MAPS = ("lab", "fig1", "studio", "lroom", "office40", "pentahex", "slanted1", "slanted2")
 QUICK_MAPS = ("lab", "lroom")
+TUNED = ("lab", "fig1", "studio")
+"""The catalogue maps the feedback navigator's settings were chosen on; the rest are held
+out."""
 CONFIDENCE = 0.95
 
 
@@ -236,14 +241,20 @@ def _p(values: pd.Series, q: float) -> float:
 
 
 def summarise(runs: pd.DataFrame) -> pd.DataFrame:
-    """Per (planner, body, condition), pooled over the maps (env = 'all') and per map: runs,
-    successes, success rate with its Wilson interval, median bumps, median bumps to localize
-    (unknown starts that localized), the share that never localized, and the decision CPU
-    p50, p95 and maximum [ms] over every decision.
+    """Per (planner, body, condition), pooled over the maps (env = 'all'), over the held-out
+    maps (env = 'held-out': those not in :data:`TUNED`, when the run has any) and per map:
+    runs, successes, success rate with its Wilson interval, median bumps, median bumps to
+    localize (unknown starts that localized), the share that never localized, and the
+    decision CPU p50, p95 and maximum [ms] over every decision.
     """
     parts = []
-    for by in (["planner", "body", "condition"], ["planner", "body", "condition", "env"]):
-        g = runs.groupby(by, sort=True)
+    held = runs[~runs.env.isin(TUNED)]
+    for by, rows, pooled in ((["planner", "body", "condition"], runs, "all"),
+                             (["planner", "body", "condition"], held, "held-out"),
+                             (["planner", "body", "condition", "env"], runs, None)):
+        if rows.empty or (pooled == "held-out" and held.env.nunique() == runs.env.nunique()):
+            continue
+        g = rows.groupby(by, sort=True)
         out = g.agg(runs=("success", "size"), successes=("success", "sum"),
                     median_bumps=("bumps", "median")).reset_index()
         loc = g["bumps_to_localize"].agg(
@@ -253,8 +264,8 @@ def summarise(runs: pd.DataFrame) -> pd.DataFrame:
             lambda s: float((s < 0).mean())).to_numpy()
         for q, col in ((50, "cpu_p50_ms"), (95, "cpu_p95_ms"), (100, "cpu_max_ms")):
             out[col] = g["decision_cpu_ms"].agg(lambda s, q=q: _p(s, q)).to_numpy()
-        if "env" not in by:
-            out.insert(3, "env", "all")
+        if pooled is not None:
+            out.insert(3, "env", pooled)
         parts.append(out)
     out = pd.concat(parts, ignore_index=True)
     out["successes"] = out["successes"].astype(int)
@@ -292,6 +303,37 @@ def draw(summary: pd.DataFrame, path: Path) -> Path:
     ax.legend(fontsize=7, loc="lower left", ncol=len(colours))
     ax.set_title("reaching the goal cell and heading, pooled over the maps")
     return save_figure(fig, path, dpi=130)
+
+
+def draw_maps(summary: pd.DataFrame, names, seed: int, path: Path,
+              condition: str = "sigma2") -> Path:
+    """Every map of the run with its free cells, titled with feedback's success there under
+    ``condition`` per body (the held-out maps are the ones nobody tuned on).
+    """
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from bouncesim.plots import draw_env, save_figure
+    names = list(names)
+    cols = min(4, len(names))
+    rows = -(-len(names) // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.7 * rows), layout="constrained",
+                             squeeze=False)
+    s = summary[(summary.planner == "feedback") & (summary.condition == condition)]
+    for ax, name in zip(axes.flat, names):
+        draw_env(ax, maps_of(name, seed), _cells(name, seed), lw=1.2)
+        rates = s[s.env == name]
+        text = ", ".join(f"{b} {r:.2f}" for b, r in zip(rates.body, rates.success_rate))
+        tag = "" if name in TUNED else " (held out)"
+        ax.set_title(f"{name}{tag}" + (f"\n{condition}: {text}" if text else ""), fontsize=8)
+        ax.set_xticks([])
+        ax.set_yticks([])
+        ax.set_xlabel("")
+        ax.set_ylabel("")
+    for ax in list(axes.flat)[len(names):]:
+        ax.set_visible(False)
+    return save_figure(fig, path, dpi=110)
 
 
 # ============================================================================ the sweep
@@ -372,11 +414,13 @@ def _report(out: Path, runs: pd.DataFrame) -> None:
     summary = summarise(runs)
     summary.to_csv(out / "summary.csv", index=False)
     draw(summary, out / "success_vs_sigma.png")
+    draw_maps(summary, list(dict.fromkeys(runs.env)), int(runs.map_seed.iloc[0]),
+              out / "maps.png")
     pooled = summary[summary.env == "all"]
     cols = ["planner", "body", "condition", "runs", "success_rate", "ci_low", "ci_high",
             "median_bumps", "median_bumps_to_localize", "cpu_p95_ms"]
     print(pooled[cols].to_string(index=False, float_format=lambda v: f"{v:.3g}"))
-    print(f"wrote {out}/summary.csv, {out}/success_vs_sigma.png")
+    print(f"wrote {out}/summary.csv, {out}/success_vs_sigma.png, {out}/maps.png")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -179,6 +179,30 @@ def fast_equals_plain_search(env, cfg: FeedbackConfig, seed: int) -> None:
     assert found >= 8                        # most poses have a plan: not a vacuous check
 
 
+def test_a_search_gives_up_after_max_settled_states_in_both_implementations():
+    # lab, σ = 2°: a cap far below what the cheapest plans need finds nothing, in the fast
+    # and the plain search alike; the default cap finds a plan from the same poses
+    from planners.navigation.feedback.search import search, search_reference
+    env = envs.load("lab")
+    cells = CellSpace(env)
+    rng = np.random.default_rng(4)
+    long_plans = 0
+    for goal in rng.integers(0, cells.N, 2):
+        small = FeedbackNavigator(cells, ANGLES, int(goal),
+                                  FeedbackConfig(turn_sigma_deg=2.0, max_settled=3))
+        full = FeedbackNavigator(cells, ANGLES, int(goal), FeedbackConfig(turn_sigma_deg=2.0))
+        for x, y, th, bumped in _random_poses(env, rng, 5):
+            plans = search(full, x, y, th, 0.0, bumped)
+            capped = search(small, x, y, th, 0.0, bumped)
+            assert capped == search_reference(small, x, y, th, 0.0, bumped)
+            if plans and len(plans[0][0]) > 3:       # needs more than 3 settled states
+                assert capped == []
+                long_plans += 1
+    assert long_plans >= 2                          # the check was made
+    with pytest.raises(envs.UserError, match="max_settled"):
+        FeedbackConfig(max_settled=0)
+
+
 def test_plans_scored_together_score_as_one_by_one():
     # the batched scoring draws the same noise in the same order and casts the same
     # flights: equal to the one-plan-at-a-time reference, for plans of different lengths

@@ -100,8 +100,11 @@ def register(sub) -> None:
                    "mute); "
                    "repeatable")
     p.add_argument("--noise", default="none", metavar="SPEC",
-                   help="rotation noise: none, gauss:SIGMA or model:eps=E,r=R [deg] "
-                   "(default none)")
+                   help="rotation noise: none, gauss:SIGMA or model:eps=E,r=R [deg], "
+                   "optionally with ,scale=S,bias=B (a constant turn factor unknown within "
+                   "1 ± S and offset within ±B: the simulated body draws one per run, the "
+                   "feedback filter estimates it) or ,factor=F,offset=O (a body that turns "
+                   "F·φ + O) (default none)")
     p.add_argument("--seed", type=int, default=0, help="seed of the noise draws (default 0)")
     p.add_argument("--speed", type=float, default=0.2, metavar="V",
                    help="drive speed [m/s] (default 0.2)")

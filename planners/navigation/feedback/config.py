@@ -68,6 +68,9 @@ class FeedbackConfig:
         N(0, jitter_deg²) in heading and N(0, jitter_m²) in position (a regularised filter:
         copies of one pose explore around it instead of staying identical)
     votes : int                poses planned from after every bump
+    max_settled : int          a search from one pose gives up after this many settled
+                               states (a pose without a plan settles them all: the slowest
+                               decisions)
     slack : float              plans within this of the cheapest (§13's cost) are candidates
     per_pose : int             at most this many candidates (cheapest first) per pose
     eval_particles : int       particles pushed through each candidate plan
@@ -121,6 +124,7 @@ class FeedbackConfig:
     jitter_deg: float = 1.0
     jitter_m: float = 0.005
     votes: int = 2
+    max_settled: int = 3000
     slack: float = 0.0
     per_pose: int = 1
     eval_particles: int = 64
@@ -134,7 +138,8 @@ class FeedbackConfig:
     contact: ContactParams | None = None
 
     def __post_init__(self) -> None:
-        for name in ("particles", "votes", "per_pose", "eval_particles", "global_particles"):
+        for name in ("particles", "votes", "per_pose", "eval_particles", "global_particles",
+                     "max_settled"):
             v = getattr(self, name)
             if int(v) != v or v < 1:
                 raise UserError(f"feedback {name} must be a positive whole number, got {v}.")

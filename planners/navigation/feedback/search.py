@@ -50,11 +50,9 @@ from envs.motion import (
 
 from ..exact import chords
 
-__all__ = ["MAX_SETTLED", "MAX_SETTLED_GUIDED", "NEAR_M", "BAND_PAD_M", "STRIP_M", "UNGUIDED",
+__all__ = ["MAX_SETTLED_GUIDED", "NEAR_M", "BAND_PAD_M", "STRIP_M", "UNGUIDED",
            "ScalarWalls", "cost_to_go", "grazes", "search", "search_reference"]
 
-MAX_SETTLED = 3000
-"""A search from one pose gives up after this many settled states."""
 MAX_SETTLED_GUIDED = 500
 """... and a guided search after this many (a guided search that finds a plan settles a
 median of 17 states, 95 % of them fewer than 250: the rest are poses without a plan)."""
@@ -319,7 +317,7 @@ def search(fnav, x: float, y: float, heading_deg: float, slack: float,
 
     heap = [(0.0, 0, None, 0.0, float(x), float(y), k0, -1, None)]
     settled, order, best, arrivals = set(), 1, math.inf, []
-    cap = MAX_SETTLED if guide is None else MAX_SETTLED_GUIDED
+    cap = fnav.cfg.max_settled if guide is None else MAX_SETTLED_GUIDED
     while heap and len(settled) < cap:
         key, _, st, c, px, py, k, a, node = heapq.heappop(heap)
         if st in settled:
@@ -380,7 +378,7 @@ def search_reference(fnav, x: float, y: float, heading_deg: float, slack: float,
     # node = (parent node, angle, flight)
     heap = [(0.0, 0, None, 0.0, float(x), float(y), k0, -1, None)]
     settled, order, best, arrivals = set(), 1, math.inf, []
-    while heap and len(settled) < MAX_SETTLED:
+    while heap and len(settled) < fnav.cfg.max_settled:
         key, _, st, c, px, py, k, a, node = heapq.heappop(heap)
         if st in settled:
             continue
