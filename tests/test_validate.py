@@ -116,6 +116,22 @@ def test_more_trials_stopping_rule():
     assert more_trials(0.5, 960_000, 10_000, 0.02, 1_000_000) == 4
 
 
+def test_out_folder_is_resumed_by_a_second_run(capsys, tmp_path):
+    """The same command twice with ``--out``: the second run finds every trial done (it
+    resumes instead of refusing the folder) and reports the same numbers."""
+    argv = LAB + ["--angles", "75", "--model", "step", "--steps", "4000", "--out",
+                  str(tmp_path), "--json"]
+    assert main(argv) == 0
+    (first,) = _rows(capsys)
+    assert main(argv) == 0
+    (second,) = _rows(capsys)
+    drop = ("predict_s",)
+    assert {k: v for k, v in first.items() if k not in drop} == \
+        {k: v for k, v in second.items() if k not in drop}
+    sessions = json.loads((tmp_path / "config.json").read_text())["sessions"]
+    assert [s["trials_resumed"] for s in sessions] == [0, first["trials"]]
+
+
 def test_floor_target_adds_independent_trials(capsys, tmp_path):
     """Twin on lab, 75°, first round 20 000 steps (2 trials of 200 robots x 50 steps), target
     floor 0.03: trials are added in rounds until floor and floor_splits are both ≤ 0.03; every

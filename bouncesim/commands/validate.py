@@ -319,7 +319,9 @@ def run(args) -> int:
                 "steps": per_robot, "burn_in": args.burn_in, "epoch": args.epoch,
                 "speed": float(args.speed), "contact": contact_text}
 
-    record = {"command": "validate", "model": args.model, "predict_s": round(predict_s, 3)}
+    # the sweep's identity: what decides the trials and their meaning, never a timing (a
+    # second run, or one after Ctrl-C, resumes the same sweep)
+    record = {"command": "validate", "model": args.model}
     progress = not args.no_progress and sys.stderr.isatty()
     trial_steps = robots * per_robot
     cap = max(args.max_steps, trials_per * trial_steps)
@@ -368,6 +370,7 @@ def run(args) -> int:
                      "bumps_per_step_model": bumps_model[lab],
                      "bumps_per_step_sim": float(sub.bumps.sum()) / steps if steps else math.nan,
                      "model": args.model, "backend": backend, "env": env.name,
+                     "predict_s": round(predict_s, 3),
                      "contact": "off" if contact is None else "pybullet",
                      **({"alpha": list(al)} if lab == "mix" else {})})
     if args.json:
