@@ -118,7 +118,8 @@ def test_more_trials_stopping_rule():
 
 def test_out_folder_is_resumed_by_a_second_run(capsys, tmp_path):
     """The same command twice with ``--out``: the second run finds every trial done (it
-    resumes instead of refusing the folder) and reports the same numbers."""
+    resumes instead of refusing the folder) and reports the same numbers.
+    """
     argv = LAB + ["--angles", "75", "--model", "step", "--steps", "4000", "--out",
                   str(tmp_path), "--json"]
     assert main(argv) == 0
