@@ -24,14 +24,15 @@ def names() -> list[str]:
     return sorted(p.stem for p in CATALOG_DIR.glob("*.json"))
 
 
-def load(name_or_path: str | Path, *, cell_size: float | None = None,
+def load(name_or_path: str | Path | dict, *, cell_size: float | None = None,
          orientations: int | None = None, max_grid_cells: int | None = None) -> Environment:
-    """Load a catalogue environment by name, or an env file by path.
+    """Load a catalogue environment by name, an env file by path, or an env given as a dict.
 
     Parameters
     ----------
-    name_or_path : str or Path
-        A catalogue name (see :func:`names`) or a path to a JSON/YAML env file.
+    name_or_path : str, Path or dict
+        A catalogue name (see :func:`names`), a path to a JSON/YAML env file, or the env
+        file's content as a dict (:meth:`Environment.from_dict`).
     cell_size : float, optional
         Override the file's cell size [m].
     orientations : int, optional
@@ -40,6 +41,11 @@ def load(name_or_path: str | Path, *, cell_size: float | None = None,
         Refuse a grid with more cells (default ``environment.MAX_GRID_CELLS``).
     """
     kw = {} if max_grid_cells is None else {"max_grid_cells": int(max_grid_cells)}
+    if isinstance(name_or_path, dict):
+        env = Environment.from_dict(name_or_path, **kw)
+        if cell_size is not None or orientations is not None:
+            env = env.with_discretization(cell_size, orientations)
+        return env
     p = Path(name_or_path)
     if str(name_or_path) in names():
         env = Environment.from_file(CATALOG_DIR / f"{name_or_path}.json", **kw)

@@ -343,3 +343,18 @@ def test_output_piped_into_a_reader_that_leaves_is_quiet(tmp_path):
     assert proc.wait(timeout=120) == 141
     assert "Traceback" not in err and "Broken pipe" not in err, err
     assert (out / "run.png").stat().st_size > 0
+
+
+def test_an_output_path_that_is_a_folder_is_one_plain_sentence(tmp_path):
+    from bouncesim.commands.common import writable_path
+    from envs import UserError
+    (tmp_path / "isdir.json").mkdir()
+    with pytest.raises(UserError) as err:
+        writable_path(tmp_path / "isdir.json")
+    msg = str(err.value)
+    assert msg == f"--out {tmp_path / 'isdir.json'} is a folder, not a file."
+    # an OS error's reason is wrapped once, with no doubled full stop
+    (tmp_path / "afile").write_text("")
+    with pytest.raises(UserError) as err:
+        writable_path(tmp_path / "afile" / "x.json")
+    assert str(err.value).startswith("cannot write --out") and ".)." not in str(err.value)

@@ -135,3 +135,12 @@ def test_round_trip_to_dict():
     env = envs.load("complex")
     again = Environment.from_dict(env.to_dict())
     assert CellSpace(again).P == 183
+
+
+def test_load_takes_an_env_as_a_dict():
+    data = {"name": "box", "boundary": [[0, 0], [1.02, 0], [1.02, 0.68], [0, 0.68]],
+            "robot_radius": 0.17, "discretization": {"cell_size": 0.34, "orientations": 8}}
+    env = envs.load(data, orientations=4)
+    assert env.name == "box" and env.grid_shape == (2, 3) and env.orientations == 4
+    with pytest.raises(envs.UserError):
+        envs.load({"boundary": "nope"})

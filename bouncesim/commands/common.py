@@ -238,9 +238,11 @@ def writable_path(path, what: str = "--out", folder: bool = False) -> Path:
                 open(p, "a").close()
         with tempfile.TemporaryFile(dir=probe_dir):
             pass
+    except UserError:
+        raise
     except (OSError, ValueError) as exc:
         reason = getattr(exc, "strerror", None) or str(exc)
-        raise UserError(f"cannot write {what} {p} ({reason}).") from None
+        raise UserError(f"cannot write {what} {p} ({reason.rstrip('.')}).") from None
     return p
 
 
