@@ -133,8 +133,9 @@ def test_gui_without_display_is_a_user_error(monkeypatch):
         pytest.skip("the display check is for Linux")
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
-    with pytest.raises(UserError, match="display"):
+    with pytest.raises(UserError, match="display") as err:
         make("lab", gui=True)
+    assert "--gui" in str(err.value)           # the CLI user's words, not only Python's
 
 
 @needs_pybullet

@@ -233,11 +233,13 @@ class PyBulletRobot(Robot):
             if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY")
                                                          or os.environ.get("WAYLAND_DISPLAY")):
                 raise UserError("the PyBullet GUI needs a display (DISPLAY is not set): "
-                                "use gui=False, or record= a video instead.")
+                                "run without the GUI (no --gui; gui=False in Python), or "
+                                "record a video instead (--record; record=).")
             cid = p.connect(p.GUI)
             if cid < 0:
                 raise UserError("cannot open the PyBullet GUI (only one per process, and it "
-                                "needs a display): use gui=False.")
+                                "needs a display): run without it (no --gui; gui=False in "
+                                "Python).")
         else:
             cid = p.connect(p.DIRECT)
         self._cid = cid
