@@ -171,8 +171,7 @@ class PyBulletRobot(Robot):
     """
 
     contact = PYBULLET_CONTACT
-    """The contact rule (docs/model.md §9) this body follows: the one fitted to it
-    (:func:`bouncesim.runs.feedback.body_contact` reads it)."""
+    """The contact rule this body follows (docs/model.md §9: the one fitted to it)."""
 
 
     def __init__(self, env: Environment | str, noise: NoiseModel | None = None,
@@ -238,8 +237,7 @@ class PyBulletRobot(Robot):
             cid = p.connect(p.GUI)
             if cid < 0:
                 raise UserError("cannot open the PyBullet GUI (only one per process, and it "
-                                "needs a display): run without it (no --gui; gui=False in "
-                                "Python).")
+                                "needs a display): drop --gui (gui=False in Python).")
         else:
             cid = p.connect(p.DIRECT)
         self._cid = cid
