@@ -61,9 +61,8 @@ from .common import experiment_parser, name_list, output_dir, run_main
 from .nav_montecarlo import wilson
 from .nav_planners import world
 
-__all__ = ["BODIES", "CONDITIONS", "Config", "build_trials", "draw", "draw_maps", "main",
-           "maps_of", "run",
-           "sample_pairs", "summarise", "trial"]
+__all__ = ["BODIES", "CONDITIONS", "Config", "build_trials", "draw", "draw_maps",
+           "feedback_config", "main", "maps_of", "run", "sample_pairs", "summarise", "trial"]
 
 ANGLES = (45.0, 90.0, 135.0)
 BODIES = ("twin", "twin-rule", "nearest", "pybullet")
@@ -185,13 +184,25 @@ def trial(params: dict, rng: np.random.Generator) -> dict:
 
 
 def feedback_config(text: str) -> FeedbackConfig:
-    """A :class:`FeedbackConfig` from "key=value,..." (numbers; "" for the defaults)."""
+    """A :class:`FeedbackConfig` from "key=value,..." (numbers, or true/false; "" for the
+    defaults).
+    """
     kw = {}
     for item in filter(None, (t.strip() for t in str(text).split(","))):
         key, _, value = item.partition("=")
         if key not in FeedbackConfig.__dataclass_fields__:
             raise envs.UserError(f"--feedback: FeedbackConfig has no field {key!r}.")
-        kw[key] = int(value) if value.lstrip("-").isdigit() else float(value)
+        low = value.strip().lower()
+        if low in ("true", "false"):
+            kw[key] = low == "true"
+        elif low.lstrip("-").isdigit():
+            kw[key] = int(low)
+        else:
+            try:
+                kw[key] = float(low)
+            except ValueError:
+                raise envs.UserError(f"--feedback: {key} takes a number or true/false, got "
+                                     f"{value!r}.") from None
     return FeedbackConfig(**kw)
 
 
