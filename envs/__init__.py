@@ -43,14 +43,10 @@ def load(name_or_path: str | Path | dict, *, cell_size: float | None = None,
     kw = {} if max_grid_cells is None else {"max_grid_cells": int(max_grid_cells)}
     if isinstance(name_or_path, dict):
         env = Environment.from_dict(name_or_path, **kw)
-        if cell_size is not None or orientations is not None:
-            env = env.with_discretization(cell_size, orientations)
-        return env
-    p = Path(name_or_path)
-    if str(name_or_path) in names():
+    elif str(name_or_path) in names():
         env = Environment.from_file(CATALOG_DIR / f"{name_or_path}.json", **kw)
-    elif p.suffix or p.exists():
-        env = Environment.from_file(p, **kw)
+    elif Path(name_or_path).suffix or Path(name_or_path).exists():
+        env = Environment.from_file(Path(name_or_path), **kw)
     else:
         raise InvalidEnvironment(
             f"{str(name_or_path)!r} is neither a catalogue environment "
