@@ -105,21 +105,26 @@ def test_bad_rates_are_refused(kwargs, words):
 
 
 def test_feedback_navigates_a_faulty_body_on_a_held_out_map():
-    """The L-room (never tuned on), wrong sides at 5 % and missed bumps at 2 %: feedback
-    navigation still reaches most goals from known starts (16 of 20 pairs at least; the
-    observation model declares both rates).
+    """The L-room (never tuned on), no turn noise, wrong sides at 5 % and missed bumps at 2 %
+    (the observation model declares both rates): feedback reaches the goal from known starts
+    in at least 18 of 20 pairs the exact planner reaches (20 of 20 when this was written).
     """
+    from planners.navigation import make_planner
     env = gen.l_room_octagon(orientations=8)
     cells = CellSpace(env)
+    exact = make_planner("exact", cells, (45.0, 90.0, 135.0))
     rng = np.random.default_rng(5)
-    ok, n = 0, 20
-    for i in range(n):
+    ok = n = 0
+    while n < 20:
         s, g = (int(v) for v in rng.choice(cells.N, 2, replace=False))
+        if exact.plan(s, g) is None:
+            continue
         body = FaultyRobot(KinematicRobot(env, side_rule="nearest"), p_side=0.05, p_miss=0.02,
-                           rng=np.random.default_rng(100 + i))
-        run = navigate_feedback(body, env, s, g, None, np.random.default_rng(i), cells=cells)
+                           rng=np.random.default_rng(100 + n))
+        run = navigate_feedback(body, env, s, g, None, np.random.default_rng(n), cells=cells)
         ok += run.success
-    assert ok >= 16, ok
+        n += 1
+    assert ok >= 18, ok
 
 
 # ---------------------------------------------------------------------- the generated maps
