@@ -31,9 +31,25 @@ def test_readme_block_runs(index, tmp_path, monkeypatch):
     code = python_blocks()[index]
     try:
         exec(compile(code, f"README.md (Python API block {index + 1})", "exec"), {})
+        for num in plt.get_fignums():
+            assert_panels_apart(plt.figure(num))
     finally:
         plt.close("all")
     assert any(tmp_path.glob("*.png"))
+
+
+def assert_panels_apart(fig) -> None:
+    """No two panels of ``fig`` overlap: their tight bounding boxes (ticks, labels, titles
+    and the colour bars inset beside them included) are disjoint."""
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    children = {id(c) for ax in fig.axes for c in ax.child_axes}
+    panels = [ax for ax in fig.axes if id(ax) not in children and ax.get_visible()]
+    boxes = [ax.get_tightbbox(renderer) for ax in panels]
+    for i in range(len(boxes)):
+        for j in range(i + 1, len(boxes)):
+            assert not boxes[i].overlaps(boxes[j]), \
+                f"panels {i} and {j} of the README figure overlap"
 
 
 # --- the README stays a five-minute read, and its links (and the docs index's) resolve -----
