@@ -40,7 +40,8 @@ def test_readme_block_runs(index, tmp_path, monkeypatch):
 
 def assert_panels_apart(fig) -> None:
     """No two panels of ``fig`` overlap: their tight bounding boxes (ticks, labels, titles
-    and the colour bars inset beside them included) are disjoint."""
+    and the colour bars inset beside them included) are disjoint.
+    """
     fig.canvas.draw()
     renderer = fig.canvas.get_renderer()
     children = {id(c) for ax in fig.axes for c in ax.child_axes}
