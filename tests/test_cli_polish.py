@@ -358,3 +358,25 @@ def test_an_output_path_that_is_a_folder_is_one_plain_sentence(tmp_path):
     with pytest.raises(UserError) as err:
         writable_path(tmp_path / "afile" / "x.json")
     assert str(err.value).startswith("cannot write --out") and ".)." not in str(err.value)
+
+
+@pytest.mark.parametrize("argv", [
+    ["allpairs", "lab", "--angles", "90,135"],
+    ["coverage", "lab", "--orientations", "8", "--angles", "90,135", "--no-plots"],
+], ids=["allpairs", "coverage"])
+def test_every_output_folder_has_its_provenance(argv, tmp_path, capsys):
+    from bouncesim.runs.metadata import env_sha256
+    out = tmp_path / "out"
+    full = argv + ["--out", str(out)]
+    assert main(full) == 0
+    cfg = json.loads((out / "config.json").read_text())
+    assert cfg["argv"] == full and cfg["command"].startswith("bouncesim " + argv[0])
+    assert cfg["env"] == "lab" and cfg["versions"]["numpy"] == np.__version__
+    assert "git_revision" in cfg and "created" in cfg and "seed" in cfg
+    # the hash is the room's, whichever way it was given: the same dict from a file
+    orientations = 8 if "--orientations" in argv else None
+    lab = envs.load("lab", orientations=orientations)
+    path = tmp_path / "lab_copy.json"
+    path.write_text(json.dumps(lab.to_dict()))
+    assert cfg["env_sha256"] == env_sha256(lab) == env_sha256(envs.load(path))
+    assert env_sha256(lab) != env_sha256(envs.load("lab", orientations=16))

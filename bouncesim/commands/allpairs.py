@@ -11,7 +11,15 @@ import pandas as pd
 from envs import UserError
 from planners.navigation import PLANNERS, planner_class
 
-from .common import add_env_args, add_output, check_fits, flush_warnings, max_memory, writable_path
+from .common import (
+    add_env_args,
+    add_output,
+    check_fits,
+    flush_warnings,
+    max_memory,
+    writable_path,
+    write_config,
+)
 from .plan import add_planner_args, make_planner_of
 
 __all__ = ["histogram_frame", "register", "run"]
@@ -60,6 +68,7 @@ def run(args) -> int:
                "reachable_fraction": ap.reachable_fraction,
                "histogram": hist["plans"].tolist(), "seconds": round(elapsed, 3)}
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    write_config(out, args, nav.cells.env)
     from bouncesim.plots import angle_use_bars
     angle_use_bars(hist, out / "angles_used.png",
                    title=f"{nav.cells.env.name}: angles used per shortest plan "

@@ -216,6 +216,18 @@ def make_rng(seed) -> np.random.Generator:
     return np.random.default_rng(seed)
 
 
+def write_config(out: Path, args, env=None) -> Path:
+    """Write ``out/config.json``: the provenance of a CLI output folder (the command line,
+    the environment and its hash, the seed, package versions and the git revision:
+    :func:`bouncesim.runs.metadata.provenance`); returns its path.
+    """
+    from bouncesim.runs.metadata import provenance
+    path = Path(out) / "config.json"
+    record = provenance(getattr(args, "argv", sys.argv[1:]), env, getattr(args, "seed", None))
+    path.write_text(json.dumps(record, indent=2, default=str) + "\n")
+    return path
+
+
 def writable_path(path, what: str = "--out", folder: bool = False) -> Path:
     """Check that an output file (or, with ``folder``, a folder, created here) can be
     written, before any long work; :class:`UserError` in one sentence otherwise.

@@ -49,6 +49,7 @@ from .common import (
     make_cells,
     parse_angles,
     writable_path,
+    write_config,
 )
 
 __all__ = ["register", "run", "write_outputs", "format_table"]
@@ -239,12 +240,13 @@ def run(args) -> int:
     if args.out is not None:
         write_outputs(result, cs, args.out, summary, plots=not args.no_plots,
                       timeshared=timeshared)
+        write_config(Path(args.out), args, cs.env)
     if args.json:
         print(json.dumps(summary))
     else:
         print(format_table(summary))
         if args.out is not None:
-            print(f"wrote {args.out}/coverage.csv, alpha.json"
+            print(f"wrote {args.out}/coverage.csv, alpha.json, config.json"
                   + ("" if args.no_plots else " and heatmaps"))
     return 0
 

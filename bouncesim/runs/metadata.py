@@ -4,13 +4,17 @@ revision written to every ``config.json``, by sweeps and experiments alike).
 
 from __future__ import annotations
 
+import hashlib
+import json
 import platform
+import shlex
 import subprocess
 import sys
+from datetime import UTC, datetime
 from importlib import metadata
 from pathlib import Path
 
-__all__ = ["PACKAGES", "git_revision", "run_metadata", "versions"]
+__all__ = ["PACKAGES", "env_sha256", "git_revision", "provenance", "run_metadata", "versions"]
 
 PACKAGES = ("numpy", "scipy", "shapely", "networkx", "pandas", "matplotlib", "pybullet",
             "dask", "distributed", "bouncesim")
@@ -48,3 +52,27 @@ def git_revision() -> str | None:
 def run_metadata() -> dict:
     """``{"versions": versions(), "git_revision": git_revision()}``."""
     return {"versions": versions(), "git_revision": git_revision()}
+
+
+def env_sha256(env) -> str:
+    """SHA-256 of an environment's env-file form (``Environment.to_dict`` as JSON with sorted
+    keys): the same room gives the same hash whichever file or name it was loaded from.
+    """
+    blob = json.dumps(env.to_dict(), sort_keys=True, separators=(",", ":")).encode()
+    return hashlib.sha256(blob).hexdigest()
+
+
+def provenance(argv, env=None, seed=None, **extra) -> dict:
+    """What a CLI output folder's ``config.json`` holds: the command line (``command``, and
+    ``argv`` as a list), the environment's name and :func:`env_sha256`, the seed (None for a
+    command without randomness), :func:`run_metadata` and the time it was written (UTC),
+    then ``extra``.
+    """
+    argv = [str(a) for a in argv]
+    out = {"command": shlex.join(["bouncesim", *argv]), "argv": argv, "seed": seed}
+    if env is not None:
+        out.update({"env": env.name, "env_sha256": env_sha256(env)})
+    out.update(run_metadata())
+    out["created"] = datetime.now(UTC).isoformat(timespec="seconds")
+    out.update(extra)
+    return out
