@@ -51,6 +51,7 @@ from bouncesim.robots.noise import parse_noise
 from bouncesim.runs.drivers import NavConfig, declared_noise
 from bouncesim.runs.execute import execute
 from bouncesim.runs.executors import add_executor_args, make_executor
+from bouncesim.runs.options import with_options
 from bouncesim.runs.sweep import Sweep
 from envs.motion import PYBULLET_CONTACT
 from planners.cells import CellSpace
@@ -187,23 +188,8 @@ def feedback_config(text: str) -> FeedbackConfig:
     """A :class:`FeedbackConfig` from "key=value,..." (numbers, or true/false; "" for the
     defaults).
     """
-    kw = {}
-    for item in filter(None, (t.strip() for t in str(text).split(","))):
-        key, _, value = item.partition("=")
-        if key not in FeedbackConfig.__dataclass_fields__:
-            raise envs.UserError(f"--feedback: FeedbackConfig has no field {key!r}.")
-        low = value.strip().lower()
-        if low in ("true", "false"):
-            kw[key] = low == "true"
-        elif low.lstrip("-").isdigit():
-            kw[key] = int(low)
-        else:
-            try:
-                kw[key] = float(low)
-            except ValueError:
-                raise envs.UserError(f"--feedback: {key} takes a number or true/false, got "
-                                     f"{value!r}.") from None
-    return FeedbackConfig(**kw)
+    items = [t for t in (t.strip() for t in str(text).split(",")) if t]
+    return with_options(FeedbackConfig(), items, "--feedback", " (FeedbackConfig's fields)")
 
 
 # ============================================================================ pairs and trials

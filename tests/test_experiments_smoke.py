@@ -104,6 +104,6 @@ def test_nav_robustness_bad_feedback_setting_exits_2(tmp_path, capsys):
     assert "particels" in capsys.readouterr().err
     assert nav_robustness.main(["--quick", "--feedback", "votes=two",
                                 "--out", str(tmp_path)]) == 2
-    assert "votes takes a number" in capsys.readouterr().err
+    assert "--feedback votes needs a int" in capsys.readouterr().err
     cfg = nav_robustness.feedback_config("votes=3,guided=true,final_min=0.7")
     assert (cfg.votes, cfg.guided, cfg.final_min) == (3, True, 0.7)

@@ -37,6 +37,7 @@ from planners.coverage import (
 from planners.coverage.horizon import CAP
 from planners.metrics import tv_distance
 
+from ..runs.options import with_options
 from .common import (
     add_angle_noise_args,
     add_contact_arg,
@@ -285,22 +286,8 @@ def parse_model_options(model: str, options) -> object | None:
     """The model's settings record from ``KEY=VALUE`` strings (None: the defaults)."""
     if not options:
         return None
-    base = default_settings(model)
-    known = {f.name: f.type for f in fields(base)}
-    values = {}
-    for opt in options:
-        key, sep, text = opt.partition("=")
-        key = key.strip().replace("-", "_")
-        if not sep or key not in known:
-            raise UserError(f"--model-option {opt!r} is not KEY=VALUE with KEY one of "
-                            f"{', '.join(known)} (the {model} model's settings).")
-        cast = type(getattr(base, key))
-        try:
-            values[key] = cast(text)
-        except ValueError:
-            raise UserError(f"--model-option {key} needs a {cast.__name__}, got "
-                            f"{text!r}.") from None
-    return type(base)(**values)
+    return with_options(default_settings(model), options, "--model-option",
+                        f" (the {model} model's settings)")
 
 
 def summarise(result: MixDesign, cs: CellSpace, env_name: str, target_desc: str) -> dict:
