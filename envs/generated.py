@@ -98,6 +98,15 @@ PENTAGON = {
 """A pentagon room with a hexagonal pillar (walls off the cell grid), K = 8."""
 
 
+def _regular(centre, radius: float, n: int, rotation: float) -> list:
+    """The n vertices of a regular polygon [m, rounded to 1 µm]: circumradius ``radius`` about
+    ``centre``, the first at angle ``rotation`` [rad].
+    """
+    t = rotation + 2 * np.pi * np.arange(n) / n
+    return (np.asarray(centre) + radius * np.column_stack([np.cos(t), np.sin(t)])
+            ).round(6).tolist()
+
+
 def random_polygon_room(rng: np.random.Generator, name: str = "random",
                         sides: tuple = (5, 9)) -> Environment:
     """A regular n-gon room (n in range(*sides), default 5..8, radius 1.3-1.8 m, random
@@ -105,21 +114,14 @@ def random_polygon_room(rng: np.random.Generator, name: str = "random",
     r = 0.17 m, h = 0.34 m, K = 8.
     """
     n, R = int(rng.integers(*sides)), float(rng.uniform(1.3, 1.8))
-    t = rng.uniform(0, 2 * np.pi) + 2 * np.pi * np.arange(n) / n
-    outer = (R + R * np.column_stack([np.cos(t), np.sin(t)])).round(6)
+    outer = _regular((R, R), R, n, rng.uniform(0, 2 * np.pi))
     m = int(rng.integers(3, 7))
-    ts = rng.uniform(0, 2 * np.pi) + 2 * np.pi * np.arange(m) / m
+    turn = rng.uniform(0, 2 * np.pi)
     c = R + rng.uniform(-0.2, 0.2, size=2)
-    hole = (c + rng.uniform(0.25, 0.4) * np.column_stack([np.cos(ts), np.sin(ts)])).round(6)
+    hole = _regular(c, rng.uniform(0.25, 0.4), m, turn)
     return Environment.from_dict({
-        "name": name, "boundary": outer.tolist(), "obstacles": [hole.tolist()],
+        "name": name, "boundary": outer, "obstacles": [hole],
         "robot_radius": 0.17, "discretization": {"cell_size": 0.34, "orientations": 8}})
-
-
-def _regular(centre, radius: float, n: int, rotation: float) -> list:
-    t = rotation + 2 * np.pi * np.arange(n) / n
-    return (np.asarray(centre) + radius * np.column_stack([np.cos(t), np.sin(t)])
-            ).round(6).tolist()
 
 
 def l_room_octagon(orientations: int = 8) -> Environment:

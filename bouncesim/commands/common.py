@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 import envs
+from bouncesim.runs.metadata import provenance
 from bouncesim.runs.options import parse_angles
 from envs import UserError
 from envs.diagnostics import diagnose
@@ -221,7 +222,6 @@ def write_config(out: Path, args, env=None) -> Path:
     the environment and its hash, the seed, package versions and the git revision:
     :func:`bouncesim.runs.metadata.provenance`); returns its path.
     """
-    from bouncesim.runs.metadata import provenance
     path = Path(out) / "config.json"
     record = provenance(getattr(args, "argv", sys.argv[1:]), env, getattr(args, "seed", None))
     path.write_text(json.dumps(record, indent=2, default=str) + "\n")

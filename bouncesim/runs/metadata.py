@@ -62,11 +62,10 @@ def env_sha256(env) -> str:
     return hashlib.sha256(blob).hexdigest()
 
 
-def provenance(argv, env=None, seed=None, **extra) -> dict:
+def provenance(argv, env=None, seed=None) -> dict:
     """What a CLI output folder's ``config.json`` holds: the command line (``command``, and
     ``argv`` as a list), the environment's name and :func:`env_sha256`, the seed (None for a
-    command without randomness), :func:`run_metadata` and the time it was written (UTC),
-    then ``extra``.
+    command without randomness), :func:`run_metadata` and the time it was written (UTC).
     """
     argv = [str(a) for a in argv]
     out = {"command": shlex.join(["bouncesim", *argv]), "argv": argv, "seed": seed}
@@ -74,5 +73,4 @@ def provenance(argv, env=None, seed=None, **extra) -> dict:
         out.update({"env": env.name, "env_sha256": env_sha256(env)})
     out.update(run_metadata())
     out["created"] = datetime.now(UTC).isoformat(timespec="seconds")
-    out.update(extra)
     return out
