@@ -34,7 +34,7 @@ from planners.coverage import (
     steps_to_limit_each,
     timeshared_coverage,
 )
-from planners.coverage.horizon import CAP
+from planners.coverage.horizon import CAP, LIMIT_TV
 from planners.metrics import tv_distance
 
 from ..runs.options import with_options
@@ -79,13 +79,18 @@ epoch to epoch): alpha.json gains "timeshared" (its TV to the target and to A al
 coverage.csv the series "mix_epochs" and the plots heatmap_mix_epochs_vs_target.png. Where
 an angle mixes slowly (a pocket the robot leaks into rarely) the two differ a lot.
 
+Every run reports per angle and for the mix "steps_to_limit" (alpha.json and the table): the
+first T on a 2^(1/8) grid from 100 at which the coverage from the uniform start is within TV
+0.05 of the limit (docs/model.md section 20). It is exact when the model's own run gets there;
+otherwise "estimate" extrapolates the run's slowest mode, once two doublings of T agree on it
+("method": "extrapolated", with "relaxation_steps"), or only "more than last" is known
+("bound": not up to --limit-cap steps or within --limit-seconds per policy).
+
 With --horizon T everything is for the first T steps of a run instead of the limit
 (docs/model.md section 20): coverage.csv's q and the heatmaps are the expected share of the
 first T steps in each cell (from the uniform start, or --start), alpha is fitted to that (with
---epoch: as executed in epochs, by SLSQP; alpha.json reports its convergence), and alpha.json
-reports per angle and for the mix "steps_to_limit": the first T on a 2^(1/8) grid from 100
-at which the coverage from the uniform start is within TV 0.05 of the limit (null: not up to
---limit-cap steps or within --limit-seconds), with a warning when T is far below it.
+--epoch: as executed in epochs, by SLSQP; alpha.json reports its convergence), and a warning
+says when T is far below a policy's steps_to_limit.
 """
 
 EXAMPLES = """\
@@ -134,15 +139,17 @@ def register(sub) -> None:
                    "with one angle drawn with probabilities alpha (docs/model.md section 21); "
                    "positions only")
     p.add_argument("--horizon", type=int, default=None, metavar="STEPS",
-                   help="coverage of the first STEPS steps instead of the limit, alpha fitted "
-                   "to it, and each policy's steps_to_limit (docs/model.md section 20)")
+                   help="coverage of the first STEPS steps instead of the limit, and alpha "
+                   "fitted to it (docs/model.md section 20)")
     p.add_argument("--start", default=None, metavar="S",
                    help="with --horizon: start configuration z or pose X,Y,DEG (default: "
                    "uniform over the configurations)")
     p.add_argument("--limit-cap", type=int, default=CAP, metavar="STEPS",
                    help=f"largest T steps_to_limit tries (default {CAP:.0e})")
-    p.add_argument("--limit-seconds", type=float, default=60.0, metavar="S",
-                   help="time budget of steps_to_limit per policy [s] (default 60)")
+    p.add_argument("--limit-seconds", type=float, default=5.0, metavar="S",
+                   help="time budget of the exact steps_to_limit pass per policy [s] "
+                   "(default 5); beyond it the answer is extrapolated from the run's slow "
+                   "mode, or only bounded")
     add_output(p, "--out", folder=True, default=None, metavar="DIR",
                help="output folder (CSV, JSON, PNG); without it only the table is printed")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG heatmaps")
@@ -236,8 +243,11 @@ def run(args) -> int:
             "tv_to_A_alpha": tv_distance(ts.q, result.mixed_q()),
             "epoch_iterations": ts.epochs, "converged": ts.converged,
             "error_estimate": ts.error_estimate, "counted_fraction": ts.counted_fraction}
+    limit = limit_report(model, result, args, timeshared)
+    summary["steps_to_limit"] = {k: v for k, v in limit.items()
+                                 if k not in ("limits", "mix_limit")}
     if args.horizon is not None:
-        summary["horizon"] = horizon_report(model, result, args, start, timeshared)
+        summary["horizon"] = horizon_report(result, args, start, limit)
     if args.out is not None:
         write_outputs(result, cs, args.out, summary, plots=not args.no_plots,
                       timeshared=timeshared)
@@ -252,34 +262,60 @@ def run(args) -> int:
     return 0
 
 
-def horizon_report(model, result: MixDesign, args, start, timeshared_q) -> dict:
-    """alpha.json's "horizon": T, start, per-angle and mix TV to the limit and steps_to_limit
-    (docs/model.md section 20); warns on stderr when T is far below a steps_to_limit.
+def limit_report(model, result: MixDesign, args, timeshared_q) -> dict:
+    """alpha.json's "steps_to_limit": per angle and for the mix, the first T on a 2^(1/8) grid
+    at which the coverage from the uniform start is within TV 0.05 of the limit, exact or
+    extrapolated from the run's slow mode once that extrapolation is stable (docs/model.md
+    section 20), within --limit-seconds per policy.
     """
     hz = horizon_of(model)
-    T, noise = int(args.horizon), result.noise
-    kw = {"noise": noise, "cap": args.limit_cap, "max_seconds": args.limit_seconds}
+    kw = {"noise": result.noise, "cap": args.limit_cap, "max_seconds": args.limit_seconds,
+          "settle": True}
     limits = [a.q for a in result.per_angle]
     mix_limit = limits[0] if len(result.angles) == 1 else (
         timeshared_q if timeshared_q is not None else np.column_stack(limits) @ result.alpha)
     # one pass for the angles, and for the mix too when each of its runs keeps one angle
     epochs = args.epoch is not None and len(result.angles) > 1
-    each, stl = steps_to_limit_each(hz, result.angles, limits, alpha=result.alpha,
+    each, mix = steps_to_limit_each(hz, result.angles, limits, alpha=result.alpha,
                                     mix_limit=None if epochs else mix_limit, **kw)
-    per = [{"angle": _num(a.angle), "tv_to_limit": tv_distance(col, lim), **r}
-           for a, col, lim, r in zip(result.per_angle, result.A.T, limits, each)]
     if epochs:
-        stl = steps_to_limit(hz, result.angles, mix_limit, alpha=result.alpha,
+        mix = steps_to_limit(hz, result.angles, mix_limit, alpha=result.alpha,
                              epoch=args.epoch, **kw)
-    mix = {"tv_to_limit": tv_distance(result.mixed, mix_limit), **stl}
+    return {"tol": LIMIT_TV, "start": "uniform", "limit_seconds": args.limit_seconds,
+            "per_angle": [{"angle": _num(a), **r} for a, r in zip(result.angles, each)],
+            "mix": mix, "limits": limits, "mix_limit": mix_limit}
+
+
+def horizon_report(result: MixDesign, args, start, limit: dict) -> dict:
+    """alpha.json's "horizon": T, start, per-angle and mix TV to the limit (docs/model.md
+    section 20); warns on stderr when T is far below a policy's steps_to_limit.
+    """
+    T = int(args.horizon)
+    per = [{"angle": r["angle"], "tv_to_limit": tv_distance(col, lim), **r}
+           for col, lim, r in zip(result.A.T, limit["limits"], limit["per_angle"])]
+    mix = {"tv_to_limit": tv_distance(result.mixed, limit["mix_limit"]), **limit["mix"]}
     for name, r in [*((f"{p['angle']}°", p) for p in per), ("the mix", mix)]:
-        if r["steps"] is None or T < r["steps"] / 4:
-            need = (f"more than {r['last']}" if r["steps"] is None else str(r["steps"]))
-            print(f"warning: --horizon {T} is far below the {need} steps {name} needs to come "
-                  f"within TV {r['tol']} of its limit (TV at T: {r['tv_to_limit']:.3f}); "
-                  "the limit does not describe this horizon.", file=sys.stderr)
+        need = r["estimate"] if r["estimate"] is not None else r["last"]
+        if r["estimate"] is None or T < need / 4:
+            print(f"warning: --horizon {T} is far below the {stl_text(r)} steps {name} needs "
+                  f"to come within TV {r['tol']} of its limit (TV at T: "
+                  f"{r['tv_to_limit']:.3f}); the limit does not describe this horizon.",
+                  file=sys.stderr)
     return {"T": T, "start": "uniform" if start is None else int(start), "epoch": args.epoch,
             "convergence": result.convergence, "per_angle": per, "mix": mix}
+
+
+def stl_text(r: dict) -> str:
+    """A steps_to_limit record in words: "1234", "about 6.1e+06 (extrapolated from 1600)" or
+    "more than 7611".
+    """
+    if r["steps"] is not None:                           # exact
+        return str(r["steps"])
+    est = r["estimate"]
+    if est is not None:                                  # extrapolated
+        return f"about {est if est < 100_000 else format(est, '.2g')} (extrapolated from " \
+               f"{r['last']})"
+    return f"more than {r['last']}"
 
 
 def parse_model_options(model: str, options) -> object | None:
@@ -322,14 +358,17 @@ def format_table(summary: dict) -> str:
                      f"share of the {states['count']} {states['kind']} in no group")
     lines.append(f"residual ||A alpha - b||_2 = {summary['residual']:.6g}, "
                  f"TV = {summary['tv']:.6g}")
-    hz = summary.get("horizon")
+    hz, stl = summary.get("horizon"), summary.get("steps_to_limit")
     if hz:
         lines.append(f"over the first {hz['T']} steps (start {hz['start']}); steps to the "
-                     "limit (TV <= 0.05):")
+                     f"limit (TV <= {stl['tol']}, from the uniform start):")
         for r in [*hz["per_angle"], {**hz["mix"], "angle": "mix"}]:
-            stl = r["steps"] if r["steps"] is not None else f"> {r['last']}"
             lines.append(f"{str(r['angle']):>7}  TV(q_T, limit) = {r['tv_to_limit']:.4f}  "
-                         f"steps_to_limit = {stl}")
+                         f"steps_to_limit = {stl_text(r)}")
+    elif stl:
+        lines.append(f"steps to the limit (TV <= {stl['tol']}, from the uniform start):")
+        for r in [*stl["per_angle"], {**stl["mix"], "angle": "mix"}]:
+            lines.append(f"{str(r['angle']):>7}  steps_to_limit = {stl_text(r)}")
     ts = summary.get("timeshared")
     if ts:
         note = "" if ts["converged"] else \

@@ -47,13 +47,12 @@ from .horizon import (
     HorizonCoverage,
     horizon_coverage,
     horizon_of,
-    steps_to_limit,
-    steps_to_limit_each,
 )
 from .mix import MixDesign, MixFit, solve_mix
 from .sampled import SampledModel, SampledSettings
 from .step import StepModel, StepSettings, transition_matrix
 from .targets import SPACES, TARGET_FORMATS, TargetError, load_target, uniform_target
+from .to_limit import steps_to_limit, steps_to_limit_each
 
 __all__ = ["MODELS", "AngleCoverage", "analyses", "CoverageModel", "EventModel", "EventSettings",
            "MixDesign", "MixFit", "SampledModel", "SampledSettings", "SPACES", "StepModel",

@@ -12,9 +12,8 @@ the model's own dynamics, step by step, through the delay chain of
   from the cell-centre starts, whose steps are counted too.
 - :func:`horizon_coverage`: q_T of one angle or of a mix executed in epochs (docs/model.md §21),
   from the uniform start or a given start.
-- :func:`steps_to_limit`: the smallest T (on a geometric grid of ratio 2^(1/8) from 100) at
-  which q_T from the uniform start is within TV ``tol`` (0.05) of the limit, or None above
-  the cap. One pass of the recursion serves every grid point.
+- :func:`grid`: the horizons at which :mod:`planners.coverage.to_limit` reads the time to
+  the limit (a geometric grid of ratio 2^(1/8) from 100); one pass serves every grid point.
 
 Two cells in a row at K = 4 with φ = 180°: from the uniform start half of the robots shuttle
 east-west, half north-south, and the step model's q_T is uniform at every T:
@@ -31,7 +30,6 @@ east-west, half north-south, and the step model's q_T is uniform at every T:
 
 from __future__ import annotations
 
-import math
 import time
 import weakref
 from dataclasses import dataclass
@@ -49,8 +47,7 @@ from .event_flights import StepTable
 from .mix import MixDesign, solve_mix
 from .timeshare import DelayChain, TimeShared
 
-__all__ = ["Horizon", "HorizonCoverage", "horizon_coverage", "horizon_of", "steps_to_limit",
-           "steps_to_limit_each",
+__all__ = ["Horizon", "HorizonCoverage", "horizon_coverage", "horizon_of",
            "start_distribution", "fit_horizon_mix", "CAP", "LIMIT_TV", "grid"]
 
 CAP = 10_000_000        # default cap [steps] of steps_to_limit
@@ -411,94 +408,6 @@ def horizon_of(model) -> Horizon:
 def horizon_coverage(model, angles, horizon: int, **kw) -> HorizonCoverage:
     """:meth:`Horizon.coverage` on a fresh :class:`Horizon` of ``model``."""
     return Horizon(model).coverage(angles, horizon, **kw)
-
-
-def steps_to_limit(hz: Horizon, angles, limit_q, *, noise: TurnNoise = _EXACT, alpha=None,
-                   epoch: int | None = None, tol: float = LIMIT_TV, cap: int = CAP,
-                   max_seconds: float | None = None) -> dict:
-    """The smallest T on :func:`grid` at which q_T from the uniform start is within TV
-    ``tol`` of ``limit_q`` (docs/model.md §20).
-
-    Returns
-    -------
-    dict  ``steps`` (int, or None when no grid T up to the cap — or the time budget — gets
-          there), ``tv`` (TV at that T, or at the last T tried), ``last`` (last T tried),
-          ``cap``, ``seconds``
-    """
-    t0 = time.perf_counter()
-    limit_q = np.asarray(limit_q, dtype=float)
-    state = {"steps": None, "tv": math.nan, "last": 0}
-
-    def stop(T, counts):
-        tv = tv_distance(counts, limit_q)
-        state.update(last=T, tv=tv)
-        if tv <= tol:
-            state["steps"] = T
-            return True
-        return max_seconds is not None and time.perf_counter() - t0 > max_seconds
-
-    for _ in hz.run(angles, grid(cap), noise=noise, alpha=alpha, epoch=epoch, stop=stop):
-        pass
-    return {**state, "cap": int(cap), "tol": tol, "seconds": time.perf_counter() - t0}
-
-
-def steps_to_limit_each(hz: Horizon, angles, limits, *, noise: TurnNoise = _EXACT,
-                        alpha=None, mix_limit=None, tol: float = LIMIT_TV, cap: int = CAP,
-                        max_seconds: float | None = None) -> tuple[list[dict], dict | None]:
-    """:func:`steps_to_limit` of every angle alone (against ``limits[i]``) and, with ``alpha``
-    and ``mix_limit``, of the mix whose runs each keep one angle drawn with probabilities α
-    (no epochs), in one pass (docs/model.md §20).
-
-    The mix's counts are Σ α_i of the angles' counts at every T, so it costs no run of its
-    own (:func:`steps_to_limit` on the mix runs every angle again); the angles' runs go in
-    lockstep and each leaves the pass once it and the mix are within ``tol`` of their
-    limits. The pass ends there, at the cap, or after ``max_seconds`` per policy. Each
-    policy's result is the one :func:`steps_to_limit` gives it alone (same arithmetic).
-
-    Returns
-    -------
-    (list of the angles' dicts, the mix's dict or None), each as :func:`steps_to_limit`'s
-    """
-    t0 = time.perf_counter()
-    angles = tuple(float(a) for a in angles)
-    lims = [np.asarray(q, dtype=float) for q in limits]
-    if len(lims) != len(angles):
-        raise UserError("steps_to_limit needs one limit per angle.")
-    w = None
-    if alpha is not None and mix_limit is not None:
-        w = np.asarray(alpha, dtype=float).ravel()
-        if w.size != len(angles) or (w < 0).any() or not w.sum() > 0:
-            raise UserError("a mix needs one non-negative α per angle, with a positive sum.")
-        w = w / w.sum()
-        mix_limit = np.asarray(mix_limit, dtype=float)
-    states = [{"steps": None, "tv": math.nan, "last": 0} for _ in range(len(angles) + 1)]
-    horizons = grid(cap)
-    runs = {i: hz.run([a], horizons, noise=noise) for i, a in enumerate(angles)}
-    budget = None if max_seconds is None else max_seconds * (len(angles) + (w is not None))
-
-    def update(st, T, counts, lim):
-        st.update(last=T, tv=tv_distance(counts, lim))
-        if st["tv"] <= tol:
-            st["steps"] = T
-
-    while runs:
-        counts = {i: next(r) for i, r in runs.items()}           # (T, counts, total)
-        T = next(iter(counts.values()))[0]
-        for i, (_, c, _) in counts.items():
-            if states[i]["steps"] is None:
-                update(states[i], T, c, lims[i])
-        mix = states[-1]
-        if w is not None and mix["steps"] is None:
-            update(mix, T, sum(w[i] * counts[i][1] for i in counts), mix_limit)
-        mix_done = w is None or mix["steps"] is not None
-        for i in list(runs):
-            if states[i]["steps"] is not None and (mix_done or w[i] == 0):
-                del runs[i]
-        if T >= horizons[-1] or (budget is not None and time.perf_counter() - t0 > budget):
-            break
-    sec = time.perf_counter() - t0
-    out = [{**st, "cap": int(cap), "tol": tol, "seconds": sec} for st in states]
-    return out[:-1], (out[-1] if w is not None else None)
 
 
 def fit_horizon_mix(hz: Horizon, angles, noise: TurnNoise, target, horizon: int,
