@@ -133,6 +133,28 @@ def test_out_folder_is_resumed_by_a_second_run(capsys, tmp_path):
     assert [s["trials_resumed"] for s in sessions] == [0, first["trials"]]
 
 
+def test_a_folder_of_another_sweep_is_refused_before_the_prediction(capsys, tmp_path,
+                                                                     monkeypatch):
+    """A second run with another seed into the same --out: one sentence, exit 2, and no
+    model is built (the refusal comes before the prediction's work); with --alpha design the
+    check follows the design, which needs the model.
+    """
+    import bouncesim.commands.validate as validate
+    argv = LAB + ["--angles", "75", "--model", "step", "--steps", "4000", "--out",
+                  str(tmp_path), "--json"]
+    assert main(argv) == 0
+    capsys.readouterr()
+    built = []
+    real = validate.model_for
+    monkeypatch.setattr(validate, "model_for", lambda *a, **k: built.append(1) or real(*a, **k))
+    assert main(argv + ["--seed", "5"]) == 2
+    err = capsys.readouterr().err
+    assert "holds a different sweep" in err and err.count("\n") == 1 and built == []
+    assert main(LAB + ["--angles", "75,135", "--alpha", "design", "--model", "step", "--steps",
+                       "4000", "--out", str(tmp_path), "--json"]) == 2
+    assert "holds a different sweep" in capsys.readouterr().err and built == [1]
+
+
 def test_floor_target_adds_independent_trials(capsys, tmp_path):
     """Twin on lab, 75°, first round 20 000 steps (2 trials of 200 robots x 50 steps), target
     floor 0.03: trials are added in rounds until floor and floor_splits are both ≤ 0.03; every

@@ -39,7 +39,7 @@ from planners.metrics import tv_distance
 from planners.plan import PolicyMix
 
 from ..runs.executors import add_executor_args, make_executor
-from ..runs.sweep import run_sweep
+from ..runs.sweep import Sweep, run_sweep
 from .common import (
     add_angle_noise_args,
     add_contact_arg,
@@ -295,19 +295,6 @@ def run(args) -> int:
         import_pybullet()                      # one sentence when pybullet is missing
     t0 = time.perf_counter()
     contact = contact_rule(args)
-    model = model_for(cs, args.model, None if contact is None else {"contact": contact})
-    per = [model.analyse(a, noise) for a in angles]
-    alpha = _parse_alpha(args.alpha, model, angles, noise)
-    policies = [(_label(a), (a,), (1.0,)) for a in angles]
-    q = {lab: ac.q for (lab, _, _), ac in zip(policies, per)}
-    bumps_model = {lab: model.bump_rate(ac) for (lab, _, _), ac in zip(policies, per)}
-    if alpha is not None:
-        mix = PolicyMix(tuple(angles), alpha, args.eps, args.r)
-        q["mix"] = timeshared_coverage(model, mix, epoch=args.epoch).q
-        bumps_model["mix"] = float(sum(a * bumps_model[_label(x)]
-                                       for x, a in zip(angles, alpha)))
-        policies.append(("mix", tuple(angles), alpha))
-    predict_s = time.perf_counter() - t0
     contact_text = ("off" if contact is None else
                     f"{contact.beta_deg!r} {contact.slide_friction!r}")
 
@@ -322,6 +309,36 @@ def run(args) -> int:
     # the sweep's identity: what decides the trials and their meaning, never a timing (a
     # second run, or one after Ctrl-C, resumes the same sweep)
     record = {"command": "validate", "model": args.model}
+    designed = args.alpha is not None and args.alpha.strip() == "design"
+    alpha = None if designed else _parse_alpha(args.alpha, None, angles, noise)
+
+    def policy_list(alpha) -> list:
+        return [(_label(a), (a,), (1.0,)) for a in angles] + (
+            [] if alpha is None else [("mix", tuple(angles), alpha)])
+
+    def check_out(alpha) -> None:
+        """Refuse a folder that holds another sweep before the prediction's work."""
+        if out is not None:
+            Sweep(simulate_trial, [trial(lab, angs, al, j) for lab, angs, al
+                                   in policy_list(alpha) for j in range(trials_per)],
+                  args.seed, out, {**record, "round": 0}).check_folder()
+
+    if not designed:
+        check_out(alpha)
+    model = model_for(cs, args.model, None if contact is None else {"contact": contact})
+    per = [model.analyse(a, noise) for a in angles]
+    if designed:                                 # α is the model's: checked once designed
+        alpha = _parse_alpha(args.alpha, model, angles, noise)
+        check_out(alpha)
+    policies = policy_list(alpha)
+    q = {lab: ac.q for (lab, _, _), ac in zip(policies, per)}
+    bumps_model = {lab: model.bump_rate(ac) for (lab, _, _), ac in zip(policies, per)}
+    if alpha is not None:
+        mix = PolicyMix(tuple(angles), alpha, args.eps, args.r)
+        q["mix"] = timeshared_coverage(model, mix, epoch=args.epoch).q
+        bumps_model["mix"] = float(sum(a * bumps_model[_label(x)]
+                                       for x, a in zip(angles, alpha)))
+    predict_s = time.perf_counter() - t0
     progress = not args.no_progress and sys.stderr.isatty()
     trial_steps = robots * per_robot
     cap = max(args.max_steps, trials_per * trial_steps)

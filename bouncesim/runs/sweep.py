@@ -320,7 +320,11 @@ class Sweep:
         """The sweep's ``config.json``."""
         return self.out_dir / "config.json"
 
-    def _load_or_create_config(self) -> dict:
+    def check_folder(self) -> dict | None:
+        """Check, without writing, that the output folder is empty of sweeps or holds this
+        one (so a caller can refuse before any expensive work): its stored ``config.json``,
+        or None when it has none yet. One sentence when it cannot be resumed.
+        """
         ident = self.identity
         if self.config_path.exists():
             try:
@@ -339,7 +343,13 @@ class Sweep:
         if self.journal_path.exists() and self.journal_path.stat().st_size > 0:
             raise UserError(f"{self.journal_path} exists without its config.json, so it cannot "
                             f"be checked; use another output folder or delete it.")
-        stored = {**self.config, "sweep": ident, **run_metadata(),
+        return None
+
+    def _load_or_create_config(self) -> dict:
+        stored = self.check_folder()
+        if stored is not None:
+            return stored
+        stored = {**self.config, "sweep": self.identity, **run_metadata(),
                   "created": datetime.now(UTC).isoformat(timespec="seconds"), "sessions": []}
         _atomic_write_text(self.config_path, json.dumps(stored, indent=2, default=str) + "\n")
         return stored
