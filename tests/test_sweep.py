@@ -283,3 +283,49 @@ def test_docstring_examples_run():
     import bouncesim.runs.sweep as module
     result = doctest.testmod(module, optionflags=doctest.ELLIPSIS)
     assert result.attempted >= 3 and result.failed == 0
+
+
+def _fake_server(reply: bytes | None) -> str:
+    """A local TCP server that sends ``reply`` on every connection (None: never answers)
+    and keeps it open; its address.
+    """
+    import socket
+    import threading
+    srv = socket.socket()
+    srv.bind(("127.0.0.1", 0))
+    srv.listen()
+    held = []
+
+    def serve():
+        while True:
+            conn, _ = srv.accept()
+            held.append(conn)                     # kept open: the client must give up itself
+            if reply is not None:
+                conn.sendall(reply)
+
+    threading.Thread(target=serve, daemon=True).start()
+    return f"tcp://127.0.0.1:{srv.getsockname()[1]}"
+
+
+@pytest.mark.parametrize("reply", [b"HTTP/1.0 200 OK\r\n\r\n" + bytes(range(256)) * 8, None],
+                         ids=["garbage", "silent"])
+def test_a_dask_address_that_is_not_a_scheduler_is_one_sentence(reply):
+    # a server answering in another protocol (dask would read its bytes as a frame of
+    # exabytes) or never answering: one sentence within the probe's 10 s (bound: 30 s)
+    address = _fake_server(reply)
+    t0 = time.monotonic()
+    with pytest.raises(UserError) as err:
+        with DaskExecutor(address=address):
+            pass
+    assert time.monotonic() - t0 < 30
+    msg = str(err.value)
+    assert address in msg and "Dask scheduler" in msg
+    assert "\n" not in msg and msg.endswith(".")
+
+
+def test_a_real_scheduler_passes_the_probe():
+    from distributed import LocalCluster
+
+    from bouncesim.runs.executors import probe_scheduler
+    with LocalCluster(n_workers=1, processes=False, dashboard_address=":0") as cluster:
+        probe_scheduler(cluster.scheduler_address)          # no error

@@ -107,6 +107,39 @@ class PoolExecutor:
         return {"kind": self.name, "workers": self.workers}
 
 
+PROBE_SECONDS = 10.0     # a scheduler address must answer within this time
+
+
+def probe_scheduler(address: str, seconds: float = PROBE_SECONDS) -> None:
+    """Check that a Dask scheduler answers at ``address`` before a Client connects to it:
+    open a comm, ask its identity and expect a scheduler's, all within ``seconds``. Anything
+    else (nothing listening, a server that never answers, or one that answers in another
+    protocol, whose bytes dask would read as a frame of exabytes) is one sentence.
+    """
+    import asyncio
+
+    from distributed.comm import connect
+
+    async def ask() -> dict:
+        comm = await connect(address, timeout=seconds)
+        try:
+            await comm.write({"op": "identity"})
+            return await comm.read()
+        finally:
+            comm.abort()
+
+    try:
+        reply = asyncio.run(asyncio.wait_for(ask(), seconds))
+    except (asyncio.TimeoutError, TimeoutError):
+        raise UserError(f"nothing answered as a Dask scheduler at {address} within "
+                        f"{seconds:g} s.") from None
+    except Exception as exc:                     # any protocol failure: garbage, refusal, ...
+        raise UserError(f"{address} is not a Dask scheduler that can be reached "
+                        f"({type(exc).__name__}).") from None
+    if not (isinstance(reply, dict) and reply.get("type") == "Scheduler"):
+        raise UserError(f"{address} answers, but not as a Dask scheduler.")
+
+
 class DaskExecutor:
     """Dask: a new ``LocalCluster`` of single-threaded worker processes, or a scheduler.
 
@@ -138,8 +171,9 @@ class DaskExecutor:
                                          dashboard_address=":0")
             self._client = Client(self._cluster)
         else:
+            probe_scheduler(self.address)
             try:
-                self._client = Client(self.address, timeout=30)
+                self._client = Client(self.address, timeout=PROBE_SECONDS)
             except OSError as exc:
                 raise UserError(f"cannot reach the Dask scheduler at {self.address}: "
                                 f"{exc}.") from None
