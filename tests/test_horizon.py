@@ -17,6 +17,7 @@ import pytest
 import envs
 from bouncesim.robots.kinematic import KinematicBatch
 from bouncesim.robots.noise import GaussianNoise, SteppedNoise
+from envs import UserError
 from experiments.coverage_horizon import two_room
 from planners.cells import CellSpace
 from planners.coverage import (
@@ -326,3 +327,53 @@ def test_cli_horizon_with_epochs_reports_each_angle_as_its_own_pass(capsys):
         ref = steps_to_limit(Horizon(model), [r["angle"]], lim, noise=NOISE8, cap=2000)
         assert (r["steps"], r["tv"], r["last"]) == (ref["steps"], ref["tv"], ref["last"])
     assert hz["epoch"] == 10 and (hz["mix"]["steps"] is None or hz["mix"]["tv"] <= 0.05)
+
+
+def test_a_settled_run_counts_the_rest_at_its_limit():
+    # with the limit given, a run stops stepping once two segments in a row spent their
+    # steps alike (TV 1e-6) and near the limit (1e-4); the rest counts at the limit: the
+    # same q_T as stepping all the way (to 1e-4), and horizons far beyond what can be
+    # stepped are the limit's
+    from planners.coverage.horizon import SETTLED_LIMIT, STEP_CAP
+    model = model_for(CellSpace(envs.load("lab")), "step")
+    lim = model.analyse(135, NOISE8).q
+    T = 300_000
+    stepped = Horizon(model).coverage([135], T, noise=NOISE8).q
+    hz = Horizon(model)
+    settled = hz.coverage([135], T, noise=NOISE8, limits=[lim]).q
+    run = next(iter(hz._runs.values()))
+    assert run.t < T // 10                          # it stopped stepping early
+    assert tv_distance(settled, stepped) <= SETTLED_LIMIT
+    far = hz.coverage([135], 10 ** 12, noise=NOISE8, limits=[lim]).q
+    assert tv_distance(far, lim) <= 1e-7 and 10 ** 12 > STEP_CAP
+    # no limit: a horizon beyond the steps the recursion runs is one sentence
+    with pytest.raises(UserError, match="more than the"):
+        Horizon(model).coverage([135], 10 ** 12, noise=NOISE8)
+
+
+def test_a_horizon_the_run_cannot_settle_for_is_refused_early(monkeypatch):
+    # two rooms joined by a door one cell wide at 135°: the run's slow mode (relaxation about
+    # 7300 steps) settles near the limit after about 6·10^4 steps, so a horizon of
+    # 1e12 is computed; with the recursion capped at 2·10^4 steps it is refused early, from
+    # the slow mode, after a few thousand steps rather than at the cap
+    import planners.coverage.horizon as horizon
+    noise = TurnNoise(22.5, 0.8)
+    model = model_for(CellSpace(two_room(0.34, 16)), "step")
+    lim = model.analyse(135, noise).q
+    hz = Horizon(model)
+    assert tv_distance(hz.coverage([135], 10 ** 12, noise=noise, limits=[lim]).q, lim) <= 1e-7
+    assert 20_000 < next(iter(hz._runs.values())).t < horizon.STEP_CAP
+    monkeypatch.setattr(horizon, "STEP_CAP", 20_000)
+    hz = Horizon(model)
+    with pytest.raises(UserError, match="settles at its limit only after about"):
+        hz.coverage([135], 10 ** 12, noise=noise, limits=[lim])
+    assert next(iter(hz._runs.values())).t < 10_000
+
+
+def test_cli_horizon_far_beyond_the_recursion_is_the_limit(capsys):
+    from bouncesim.cli import main
+    rc = main(["coverage", "lab", "--angles", "90,135", "--eps", "45", "--r", "0.8",
+               "--horizon", str(10 ** 12), "--json"])
+    assert rc == 0
+    hz = json.loads(capsys.readouterr().out)["horizon"]
+    assert all(r["tv_to_limit"] <= 1e-6 for r in [*hz["per_angle"], hz["mix"]])

@@ -90,7 +90,9 @@ With --horizon T everything is for the first T steps of a run instead of the lim
 (docs/model.md section 20): coverage.csv's q and the heatmaps are the expected share of the
 first T steps in each cell (from the uniform start, or --start), alpha is fitted to that (with
 --epoch: as executed in epochs, by SLSQP; alpha.json reports its convergence), and a warning
-says when T is far below a policy's steps_to_limit.
+says when T is far below a policy's steps_to_limit. Once a run's per-step share is steady and
+within TV 1e-4 of its limit, its remaining steps count at the limit, so T may be far beyond
+what can be stepped; a T the run would not settle for within 10^6 steps is refused at once.
 """
 
 EXAMPLES = """\

@@ -38,7 +38,7 @@ from ..noise import TurnNoise
 from ..plan import PolicyMix
 from .base import CoverageModel
 from .event import EventModel
-from .horizon import fit_horizon_mix, horizon_of
+from .horizon import PARALLEL_MAX, fit_horizon_mix, horizon_of
 from .mix import MixDesign, solve_mix
 from .sampled import SampledModel
 from .step import StepModel
@@ -184,9 +184,10 @@ def design_mix(model: CoverageModel, angles: Iterable[float], noise: TurnNoise =
                         "cells only; use --target-space positions.")
     angles = check_angles(cs.K, angles, noise)
     b = check_target(target, cs, space)
-    if horizon is not None and space == "positions":
+    if horizon is not None and space == "positions" and int(horizon) <= PARALLEL_MAX:
         # the angles' runs over the horizon go on the analyses' threads from the start (the
-        # fit below finds them done); a mix in epochs runs its own recursion in the fit
+        # fit below finds them done); a mix in epochs runs its own recursion in the fit;
+        # longer horizons run in the fit, where the limits settle them (docs/model.md §20)
         also = horizon_of(model).tasks(angles, int(horizon), noise=noise, start=start)
     else:
         also = ()

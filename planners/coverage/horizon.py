@@ -30,6 +30,7 @@ east-west, half north-south, and the step model's q_T is uniform at every T:
 
 from __future__ import annotations
 
+import math
 import time
 import weakref
 from dataclasses import dataclass
@@ -45,14 +46,22 @@ from ..metrics import tv_distance
 from ..noise import TurnNoise
 from .event_flights import StepTable
 from .mix import MixDesign, solve_mix
+from .slow_mode import slow_mode
 from .timeshare import DelayChain, TimeShared
 
 __all__ = ["Horizon", "HorizonCoverage", "horizon_coverage", "horizon_of",
-           "start_distribution", "fit_horizon_mix", "CAP", "LIMIT_TV", "grid"]
+           "start_distribution", "fit_horizon_mix", "CAP", "LIMIT_TV", "grid", "PARALLEL_MAX",
+           "SETTLED", "SETTLED_LIMIT", "STEP_CAP"]
 
 CAP = 10_000_000        # default cap [steps] of steps_to_limit
 LIMIT_TV = 0.05         # default TV at which q_T counts as at the limit
 _GRID0 = 100            # first horizon of the steps_to_limit grid [steps]
+STEP_CAP = 1_000_000    # steps a run beyond it steps at most (then its limit, once settled)
+SETTLED = 1e-6          # TV between two segments' per-step shares that counts as settled ...
+SETTLED_LIMIT = 1e-4    # ... when within this TV of the limit (the float32 recursion's own
+                        # steady state lies 1.5e-5 off the float64 limit on a two-room map)
+PARALLEL_MAX = 100_000  # horizons up to this run beside the limits' analyses; longer ones
+                        # after them, so that the limits can settle them (design_mix)
 KEPT_RUNS = 8           # runs a Horizon keeps (angle, noise, start); the oldest goes first
 _GRID_RATIO = 2 ** (1 / 8)
 _EXACT = TurnNoise()
@@ -190,28 +199,86 @@ class _Trajectory:
         self.dep = self.hist[0].astype(float)            # v_{−1}
         self.t = 0
         self.known: dict[int, np.ndarray] = {}           # T → counts per cell (P,)
+        self._next_check = 1600                          # _check_settles from this t
 
     def _count(self, hist: np.ndarray, dep: np.ndarray) -> np.ndarray:
         return self.rec.ts.RT @ dep - self.rec.tailsT @ hist.reshape(-1).astype(float)
 
-    def counts(self, T: int, threads: int | None = None) -> np.ndarray:
+    def counts(self, T: int, threads: int | None = None, limit=None) -> np.ndarray:
         """Counted steps per cell (P,) of the first T steps. ``threads``: row blocks per step
         (:meth:`~planners.coverage.timeshare.TimeShared.advance`; 1 when runs go on threads of their
         own, :func:`planners.coverage.api.analyses`); the counts do not depend on it.
+
+        ``limit``: the run's limit q (P,). Then the run stops stepping once it has settled
+        (:meth:`_settled`) and every later step counts at the limit: counts(g) +
+        c·(T − g)·q. A horizon above :data:`STEP_CAP` needs it.
         """
+        if T in self.known:
+            return self.known[T]
+        if T < self.t:                           # behind the checkpoint: a fresh run
+            return _Trajectory(self.rec, self.WT, self.p0).counts(T, threads, limit)
+        capped = limit is not None and T > STEP_CAP     # beyond: the limit, once settled
+        for g in sorted(g for g in _grid_set() if self.t < g <= T):
+            if limit is not None and self._settled(limit) is not None:
+                break
+            if capped:
+                if g > STEP_CAP:
+                    break
+                self._check_settles(limit, T)
+            self.hist, dd = self.rec.ts.advance(self.WT, self.hist, g - self.t, threads)
+            self.dep += dd
+            self.t = g
+            self.known[g] = self._count(self.hist, self.dep)
+        settled = None if limit is None else self._settled(limit)
+        if settled is not None and T > settled[0]:
+            g, rate = settled
+            return self.known[g] + rate * (T - g) * np.asarray(limit, dtype=float)
+        if capped:
+            raise UserError(f"the model's run has not settled at its limit after {self.t} "
+                            f"steps, so the coverage of the first {T} steps cannot be "
+                            f"computed; use a horizon of at most {STEP_CAP:.0e} steps.")
         if T not in self.known:
-            if T < self.t:                       # behind the checkpoint: a fresh run
-                return _Trajectory(self.rec, self.WT, self.p0).counts(T, threads)
-            on_grid = _grid_set()
-            for g in sorted(g for g in on_grid if self.t < g <= T):
-                self.hist, dd = self.rec.ts.advance(self.WT, self.hist, g - self.t, threads)
-                self.dep += dd
-                self.t = g
-                self.known[g] = self._count(self.hist, self.dep)
-            if T not in on_grid:
-                hist, dd = self.rec.ts.advance(self.WT, self.hist, T - self.t, threads)
-                self.known[T] = self._count(hist, self.dep + dd)
+            hist, dd = self.rec.ts.advance(self.WT, self.hist, T - self.t, threads)
+            self.known[T] = self._count(hist, self.dep + dd)
         return self.known[T]
+
+    def _check_settles(self, limit, T: int) -> None:
+        """Refuse early a horizon beyond :data:`STEP_CAP` that the run would not settle for
+        in time: from its slow mode (:func:`planners.coverage.slow_mode.slow_mode`, tried at
+        every doubling of t from 1600 steps until it finds one), the step at which its
+        per-step share comes within :data:`SETTLED_LIMIT` of the limit.
+        """
+        if self.t < self._next_check:
+            return
+        self._next_check = 2 * self.t
+        pts = sorted(t for t in self.known if t <= self.t and t in _grid_set())
+        sm = slow_mode([(t, self.known[t]) for t in pts], limit)
+        if sm is None:                          # no single mode yet: again at 2·t
+            return
+        self._next_check = math.inf             # one verdict
+        dev = 0.5 * float(np.abs(sm.u).sum())
+        at = sm.T + math.log(SETTLED_LIMIT / dev) / math.log(sm.lam) \
+            if dev > SETTLED_LIMIT else sm.T
+        if at > STEP_CAP:
+            raise UserError(f"the model's run settles at its limit only after about "
+                            f"{at:.1e} steps (relaxation time {sm.relaxation:.1e} steps), "
+                            f"more than the {STEP_CAP:.0e} the recursion runs, so the "
+                            f"coverage of the first {T} steps cannot be computed.")
+
+    def _settled(self, limit) -> tuple[int, float] | None:
+        """(g, counted steps per step) when the last two segments between grid points (up to
+        the run's last grid point g) spent their steps alike (within TV :data:`SETTLED` of
+        each other: the recursion's steady state) and within :data:`SETTLED_LIMIT` of
+        ``limit``, else None (docs/model.md §20).
+        """
+        pts = sorted(t for t in self.known if t <= self.t and t in _grid_set())
+        if len(pts) < 3:
+            return None
+        (a, b, c) = pts[-3:]
+        one, two = self.known[b] - self.known[a], self.known[c] - self.known[b]
+        if tv_distance(one, two) <= SETTLED and tv_distance(two, limit) <= SETTLED_LIMIT:
+            return c, float(two.sum()) / (c - b)
+        return None
 
 
 class Horizon:
@@ -294,7 +361,7 @@ class Horizon:
         ends, deps = zip(*(rec.ts.advance(W, hist[:, :, j], steps) for j, W in enumerate(WT)))
         return np.stack(ends, axis=2), np.column_stack(deps)
 
-    def _columns(self, angles, horizons, noise: TurnNoise, alpha, epoch, start):
+    def _columns(self, angles, horizons, noise: TurnNoise, alpha, epoch, start, limits=None):
         """Counted steps per cell (P, m) of the first T steps of each of m runs, for every T
         in ``horizons``: the angles with α_i > 0 (all angles when ``alpha`` is None), each
         run keeping its angle, or with ``epoch`` a mix whose runs restart every epoch from
@@ -319,8 +386,9 @@ class Horizon:
         p0 = start_distribution(cs, start)
         if E >= horizons[-1]:                    # every run keeps its angle: kept runs
             runs = [self._trajectory(angles[i], noise, p0) for i in use]
+            lims = [None if limits is None else limits[i] for i in use]
             for T in horizons:
-                yield T, np.column_stack([r.counts(T) for r in runs]), a
+                yield T, np.column_stack([r.counts(T, limit=q) for r, q in zip(runs, lims)]), a
             return
         rec = self._prepare(noise)
         WT = self._turns([angles[i] for i in use], rec, noise)
@@ -351,7 +419,7 @@ class Horizon:
             t = end
 
     def run(self, angles, horizons, *, noise: TurnNoise = _EXACT, alpha=None,
-            epoch: int | None = None, start=None, stop=None):
+            epoch: int | None = None, start=None, stop=None, limits=None):
         """Counted steps per cell of the first T steps for every T in ``horizons``, in one pass.
 
         Parameters
@@ -364,6 +432,9 @@ class Horizon:
                                      angle, drawn at step 0)
         start : see :func:`start_distribution`
         stop : callable, optional    stop(T, counts) → True ends the pass after that T
+        limits : sequence, optional  each angle's limit q from this start: a run that has
+                                     settled counts its later steps at its limit
+                                     (:meth:`_Trajectory.counts`; not for epochs)
 
         Yields
         ------
@@ -372,18 +443,27 @@ class Horizon:
         if alpha is None and len(angles) != 1:
             raise UserError("a mix needs one non-negative α per angle, with a positive sum.")
         for T, cols, a in self._columns(tuple(float(x) for x in angles), horizons, noise,
-                                        alpha, epoch, start):
+                                        alpha, epoch, start, limits):
             counts = sum(a[j] * cols[:, j] for j in range(a.size))
             yield T, counts, float(T)
             if stop is not None and stop(T, counts):
                 return
 
     def coverage(self, angles, horizon: int, *, noise: TurnNoise = _EXACT, alpha=None,
-                 epoch: int | None = None, start=None) -> HorizonCoverage:
+                 epoch: int | None = None, start=None, limits=None) -> HorizonCoverage:
         """:class:`HorizonCoverage` of the first ``horizon`` steps (see :meth:`run`)."""
         t0 = time.perf_counter()
+        if int(horizon) > STEP_CAP:
+            if epoch is not None and int(epoch) < int(horizon) and len(angles) > 1:
+                raise UserError(f"a mix in epochs runs at most {STEP_CAP:.0e} steps; the "
+                                f"horizon is {horizon}.")
+            if limits is None:
+                raise UserError(f"a horizon of {horizon} steps is more than the "
+                                f"{STEP_CAP:.0e} steps the recursion runs, and no limit is "
+                                "known to take over from there (a start other than the "
+                                "uniform one on a map with several persistent groups).")
         (T, counts, total), = self.run(angles, [horizon], noise=noise, alpha=alpha,
-                                       epoch=epoch, start=start)
+                                       epoch=epoch, start=start, limits=limits)
         c = float(counts.sum())
         if not c > 0:
             raise UserError("the horizon counts no step in a free cell.")
@@ -422,8 +502,15 @@ def fit_horizon_mix(hz: Horizon, angles, noise: TurnNoise, target, horizon: int,
     step 1e-4, each q_T(α) one horizon run); ``convergence`` reports its iterations, the
     norm of the projected gradient at the end, the objective and SLSQP's status.
     """
-    cols = np.column_stack([hz.coverage([a], horizon, noise=noise, start=start).q
-                            for a in angles])
+    # the limits take over once a run settles where they are the runs' own: from the
+    # uniform start, or from any start when every angle has one persistent group
+    # (beyond PARALLEL_MAX only: shorter horizons are stepped all the way, as the runs
+    # beside the analyses step them, so that threads do not change the numbers)
+    own = start is None or all(len(p.groups) == 1 for p in per_angle)
+    limits = [p.q for p in per_angle] if own and horizon > PARALLEL_MAX else None
+    cols = np.column_stack([hz.coverage([a], horizon, noise=noise, start=start,
+                                        limits=None if limits is None else [limits[i]]).q
+                            for i, a in enumerate(angles)])
     fit = solve_mix(cols, target)
     alpha, mixed, method, conv = fit.alpha, fit.mixed, fit.method, None
     m = len(angles)
