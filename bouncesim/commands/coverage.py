@@ -245,11 +245,10 @@ def run(args) -> int:
             "tv_to_A_alpha": tv_distance(ts.q, result.mixed_q()),
             "epoch_iterations": ts.epochs, "converged": ts.converged,
             "error_estimate": ts.error_estimate, "counted_fraction": ts.counted_fraction}
-    limit = limit_report(model, result, args, timeshared)
-    summary["steps_to_limit"] = {k: v for k, v in limit.items()
-                                 if k not in ("limits", "mix_limit")}
+    summary["steps_to_limit"], mix_limit = limit_report(model, result, args, timeshared)
     if args.horizon is not None:
-        summary["horizon"] = horizon_report(result, args, start, limit)
+        summary["horizon"] = horizon_report(result, args, start, summary["steps_to_limit"],
+                                            mix_limit)
     if args.out is not None:
         write_outputs(result, cs, args.out, summary, plots=not args.no_plots,
                       timeshared=timeshared)
@@ -264,11 +263,12 @@ def run(args) -> int:
     return 0
 
 
-def limit_report(model, result: MixDesign, args, timeshared_q) -> dict:
+def limit_report(model, result: MixDesign, args, timeshared_q) -> tuple[dict, np.ndarray]:
     """alpha.json's "steps_to_limit": per angle and for the mix, the first T on a 2^(1/8) grid
     at which the coverage from the uniform start is within TV 0.05 of the limit, exact or
     extrapolated from the run's slow mode once that extrapolation is stable (docs/model.md
-    section 20), within --limit-seconds per policy.
+    section 20), within --limit-seconds per policy; and the mix's limit it was measured
+    against.
     """
     hz = horizon_of(model)
     kw = {"noise": result.noise, "cap": args.limit_cap, "max_seconds": args.limit_seconds,
@@ -285,17 +285,17 @@ def limit_report(model, result: MixDesign, args, timeshared_q) -> dict:
                              epoch=args.epoch, **kw)
     return {"tol": LIMIT_TV, "start": "uniform", "limit_seconds": args.limit_seconds,
             "per_angle": [{"angle": _num(a), **r} for a, r in zip(result.angles, each)],
-            "mix": mix, "limits": limits, "mix_limit": mix_limit}
+            "mix": mix}, mix_limit
 
 
-def horizon_report(result: MixDesign, args, start, limit: dict) -> dict:
+def horizon_report(result: MixDesign, args, start, limit: dict, mix_limit) -> dict:
     """alpha.json's "horizon": T, start, per-angle and mix TV to the limit (docs/model.md
     section 20); warns on stderr when T is far below a policy's steps_to_limit.
     """
     T = int(args.horizon)
-    per = [{"angle": r["angle"], "tv_to_limit": tv_distance(col, lim), **r}
-           for col, lim, r in zip(result.A.T, limit["limits"], limit["per_angle"])]
-    mix = {"tv_to_limit": tv_distance(result.mixed, limit["mix_limit"]), **limit["mix"]}
+    per = [{"angle": r["angle"], "tv_to_limit": tv_distance(col, a.q), **r}
+           for col, a, r in zip(result.A.T, result.per_angle, limit["per_angle"])]
+    mix = {"tv_to_limit": tv_distance(result.mixed, mix_limit), **limit["mix"]}
     for name, r in [*((f"{p['angle']}°", p) for p in per), ("the mix", mix)]:
         need = r["estimate"] if r["estimate"] is not None else r["last"]
         if r["estimate"] is None or T < need / 4:

@@ -316,11 +316,17 @@ def run(args) -> int:
         return [(_label(a), (a,), (1.0,)) for a in angles] + (
             [] if alpha is None else [("mix", tuple(angles), alpha)])
 
+    def round_trials(policies, done, todo) -> list:
+        """Each policy's trials done[lab] … done[lab] + todo[lab] − 1."""
+        return [trial(lab, angs, al, done[lab] + j) for lab, angs, al in policies
+                for j in range(todo[lab])]
+
     def check_out(alpha) -> None:
         """Refuse a folder that holds another sweep before the prediction's work."""
         if out is not None:
-            Sweep(simulate_trial, [trial(lab, angs, al, j) for lab, angs, al
-                                   in policy_list(alpha) for j in range(trials_per)],
+            pols = policy_list(alpha)
+            Sweep(simulate_trial, round_trials(pols, {p[0]: 0 for p in pols},
+                                               {p[0]: trials_per for p in pols}),
                   args.seed, out, {**record, "round": 0}).check_folder()
 
     if not designed:
@@ -348,8 +354,7 @@ def run(args) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         base = out or Path(tmp)
         for rnd in itertools.count():
-            trials = [trial(lab, angs, al, done[lab] + j) for lab, angs, al in policies
-                      for j in range(todo[lab])]
+            trials = round_trials(policies, done, todo)
             if not trials:
                 break
             # round 0 is the fixed-steps sweep (its seed and folder); later rounds have their

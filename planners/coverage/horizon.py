@@ -251,8 +251,7 @@ class _Trajectory:
         if self.t < self._next_check:
             return
         self._next_check = 2 * self.t
-        pts = sorted(t for t in self.known if t <= self.t and t in _grid_set())
-        sm = slow_mode([(t, self.known[t]) for t in pts], limit)
+        sm = slow_mode([(t, self.known[t]) for t in self._grid_points()], limit)
         if sm is None:                          # no single mode yet: again at 2·t
             return
         self._next_check = math.inf             # one verdict
@@ -265,13 +264,17 @@ class _Trajectory:
                             f"more than the {STEP_CAP:.0e} the recursion runs, so the "
                             f"coverage of the first {T} steps cannot be computed.")
 
+    def _grid_points(self) -> list[int]:
+        """The grid horizons this run has stepped through, in order."""
+        return sorted(t for t in self.known if t <= self.t and t in _grid_set())
+
     def _settled(self, limit) -> tuple[int, float] | None:
         """(g, counted steps per step) when the last two segments between grid points (up to
         the run's last grid point g) spent their steps alike (within TV :data:`SETTLED` of
         each other: the recursion's steady state) and within :data:`SETTLED_LIMIT` of
         ``limit``, else None (docs/model.md §20).
         """
-        pts = sorted(t for t in self.known if t <= self.t and t in _grid_set())
+        pts = self._grid_points()
         if len(pts) < 3:
             return None
         (a, b, c) = pts[-3:]

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["SlowMode", "slow_mode"]
+__all__ = ["SlowMode", "at_end", "slow_mode"]
 
 _WINDOW = 0.5               # the fit uses the segments that start at or after 0.5·T_last
 _MIN_SEGMENTS = 3           # ... at least this many
@@ -92,7 +92,15 @@ def slow_mode(history, limit_q) -> SlowMode | None:
     lam = math.exp(slope)
     if not 0.0 < lam < 1.0:
         return None
+    return at_end(history, q, last * lam ** (history[-1][0] - mids[-1]), lam)
+
+
+def at_end(history, limit_q, u, lam: float) -> SlowMode:
+    """The :class:`SlowMode` of deviation ``u`` and factor ``lam`` at the end of ``history``
+    (at least two horizons): its counts there and the counted steps per step of its last
+    segment.
+    """
     (t0, c0), (t1, c1) = history[-2], history[-1]
-    rate = float(np.sum(np.asarray(c1, dtype=float) - c0)) / (t1 - t0)
-    return SlowMode(T=int(t1), counts=np.asarray(c1, dtype=float), rate=rate, q=q,
-                    u=last * lam ** (t1 - mids[-1]), lam=lam)
+    c1 = np.asarray(c1, dtype=float)
+    return SlowMode(T=int(t1), counts=c1, rate=float(np.sum(c1 - c0)) / (t1 - t0),
+                    q=np.asarray(limit_q, dtype=float), u=np.asarray(u, dtype=float), lam=lam)

@@ -25,7 +25,7 @@ TV 0.05.
 100
 >>> first_within(sm.counts_at, q, 0.05, after=400)
 800
->>> next(T for T in grid(10**4) if tv(counts(T), q) <= 0.05)
+>>> next(T for T in grid(10**4) if tv_distance(counts(T), q) <= 0.05)
 800
 """
 
@@ -41,10 +41,10 @@ from envs import UserError
 from ..metrics import tv_distance
 from ..noise import TurnNoise
 from .horizon import CAP, LIMIT_TV, Horizon, grid
-from .slow_mode import SlowMode, slow_mode
+from .slow_mode import SlowMode, at_end, slow_mode
 
 __all__ = ["SlowMode", "slow_mode", "first_within", "steps_to_limit", "steps_to_limit_each",
-           "ESTIMATE_CAP", "tv"]
+           "ESTIMATE_CAP"]
 
 ESTIMATE_CAP = 10 ** 12     # largest T an extrapolation looks at [steps]
 _FIRST_CHECK = 400          # settle: the first check of the extrapolation [steps]
@@ -52,20 +52,11 @@ _SETTLE_RATIO = 2 ** (1 / 8) * (1 + 1e-9)   # ... two checks within one grid poi
 _EXACT = TurnNoise()
 
 
-def tv(counts, q) -> float:
-    """TV between counts (normalised) and the distribution ``q``."""
-    return tv_distance(counts, q)
-
-
 def _settled(history, limit_q) -> SlowMode:
     """A run already within tolerance of its limit and with no mode left to fit: its later
     steps are taken at the limit (u = 0), for the extrapolation of a mix it is part of.
     """
-    (t0, c0), (t1, c1) = history[-2], history[-1]
-    q = np.asarray(limit_q, dtype=float)
-    return SlowMode(T=int(t1), counts=np.asarray(c1, dtype=float),
-                    rate=float(np.sum(np.asarray(c1, dtype=float) - c0)) / (t1 - t0), q=q,
-                    u=np.zeros_like(q), lam=0.5)
+    return at_end(history, limit_q, np.zeros(len(limit_q)), 0.5)
 
 
 def first_within(counts_at, q, tol: float, *, after: int, cap: int = ESTIMATE_CAP) -> int | None:
@@ -73,7 +64,7 @@ def first_within(counts_at, q, tol: float, *, after: int, cap: int = ESTIMATE_CA
     ``cap``) whose counts ``counts_at(T)`` are within TV ``tol`` of ``q``, or None.
     """
     for T in grid(cap):
-        if T > after and tv(counts_at(T), q) <= tol:
+        if T > after and tv_distance(counts_at(T), q) <= tol:
             return T
     return None
 
@@ -100,7 +91,7 @@ class _Policy:
         """The counts of the first T steps (no effect once done)."""
         if self.done:
             return
-        self.state.update(last=T, tv=tv(counts, self.q))
+        self.state.update(last=T, tv=tv_distance(counts, self.q))
         if self.state["tv"] <= self.tol:
             self.state["steps"] = T
 
