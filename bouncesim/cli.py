@@ -13,15 +13,6 @@ import importlib
 import os
 import sys
 
-from bouncesim.commands.common import (
-    check_outputs,
-    discard_warnings,
-    flush_warnings,
-    remove_created,
-)
-from bouncesim.robots.base import RobotError
-from envs import UserError
-
 __all__ = ["build_parser", "main", "version_text"]
 
 # Sub-command modules, in the order --help lists them. Each defines
@@ -101,9 +92,21 @@ def main(argv: list[str] | None = None) -> int:
     """Run the ``bouncesim`` command line; returns the exit status (2: a user error)."""
     # the commands write figure files only: without a user choice, no GUI backend
     os.environ.setdefault("MPLBACKEND", "Agg")
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv == ["--version"]:       # before the commands' imports (numpy, scipy, shapely)
+        print(version_text())
+        return 0
+    from bouncesim.commands.common import (
+        check_outputs,
+        discard_warnings,
+        flush_warnings,
+        remove_created,
+    )
+    from bouncesim.robots.base import RobotError
+    from envs import UserError
     parser = build_parser()
     args = parser.parse_args(argv)
-    args.argv = list(sys.argv[1:] if argv is None else argv)     # for provenance records
+    args.argv = argv                            # for provenance records
     if not getattr(args, "func", None):
         parser.print_help()
         return 2

@@ -13,7 +13,9 @@ Importing this module registers the environment (gymnasium is the optional extra
   "duration": [flight time [s]]}``. The true pose and the cell are in ``info`` only.
 - ``task="navigate"``: reward +1 and the end of the episode when a flight reaches the goal
   configuration (its cell with its heading, the executor's success rule, docs/model.md §21),
-  ``-step_cost`` for every other bounce.
+  ``-step_cost`` for every other bounce. That flight is stopped by the clock inside the
+  goal cell (:func:`goal_stop`), so the last observation has no bump and ``info["pose"]``
+  is in the goal cell when ``info["is_success"]``.
 - ``task="cover"``: the reward of a bounce is the decrease of the total-variation distance
   between the visit histogram (docs/model.md §22's counted steps) and the target, so the return
   of an episode is 1 − the final TV.
@@ -71,7 +73,7 @@ from .robots.base import CREATE2
 from .robots.factory import make_robot
 from .robots.noise import NoiseModel, parse_noise
 
-__all__ = ["ENV_ID", "TASKS", "BounceEnv", "flight_reaches"]
+__all__ = ["ENV_ID", "TASKS", "BounceEnv", "flight_reaches", "goal_stop"]
 
 ENV_ID = "bouncesim/Bounce-v0"
 """The id under which importing this module registers :class:`BounceEnv`."""
@@ -81,7 +83,8 @@ _TRAIL = 400                  # flights kept for rendering
 
 
 def flight_reaches(start_xy, end_xy, heading_deg: float, cells: CellSpace, goal: int) -> bool:
-    """Whether a straight flight reaches goal configuration ``goal`` (docs/model.md §23).
+    """Whether a straight flight reaches goal configuration ``goal`` (docs/model.md §23):
+    :func:`goal_stop` is not None.
 
     True when the flight's heading [deg] is within ±(Δ/2 + 1e-9°) of the goal heading and the
     segment from ``start_xy`` to ``end_xy`` [m] meets the goal's position cell, a half-open
@@ -100,9 +103,28 @@ def flight_reaches(start_xy, end_xy, heading_deg: float, cells: CellSpace, goal:
     >>> flight_reaches((2.89, 0.17), (0.17, 0.17), 135.0, cs, cs.z(0, 4))   # wrong heading
     False
     """
+    return goal_stop(start_xy, end_xy, heading_deg, cells, goal) is not None
+
+
+def goal_stop(start_xy, end_xy, heading_deg: float, cells: CellSpace,
+              goal: int) -> np.ndarray | None:
+    """Where a robot on this flight stops in the goal configuration's cell (docs/model.md
+    §23): the midpoint of the part of the segment in the cell, the point farthest from its
+    borders along the flight; None when the flight does not reach the goal.
+
+    >>> import envs
+    >>> cs = CellSpace(envs.load("lab"))
+    >>> goal_stop((2.89, 0.17), (0.17, 0.17), 180.0, cs, cs.z(1, 4)).round(6).tolist()
+    [0.51, 0.17]
+    >>> goal_stop((2.89, 0.17), (0.17, 0.17), 180.0, cs, cs.z(0, 4)).round(6).tolist()
+    [0.255, 0.17]
+
+    In cell 0 the flight ends at the wall, x = 0.17 m: it stops half-way through the part
+    of the cell it crosses.
+    """
     p, k = (int(v) for v in cells.pk(int(goal)))
     if not heading_ok(heading_deg, k * cells.delta_deg, cells.delta_deg):
-        return False
+        return None
     h = cells.h
     cx, cy = cells.centres[p]
     lo = np.array([cx - h / 2, cy - h / 2])
@@ -114,19 +136,19 @@ def flight_reaches(start_xy, end_xy, heading_deg: float, cells: CellSpace, goal:
     for i in range(2):
         if d[i] == 0.0:
             if not lo[i] <= a[i] <= hi[i]:
-                return False
+                return None
             continue
         ta, tb = (lo[i] - a[i]) / d[i], (hi[i] - a[i]) / d[i]
         t0, t1 = max(t0, min(ta, tb)), min(t1, max(ta, tb))
     if t0 > t1:
-        return False
+        return None
     # the clipped part may only touch the square's right or top border, which belongs to the
     # neighbouring cell: its midpoint decides with the §4 point -> cell rule
     def at(t: float) -> np.ndarray:         # the end points exactly, not a + d rounded
         return a if t == 0.0 else b if t == 1.0 else a + t * d
 
     mid = 0.5 * (at(t0) + at(t1))
-    return int(cells.cell_of_point([mid])[0]) == p
+    return mid if int(cells.cell_of_point([mid])[0]) == p else None
 
 
 class BounceEnv(gymnasium.Env):
@@ -232,6 +254,18 @@ class BounceEnv(gymnasium.Env):
         self._trail.append(after[:2])
         return obs, before, after
 
+    def _stop_at(self, xy, before) -> tuple[dict, tuple]:
+        """The flight that reached the goal, stopped by the clock at ``xy`` [m]: the robot
+        is put there; (observation: no bump, the time to ``xy``; the pose there).
+        """
+        x, y = (float(v) for v in xy)
+        self._robot.place(x, y, before[2])
+        self._trail[-1] = (x, y)
+        seconds = math.hypot(x - before[0], y - before[1]) / self.speed
+        obs = {"bumper": np.zeros(2, dtype=np.int8),
+               "duration": np.array([seconds], dtype=np.float32)}
+        return obs, self._robot.true_pose()
+
     def _count(self, before, after) -> int:
         """Add the flight's counted steps to the visit histogram (docs/model.md §8, §17);
         returns the position cell of the contact (−1: none).
@@ -328,8 +362,10 @@ class BounceEnv(gymnasium.Env):
         obs, before, after = self._fly()
         self._steps += 1
         if self.task == "navigate":
-            self._reached = flight_reaches(before[:2], after[:2], before[2], self.cells,
-                                           self._goal)
+            stop = goal_stop(before[:2], after[:2], before[2], self.cells, self._goal)
+            self._reached = stop is not None
+            if self._reached:       # the clock stops it in the goal cell, before the wall
+                obs, after = self._stop_at(stop, before)
             reward = 1.0 if self._reached else -self.step_cost
             terminated, p = self._reached, None
         else:

@@ -41,7 +41,14 @@ import pandas as pd
 import envs
 from bouncesim.runs.executors import add_executor_args, make_executor
 from bouncesim.runs.sweep import run_sweep
-from experiments.common import SweepOptions, add_models_arg, experiment_parser, output_dir, recorded
+from experiments.common import (
+    SweepOptions,
+    add_models_arg,
+    experiment_parser,
+    invocation,
+    output_dir,
+    recorded,
+)
 from experiments.coverage_validation import ANGLES, EPS, R, policy_label, simulate
 from planners.cells import CellSpace
 from planners.coverage import TurnNoise, design_mix, model_for, solve_mix, uniform_target
@@ -188,7 +195,8 @@ def run(config: Config) -> Path:
     record = {"experiment": NAME, **recorded(config), "env": ENV, "angles": list(ANGLES),
               "eps": EPS, "r": R, "target": "uniform over position cells"}
     runs = run_sweep(simulate, trials, config.seed, out, record, make_executor(config),
-                     progress=config.progress, name="runs")
+                     progress=config.progress, name="runs",
+                     provenance=invocation(config.seed))
     twin = runs[runs.backend == "twin"]
     A_twin = np.column_stack([_counts(twin[twin.label == f"angle {int(a)}"]) for a in ANGLES])
     A_twin = A_twin / A_twin.sum(axis=0)
@@ -201,7 +209,8 @@ def run(config: Config) -> Path:
                             pb_steps, pb_runs)
     runs2 = run_sweep(simulate, oracle_trials, config.seed + 1, out / "oracle",
                       {**record, "oracle_alpha": oracle.alpha.tolist()},
-                      make_executor(config), progress=config.progress, name="runs")
+                      make_executor(config), progress=config.progress, name="runs",
+                      provenance=invocation(config.seed))
     allruns = pd.concat([runs, runs2], ignore_index=True)
     pd.DataFrame(alpha_rows).to_csv(out / "alpha.csv", index=False)
     rows = []

@@ -3,18 +3,17 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from dataclasses import asdict, dataclass, fields
-from datetime import UTC, datetime
 from pathlib import Path
 
-from bouncesim.runs.metadata import git_revision, versions
+from bouncesim.runs.metadata import provenance
+from bouncesim.runs.metadata import write_config as save_config
 from envs import UserError
 from planners.coverage import MODELS, check_model
 
 __all__ = ["EXECUTION_FIELDS", "add_models_arg", "experiment_parser", "name_list", "output_dir",
-           "recorded", "run_main", "write_config"]
+           "invocation", "recorded", "run_main", "write_config"]
 
 
 
@@ -38,10 +37,23 @@ EXECUTION_FIELDS = ("out",) + tuple(f.name for f in fields(SweepOptions))
 """Config fields that say where and how a sweep runs, not what it computes."""
 
 
+_INVOCATION: dict = {}
+"""The program and arguments of the last experiment command line parsed (for config.json)."""
+
+
+class _ExperimentParser(argparse.ArgumentParser):
+    """An ArgumentParser that remembers the command line it parsed, for config.json."""
+
+    def parse_args(self, args=None, namespace=None):
+        _INVOCATION.update(program=self.prog,
+                           argv=list(sys.argv[1:] if args is None else args))
+        return super().parse_args(args, namespace)
+
+
 def experiment_parser(name: str, description: str, default_seed: int = 0
                       ) -> argparse.ArgumentParser:
     """An ArgumentParser with the common --quick, --seed and --out flags."""
-    p = argparse.ArgumentParser(prog=f"python -m experiments.{name}", description=description)
+    p = _ExperimentParser(prog=f"python -m experiments.{name}", description=description)
     p.add_argument("--quick", action="store_true",
                    help="small budget (what CI runs); the full run is the default")
     p.add_argument("--seed", type=int, default=default_seed, help="root random seed")
@@ -97,12 +109,17 @@ def output_dir(path: Path) -> Path:
     return path
 
 
+def invocation(seed=None) -> dict:
+    """The command line that ran this experiment and its seed
+    (``bouncesim.runs.metadata.provenance``): config.json's first fields, and a sweep's
+    ``provenance``.
+    """
+    return provenance(_INVOCATION.get("argv", sys.argv[1:]), seed=seed,
+                      program=_INVOCATION.get("program", "python -m experiments"))
+
+
 def write_config(out_dir: Path, config: dict) -> Path:
-    """Write ``config.json`` (the given parameters plus versions, git revision and time)."""
-    out = output_dir(out_dir) / "config.json"
-    full = dict(config)
-    full.setdefault("versions", versions())
-    full.setdefault("git_revision", git_revision())
-    full.setdefault("created", datetime.now(UTC).isoformat(timespec="seconds"))
-    out.write_text(json.dumps(full, indent=2, default=str) + "\n")
-    return out
+    """Write ``config.json``: the given parameters, the command line that ran the experiment,
+    package versions, git revision and time (``bouncesim.runs.metadata.write_config``).
+    """
+    return save_config(output_dir(out_dir), {**invocation(config.get("seed")), **config})

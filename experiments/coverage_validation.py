@@ -61,7 +61,14 @@ from bouncesim.robots.noise import noise_for_mix
 from bouncesim.runs.execute import execute
 from bouncesim.runs.executors import add_executor_args, make_executor
 from bouncesim.runs.sweep import run_sweep
-from experiments.common import SweepOptions, add_models_arg, experiment_parser, output_dir, recorded
+from experiments.common import (
+    SweepOptions,
+    add_models_arg,
+    experiment_parser,
+    invocation,
+    output_dir,
+    recorded,
+)
 from planners.cells import CellSpace
 from planners.coverage import TurnNoise, design_mix, model_for, timeshared_coverage
 from planners.metrics import tv_distance
@@ -335,7 +342,8 @@ def run(config: Config) -> Path:
     record = {"experiment": NAME, **recorded(config), "angles": list(ANGLES), "eps": EPS,
               "r": R, "cell_size": "catalogue default"}
     runs = run_sweep(simulate, trials, config.seed, out, record, make_executor(config),
-                     progress=config.progress, name="runs")
+                     progress=config.progress, name="runs",
+                     provenance=invocation(config.seed))
     hist = []
     for r in runs.itertuples():
         c = np.array(r.counts.split(), dtype=np.int64)

@@ -35,7 +35,14 @@ import pandas as pd
 import envs
 from bouncesim.runs.executors import add_executor_args, make_executor
 from bouncesim.runs.sweep import run_sweep
-from experiments.common import SweepOptions, experiment_parser, output_dir, recorded, write_config
+from experiments.common import (
+    SweepOptions,
+    experiment_parser,
+    invocation,
+    output_dir,
+    recorded,
+    write_config,
+)
 from experiments.coverage_validation import ANGLES, EPS, R, simulate
 from planners.cells import CellSpace
 from planners.coverage import TurnNoise, model_for
@@ -174,7 +181,8 @@ def run(config: Config) -> Path:
     record = {"experiment": NAME, **recorded(config), "angles": list(ANGLES), "eps": EPS,
               "r": R, "ladder": [[m, k, list(v), f] for m, k, v, f in ladder]}
     runs = run_sweep(simulate, trials, config.seed, out / "twin", record,
-                     make_executor(config), progress=config.progress, name="runs")
+                     make_executor(config), progress=config.progress, name="runs",
+                     provenance=invocation(config.seed))
     hist = {}
     for r in runs.itertuples():
         hist[(r.env, int(r.orientations), float(r.cell_size), r.policy, int(r.replicate))] = \

@@ -45,7 +45,7 @@ from bouncesim.runs.sweep import Sweep
 from envs.motion import PYBULLET_CONTACT, ContactParams
 from planners.navigation import Navigator
 
-from .common import experiment_parser, output_dir
+from .common import experiment_parser, invocation, output_dir
 from .nav_fig3_physics import TWIN_GLANCE_DEG
 from .nav_planners import PLANNERS, NavConfig, NoPlan, cells_of, heading_class, plan_headings, world
 
@@ -482,7 +482,8 @@ def run(config: Config) -> Path:
               "of the plan query (computed once per worker process and pair, then cached)",
               "confidence_intervals": "95 % Wilson score (scipy.stats.binomtest)",
               "length_bins": LENGTH_LABELS}
-    sweep = Sweep(nav_trial, trials, config.seed, out, record, name="runs")
+    sweep = Sweep(nav_trial, trials, config.seed, out, record, name="runs",
+                  provenance=invocation(config.seed))
     executor = make_executor(config)
     print(f"nav_montecarlo: {len(pairs)} pairs on {len(config.maps)} maps "
           f"({sample_s:.1f} s sampling), {len(trials)} trials")

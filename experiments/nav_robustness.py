@@ -58,7 +58,7 @@ from planners.cells import CellSpace
 from planners.navigation import make_planner, planner_class
 from planners.navigation.feedback import FeedbackConfig
 
-from .common import experiment_parser, name_list, output_dir, run_main
+from .common import experiment_parser, invocation, name_list, output_dir, run_main
 from .nav_montecarlo import wilson
 from .nav_planners import world
 
@@ -401,7 +401,7 @@ def run(config: Config) -> Path:
               "pairs_per_map": config.pairs, "reps": config.reps,
               "feedback": config.feedback,
               "discretisation": "0.34 m cells, K = 8 on every map"}
-    sweep = Sweep(trial, trials, config.seed, out, record)
+    sweep = Sweep(trial, trials, config.seed, out, record, provenance=invocation(config.seed))
     runs = sweep.run(make_executor(config), progress=config.progress).table
     _report(out, runs)
     return out

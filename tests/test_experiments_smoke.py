@@ -22,6 +22,8 @@ from experiments import (
 def _config(out):
     cfg = json.loads((out / "config.json").read_text())
     assert cfg["quick"] is True and "versions" in cfg and "git_revision" in cfg
+    # the command line that ran it, whether the folder was written by a sweep or directly
+    assert cfg["command"].startswith("python -m experiments.") and "--quick" in cfg["argv"]
     return cfg
 
 

@@ -62,7 +62,8 @@ LIMIT = "64M"          # --max-memory / max_memory in the fuzz: big inputs are r
 
 # what commands print on stderr besides "bouncesim: warning/error: ..." lines
 PROGRESS = re.compile(r"(running \d+ segment\(s\) on the \w+ robot"
-                      r"|segment \d+/\d+: drive .*|note: .*)$")
+                      r"|segment \d+/\d+: drive .*|note: .*"
+                      r"|wrote \S.*)$")             # under --json, "wrote" lines go to stderr
 
 
 class Hang(AssertionError):

@@ -177,6 +177,8 @@ def test_planner_plans_reach_the_goal_exactly_when_the_executor_succeeds(lab, ce
         assert terminated == run.success, (s, g, str(route.plan))
         if terminated:
             assert info["is_success"] and rewards[-1] == 1.0
+            # it ends where the executor's rule needs it: in the goal's cell
+            assert cells.cell_of_point([info["pose"][:2]])[0] == cells.pk(g)[0]
             assert rewards[:-1] == [-0.01] * (len(rewards) - 1)
         outcomes.append(terminated)
     assert outcomes[0] and sum(outcomes) >= 0.7 * len(outcomes)
@@ -194,12 +196,17 @@ def test_goal_rule_is_the_shapely_segment_through_the_goal_cell(lab, cells):
         done = False
         while not done:
             x0, y0, _ = info["pose"]
-            _, reward, term, trunc, info = env.step(int(rng.integers(3)))
+            obs, reward, term, trunc, info = env.step(int(rng.integers(3)))
             x1, y1, deg = info["pose"]
             off = abs((deg - 90.0 + 180.0) % 360.0 - 180.0)
             hit = off <= 22.5 and LineString([(x0, y0), (x1, y1)]).intersects(square)
             assert term == hit == info["is_success"]
             assert reward == (1.0 if hit else -0.01)
+            if hit:     # stopped by the clock inside the goal cell: no bump, facing north
+                assert int(cells.cell_of_point([[x1, y1]])[0]) == 20
+                assert obs["bumper"].tolist() == [0, 0]
+                assert float(obs["duration"][0]) == pytest.approx(
+                    math.hypot(x1 - x0, y1 - y0) / env.speed, rel=1e-6)
             seen[hit] += 1
             done = term or trunc
     assert seen[True] >= 3 and seen[False] >= 30

@@ -45,6 +45,7 @@ def test_registry_runs_both_planners_on_a_tiny_room(tmp_path, monkeypatch):
     cfg = json.loads((out / "config.json").read_text())
     q = nm.QUICK
     assert cfg["twin_glance_deg"] == 0 and cfg["planners"] == ["step", "exact", "nothing"]
+    assert cfg["argv"] == argv and cfg["command"].startswith("python -m experiments.nav_montecarlo")
     # every pair, planner and level; the noise-free level once, the others reps times
     per_pair = 1 + (len(q["sigmas"]) - 1) * q["reps"]
     assert len(runs) == q["pairs"] * 3 * per_pair == cfg["sweep"]["n_trials"]

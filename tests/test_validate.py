@@ -10,8 +10,10 @@ from __future__ import annotations
 import importlib.util
 import json
 import math
+import shlex
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from bouncesim.cli import main
@@ -131,6 +133,10 @@ def test_out_folder_is_resumed_by_a_second_run(capsys, tmp_path):
         {k: v for k, v in second.items() if k not in drop}
     sessions = json.loads((tmp_path / "config.json").read_text())["sessions"]
     assert [s["trials_resumed"] for s in sessions] == [0, first["trials"]]
+    assert [s["command"] for s in sessions] == [shlex.join(["bouncesim", *argv])] * 2
+    # the table is in the folder too, as the second run printed it
+    assert json.loads((tmp_path / "validation.json").read_text()) == [second]
+    assert pd.read_csv(tmp_path / "validation.csv").tv.tolist() == [second["tv"]]
 
 
 def test_a_folder_of_another_sweep_is_refused_before_the_prediction(capsys, tmp_path,

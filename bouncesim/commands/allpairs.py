@@ -17,6 +17,7 @@ from .common import (
     check_fits,
     flush_warnings,
     max_memory,
+    report_written,
     writable_path,
     write_config,
 )
@@ -68,12 +69,14 @@ def run(args) -> int:
                "reachable_fraction": ap.reachable_fraction,
                "histogram": hist["plans"].tolist(), "seconds": round(elapsed, 3)}
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
-    write_config(out, args, nav.cells.env)
+    config = write_config(out, args, nav.cells.env)
     from bouncesim.plots import angle_use_bars
     angle_use_bars(hist, out / "angles_used.png",
                    title=f"{nav.cells.env.name}: angles used per shortest plan "
                    f"(Φ = {', '.join(f'{a:g}°' for a in nav.angles)})")
     print(hist.to_string(index=False))
     print(f"reachable pairs: {ap.reachable_fraction:.1%} of {summary['pairs']}; "
-          f"{elapsed:.2f} s; wrote {out}/")
+          f"{elapsed:.2f} s")
+    report_written([out / "weights.npy", out / "angles_used.csv", out / "summary.json", config,
+                    out / "angles_used.png"], args)
     return 0

@@ -20,6 +20,7 @@ import numpy as np
 
 import envs
 from bouncesim.runs.metadata import provenance
+from bouncesim.runs.metadata import write_config as save_config
 from bouncesim.runs.options import parse_angles
 from envs import UserError
 from envs.diagnostics import diagnose
@@ -35,9 +36,10 @@ from planners.resources import (
 )
 
 __all__ = ["add_angle_noise_args", "add_contact_arg", "add_env_args", "add_output", "check_fits",
-           "check_outputs", "contact_rule", "load_env",
-           "make_cells", "make_rng", "max_memory", "parse_angles", "print_json", "progress",
-           "remove_created", "warn", "writable_path", "flush_warnings", "discard_warnings"]
+           "check_outputs", "cli_provenance", "contact_rule", "discard_warnings",
+           "flush_warnings", "load_env", "make_cells", "make_rng", "max_memory",
+           "parse_angles", "print_json", "progress", "remove_created", "report_written",
+           "warn", "writable_path", "write_config"]
 
 _PENDING: list[str] = []            # warnings not printed yet (see the module docstring)
 
@@ -217,15 +219,19 @@ def make_rng(seed) -> np.random.Generator:
     return np.random.default_rng(seed)
 
 
+def cli_provenance(args, env=None) -> dict:
+    """:func:`bouncesim.runs.metadata.provenance` of a CLI run: its command line, seed and
+    environment.
+    """
+    return provenance(getattr(args, "argv", sys.argv[1:]), env, getattr(args, "seed", None))
+
+
 def write_config(out: Path, args, env=None) -> Path:
     """Write ``out/config.json``: the provenance of a CLI output folder (the command line,
-    the environment and its hash, the seed, package versions and the git revision:
-    :func:`bouncesim.runs.metadata.provenance`); returns its path.
+    the environment and its hash, the seed, package versions and the git revision); returns
+    its path. ``out`` may also be a ``.json`` file (the provenance beside a single output).
     """
-    path = Path(out) / "config.json"
-    record = provenance(getattr(args, "argv", sys.argv[1:]), env, getattr(args, "seed", None))
-    path.write_text(json.dumps(record, indent=2, default=str) + "\n")
-    return path
+    return save_config(out, cli_provenance(args, env))
 
 
 def writable_path(path, what: str = "--out", folder: bool = False) -> Path:
@@ -256,6 +262,15 @@ def writable_path(path, what: str = "--out", folder: bool = False) -> Path:
         reason = getattr(exc, "strerror", None) or str(exc)
         raise UserError(f"cannot write {what} {p} ({reason.rstrip('.')}).") from None
     return p
+
+
+def report_written(paths, args) -> None:
+    """One ``wrote PATH`` line per file written, on stdout, or on stderr under ``--json``
+    (whose stdout is data).
+    """
+    stream = sys.stderr if getattr(args, "json", False) else sys.stdout
+    for path in paths:
+        print(f"wrote {path}", file=stream)
 
 
 def print_json(obj, file=None) -> None:

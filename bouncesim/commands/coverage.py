@@ -49,6 +49,7 @@ from .common import (
     load_env,
     make_cells,
     parse_angles,
+    report_written,
     writable_path,
     write_config,
 )
@@ -128,7 +129,9 @@ def register(sub) -> None:
                    help="match the target over position cells (coverage q, default) or over "
                    "configuration cells (limiting distribution pi)")
     p.add_argument("--model", choices=list(MODELS), default="step",
-                   help="coverage model (default step): "
+                   help="coverage model (default step, the paper's, whose Table 1 this "
+                   "reproduces; event is the one to use when you compare with physics, and "
+                   "validate's default): "
                    + "; ".join(f"{name}: {cls.summary}" for name, cls in MODELS.items())
                    + " (see docs/model_continuous.md)")
     p.add_argument("--model-option", action="append", default=[], metavar="KEY=VALUE",
@@ -250,16 +253,15 @@ def run(args) -> int:
         summary["horizon"] = horizon_report(result, args, start, summary["steps_to_limit"],
                                             mix_limit)
     if args.out is not None:
-        write_outputs(result, cs, args.out, summary, plots=not args.no_plots,
-                      timeshared=timeshared)
-        write_config(Path(args.out), args, cs.env)
+        written = write_outputs(result, cs, args.out, summary, plots=not args.no_plots,
+                                timeshared=timeshared)
+        written.append(write_config(Path(args.out), args, cs.env))
     if args.json:
         print(json.dumps(summary))
     else:
         print(format_table(summary))
-        if args.out is not None:
-            print(f"wrote {args.out}/coverage.csv, alpha.json, config.json"
-                  + ("" if args.no_plots else " and heatmaps"))
+    if args.out is not None:
+        report_written(written, args)
     return 0
 
 
@@ -346,7 +348,8 @@ def summarise(result: MixDesign, cs: CellSpace, env_name: str, target_desc: str)
 
 def format_table(summary: dict) -> str:
     """A short human-readable table of alpha.json's content."""
-    lines = [f"{summary['env']}: K={summary['K']} P={summary['P']} N={summary['N']} "
+    model = f" model={summary['model']}" if summary.get("model") else ""
+    lines = [f"{summary['env']}: K={summary['K']} P={summary['P']} N={summary['N']}{model} "
              f"noise={summary['noise']} target={summary['target']}",
              f"{'angle':>7} {'alpha':>10} {'groups':>7} {'largest':>8} {'transient':>10}"]
     for a, pa in zip(summary["alpha"], summary["per_angle"]):
@@ -381,9 +384,10 @@ def format_table(summary: dict) -> str:
 
 
 def write_outputs(result: MixDesign, cs: CellSpace, out_dir, summary: dict,
-                  plots: bool = True, timeshared=None) -> Path:
+                  plots: bool = True, timeshared=None) -> list[Path]:
     """Write coverage.csv, alpha.json (and the heatmaps) into out_dir; ``timeshared`` is the
-    mix's predicted coverage when executed in epochs (series "mix_epochs").
+    mix's predicted coverage when executed in epochs (series "mix_epochs"). Returns the
+    files written. Figure titles name ``summary["model"]`` when it is there.
     """
     out = writable_path(out_dir, "the output folder", folder=True)
     ij, xy = cs.cells_ij, cs.centres
@@ -413,23 +417,28 @@ def write_outputs(result: MixDesign, cs: CellSpace, out_dir, summary: dict,
                 for zz, val in zip(z.tolist(), v.tolist()):
                     w.writerow([name, zz, zz % cs.P, zz // cs.P, repr(val)])
     (out / "alpha.json").write_text(json.dumps(summary, indent=2) + "\n")
+    written = [out / "coverage.csv"] + (
+        [out / "coverage_configurations.csv"] if result.space == "configurations" else []) + [
+        out / "alpha.json"]
+    model = f"{summary['model']} model, " if summary.get("model") else ""    # for titles
     if plots:
         from bouncesim.coverage_plots import save_heatmap, save_mix_vs_target
         over = "" if result.horizon is None else f" over {result.horizon} steps"
         for a, q in zip(result.per_angle, qs):
-            save_heatmap(out / f"heatmap_angle_{_num(a.angle)}.png", cs, q,
-                         title=f"{cs.env.name}: coverage of {_num(a.angle)}°{over} "
-                         f"({_noise_label(result.noise)})")
-        alpha_title = "alpha = " + ", ".join(f"{_num(a)}°: {al:.3f}" for a, al in
-                                             zip(result.angles, result.alpha))
-        save_mix_vs_target(out / "heatmap_mix_vs_target.png", cs, mixed, target_q,
-                           title=alpha_title)
+            written.append(save_heatmap(
+                out / f"heatmap_angle_{_num(a.angle)}.png", cs, q,
+                title=f"{cs.env.name}: coverage of {_num(a.angle)}°{over} "
+                f"({model}{_noise_label(result.noise)})"))
+        alpha_title = f"{cs.env.name}, {model}alpha = " + ", ".join(
+            f"{_num(a)}°: {al:.3f}" for a, al in zip(result.angles, result.alpha))
+        written.append(save_mix_vs_target(out / "heatmap_mix_vs_target.png", cs, mixed,
+                                          target_q, title=alpha_title))
         if timeshared is not None:
-            save_mix_vs_target(out / "heatmap_mix_epochs_vs_target.png", cs, timeshared,
-                               target_q, label="executed",
-                               title=f"{alpha_title}, executed in "
-                               f"{summary['timeshared']['epoch']}-step epochs")
-    return out
+            epoch = summary["timeshared"]["epoch"]
+            written.append(save_mix_vs_target(
+                out / "heatmap_mix_epochs_vs_target.png", cs, timeshared, target_q,
+                label="executed", title=f"{alpha_title}, executed in {epoch}-step epochs"))
+    return written
 
 
 def _noise_label(noise: TurnNoise) -> str:

@@ -5,6 +5,8 @@ emulated or a real Create 2).
 from __future__ import annotations
 
 import argparse
+import sys
+from pathlib import Path
 
 from bouncesim.robots import KINDS, make_robot
 from bouncesim.robots.noise import parse_noise
@@ -13,6 +15,7 @@ from envs import UserError
 from planners.navigation import planner_class
 
 from .common import (
+    add_contact_arg,
     add_env_args,
     add_output,
     flush_warnings,
@@ -21,6 +24,8 @@ from .common import (
     make_rng,
     print_json,
     progress,
+    report_written,
+    write_config,
 )
 from .plan import add_planner_args, make_planner_of, parse_config
 
@@ -55,6 +60,8 @@ def register(sub) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter)
     add_env_args(p)
     add_planner_args(p)
+    add_contact_arg(p, what=" the exact and reliable planners plan for (pybullet: the rule "
+                    "--robot pybullet follows)")
     p.add_argument("--turn-sigma", type=float, default=None, metavar="DEG",
                    help="closed-loop planners (feedback): the turn noise σ [deg] the filter "
                    "assumes (default: the σ of --noise; set it on a real robot)")
@@ -118,13 +125,16 @@ def register(sub) -> None:
                help="record a video of the run (pybullet only)")
     p.add_argument("--gui", action="store_true", help="show the PyBullet window (pybullet only)")
     add_output(p, "--trace", as_path=False, metavar="FILE.csv", default=None,
-               help="write the run's event trace as CSV")
+               help="write the run's event trace as CSV (every file written gets the run's "
+               "provenance beside it: FILE.config.json with the command line, seed, map hash, "
+               "versions and git revision)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--quiet", action="store_true",
                    help="no progress lines (one per plan segment, on stderr)")
     add_output(p, "--plot", as_path=False, metavar="FILE.png|.svg", default=None,
                suffixes=(".png", ".svg"),
-               help="draw the planned path (cell centres) and the executed path on the map")
+               help="draw the executed path on the map, over the planned path (cell centres) "
+               "of a planner that plans ahead")
     p.set_defaults(func=run)
 
 
@@ -190,10 +200,8 @@ def run(args) -> int:
                 route.plan, result.trace, goal=result.goal_pose,
                 t0=robot.clock() - result.trace[-1].t,
                 title=f"{env.name}: {start} → {goal} (green: goal, orange: path so far)")
-    if args.trace:
-        result.trace.to_csv(args.trace)
-    if args.plot:
-        _plot(args.plot, env, cells, route, result)
+    written = _save_outputs(args, env, cells, result, route.path or route.poses,
+                            f"{env.name}: {route.start} → {route.goal}, plan {route.plan}")
     # hardware: the plan ran to its end but nothing can tell whether the goal was reached
     unknown = result.final_pose is None and result.reason.startswith("plan finished")
     if args.json:
@@ -218,6 +226,7 @@ def run(args) -> int:
     if not (result.success or unknown or noise.exact or args.quiet):
         say("note: with rotation noise a run can miss the goal; exit status 4 reports that "
             "outcome, it is not an error")
+    report_written(written, args)
     return 0 if result.success or unknown else EXIT_FAILURE
 
 
@@ -242,18 +251,30 @@ def _robot_options(args) -> dict:
             "faults": args.fault, "lockstep": args.lockstep}
 
 
-def _plot(path, env, cells, route, result) -> None:
-    """--plot: the planned route against the executed trace (a hardware run has no poses)."""
-    from bouncesim.plots import plan_vs_executed, save_figure
-    if not any(r.x == r.x for r in result.trace.rows):     # NaN poses only: hardware
-        print("bouncesim: note: --plot skipped, the robot reports no poses.")
-        return
-    status = "success" if result.success else "failure"
-    title = (f"{env.name}: {route.start} → {route.goal}, plan {route.plan}; executed: "
-             f"{status}")
-    save_figure(plan_vs_executed(env, cells, route.path or route.poses, result.trace,
-                                 goal=result.goal_pose,
-                                 title=title), path, dpi=150)
+def _save_outputs(args, env, cells, result, path, title: str) -> list[Path]:
+    """--trace, --plot (the planned route ``path``, if any, against the executed trace; a
+    hardware run has no poses to draw) and --record, each with the run's provenance beside it
+    in ``NAME.config.json``; returns the files written.
+    """
+    written = []
+    if args.trace:
+        result.trace.to_csv(args.trace)
+        written.append(Path(args.trace))
+    if args.plot:
+        if any(r.x == r.x for r in result.trace.rows):      # NaN poses only: hardware
+            from bouncesim.plots import plan_vs_executed, save_figure
+            status = "success" if result.success else "failure"
+            written.append(save_figure(
+                plan_vs_executed(env, cells, path, result.trace, goal=result.goal_pose,
+                                 title=f"{title}; executed: {status}"), args.plot, dpi=150))
+        else:
+            print("bouncesim: note: --plot skipped, the robot reports no poses.",
+                  file=sys.stderr)
+    if getattr(args, "record", None) and Path(args.record).is_file():
+        written.append(Path(args.record))
+    for config in dict.fromkeys(p.with_suffix(".config.json") for p in written):
+        written.append(write_config(config, args, env))
+    return written
 
 
 # ------------------------------------------------- closed-loop planners (docs/model.md §15)
@@ -261,8 +282,6 @@ def _run_closed_loop(args, env, cells, start: int, goal: int, noise) -> int:
     """``run-plan`` with a closed-loop planner (feedback): its policy decides after every bump
     in the one run loop (:func:`bouncesim.runs.execute.execute`).
     """
-    if args.plot:
-        raise UserError(f"--plot is not available with --planner {args.planner} yet.")
     declared = noise if args.turn_sigma is None else float(args.turn_sigma)
     robot_rng, planner_rng = make_rng(args.seed).spawn(2)
     planner = make_planner_of(args, cells, rng=planner_rng, noise=declared)
@@ -281,8 +300,9 @@ def _run_closed_loop(args, env, cells, start: int, goal: int, noise) -> int:
                 + (" from an unknown start" if start is None else ""))
         result = execute(planner.policy(start, goal), robot, cells=cells, speed=args.speed,
                          back_off=args.back_off)
-    if args.trace:
-        result.trace.to_csv(args.trace)
+    written = _save_outputs(args, env, cells, result, None,
+                            f"{env.name}: {'unknown' if start is None else start} → {goal}, "
+                            f"{args.planner} navigation")
     unknown = result.final_pose is None and result.completed
     if args.json:
         out = {"start": "unknown" if start is None else start, "goal": goal,
@@ -308,5 +328,6 @@ def _run_closed_loop(args, env, cells, start: int, goal: int, noise) -> int:
         if planner.turn_model["scale"] or planner.turn_model["bias"]:
             f, sf, b, sb = result.turn_estimate
             print(f"turn estimate: factor {f:.3f} ± {sf:.3f}, offset {b:+.2f}° ± {sb:.2f}°")
+    report_written(written, args)
     return 0 if result.success or unknown else EXIT_FAILURE
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import itertools
+import json
 import math
 import sys
 import tempfile
@@ -44,11 +45,13 @@ from .common import (
     add_angle_noise_args,
     add_contact_arg,
     add_env_args,
+    cli_provenance,
     contact_rule,
     load_env,
     make_cells,
     parse_angles,
     print_json,
+    report_written,
     writable_path,
 )
 
@@ -308,7 +311,7 @@ def run(args) -> int:
 
     # the sweep's identity: what decides the trials and their meaning, never a timing (a
     # second run, or one after Ctrl-C, resumes the same sweep)
-    record = {"command": "validate", "model": args.model}
+    record = {"subcommand": "validate", "model": args.model}
     designed = args.alpha is not None and args.alpha.strip() == "design"
     alpha = None if designed else _parse_alpha(args.alpha, None, angles, noise)
 
@@ -364,7 +367,8 @@ def run(args) -> int:
             tables.append(run_sweep(simulate_trial, trials, seed,
                                     base if rnd == 0 else base / f"round{rnd}",
                                     {**record, "round": rnd}, make_executor(args),
-                                    progress=progress, name="runs"))
+                                    progress=progress, name="runs",
+                                    provenance=cli_provenance(args, env)))
             for lab in done:
                 done[lab] += todo[lab]
             table = pd.concat(tables, ignore_index=True)
@@ -395,10 +399,20 @@ def run(args) -> int:
                      "predict_s": round(predict_s, 3),
                      "contact": "off" if contact is None else "pybullet",
                      **({"alpha": list(al)} if lab == "mix" else {})})
+    if out is not None:
+        pd.DataFrame(rows).to_csv(out / "validation.csv", index=False)
+        (out / "validation.json").write_text(json.dumps(rows, indent=2) + "\n")
     if args.json:
         for r in rows:
             print_json(r)
-        return 0
+    else:
+        _print_table(rows, env, backend, cs, args)
+    if out is not None:
+        report_written(sorted(p for p in out.rglob("*") if p.is_file()), args)
+    return 0
+
+
+def _print_table(rows, env, backend, cs, args) -> None:
     print(f"{env.name}: {args.model} model against {backend} (K = {cs.K}, eps {args.eps:g}, "
           f"r {args.r:g}, seed {args.seed})")
     print(f"{'angle':>6} {'tv':>7} {'floor':>7} {'steps':>10} {'bumps/step model':>17} "
@@ -407,5 +421,4 @@ def run(args) -> int:
         a = r["angle"] if r["angle"] == "mix" else _label(r["angle"])
         print(f"{a:>6} {r['tv']:7.4f} {r['floor']:7.4f} {r['steps']:10d} "
               f"{r['bumps_per_step_model']:17.3f} {r['bumps_per_step_sim']:6.3f}")
-    return 0
 

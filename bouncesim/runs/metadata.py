@@ -1,11 +1,12 @@
-"""Run metadata: what produced a result (the one home of package versions and the git
-revision written to every ``config.json``, by sweeps and experiments alike).
+"""Run metadata: what produced a result. The one home of package versions, the git revision
+and the ``config.json`` writer used by the CLI, the sweeps and the experiments alike.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import os
 import platform
 import shlex
 import subprocess
@@ -14,7 +15,8 @@ from datetime import UTC, datetime
 from importlib import metadata
 from pathlib import Path
 
-__all__ = ["PACKAGES", "env_sha256", "git_revision", "provenance", "run_metadata", "versions"]
+__all__ = ["PACKAGES", "atomic_write_text", "config_record", "env_sha256", "git_revision",
+           "provenance", "run_metadata", "versions", "write_config"]
 
 PACKAGES = ("numpy", "scipy", "shapely", "networkx", "pandas", "matplotlib", "pybullet",
             "dask", "distributed", "bouncesim")
@@ -62,15 +64,52 @@ def env_sha256(env) -> str:
     return hashlib.sha256(blob).hexdigest()
 
 
-def provenance(argv, env=None, seed=None) -> dict:
-    """What a CLI output folder's ``config.json`` holds: the command line (``command``, and
-    ``argv`` as a list), the environment's name and :func:`env_sha256`, the seed (None for a
-    command without randomness), :func:`run_metadata` and the time it was written (UTC).
+def provenance(argv, env=None, seed=None, program: str = "bouncesim") -> dict:
+    """The fields that say how a result was asked for: the command line (``command``, and
+    ``argv`` as a list), the seed (None for a run without randomness) and, with ``env``, the
+    environment's name and :func:`env_sha256`. ``program`` is what ``argv`` follows
+    ("bouncesim", or "python -m experiments.nav_exact").
     """
     argv = [str(a) for a in argv]
-    out = {"command": shlex.join(["bouncesim", *argv]), "argv": argv, "seed": seed}
+    out = {"command": " ".join([program, shlex.join(argv)]).strip(), "argv": argv,
+           "seed": seed}
     if env is not None:
         out.update({"env": env.name, "env_sha256": env_sha256(env)})
-    out.update(run_metadata())
-    out["created"] = datetime.now(UTC).isoformat(timespec="seconds")
     return out
+
+
+def config_record(fields: dict) -> dict:
+    """``fields`` plus :func:`run_metadata` and the time it was made (UTC), unless
+    ``fields`` already has them (a resumed sweep keeps its first ones).
+    """
+    out = dict(fields)
+    for key, value in run_metadata().items():
+        out.setdefault(key, value)
+    out.setdefault("created", datetime.now(UTC).isoformat(timespec="seconds"))
+    return out
+
+
+def atomic_write_text(path, text: str) -> None:
+    """Write ``text`` to ``path`` through a temporary file and a rename: a reader (or a run
+    stopped half-way) sees the old file or the new one, never a part.
+    """
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    with open(tmp, "w") as f:
+        f.write(text)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
+
+
+def write_config(path, fields: dict) -> Path:
+    """Write :func:`config_record` of ``fields`` as JSON to ``path`` (a folder, which gets
+    ``config.json``, or a ``.json`` file); returns the file written. Every ``config.json``
+    the CLI, the sweeps and the experiments write goes through here.
+    """
+    path = Path(path)
+    if path.suffix != ".json":
+        path.mkdir(parents=True, exist_ok=True)
+        path = path / "config.json"
+    atomic_write_text(path, json.dumps(config_record(fields), indent=2, default=str) + "\n")
+    return path

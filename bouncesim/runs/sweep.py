@@ -14,9 +14,11 @@ parameter dicts (usually a :func:`grid`: environment x plan x noise x seed x bac
   table ``<name>.csv`` (one row per trial, sorted by trial index; optionally Parquet) is
   written atomically.
 - **Config.** ``config.json`` holds the sweep's identity (root seed, trial function, number of
-  trials, a SHA-256 of the trial list and the caller's config dict) plus package versions, the
-  git revision and one entry per session. A re-run whose identity differs is refused with one
-  sentence (:class:`envs.UserError`) instead of mixing two sweeps in one table.
+  trials, a SHA-256 of the trial list and the caller's config dict) plus the caller's
+  ``provenance`` (the command line, seed and map hash; not compared on resume), package
+  versions, the git revision and one entry per session. A re-run whose identity differs is
+  refused with one sentence (:class:`envs.UserError`) instead of mixing two sweeps in one
+  table.
 - **Executors** (:mod:`bouncesim.runs.executors`). :class:`SerialExecutor` (in-process, for
   debugging), :class:`PoolExecutor` (``concurrent.futures.ProcessPoolExecutor``, all cores by
   default) and :class:`DaskExecutor` (a new ``dask.distributed.LocalCluster`` or an existing
@@ -60,7 +62,7 @@ import pandas as pd
 from envs import UserError
 
 from .executors import PoolExecutor, SerialExecutor
-from .metadata import run_metadata
+from .metadata import atomic_write_text, config_record
 
 __all__ = ["grid", "trial_seed", "Sweep", "SweepResult", "run_sweep", "read_journal",
            "demo_trial", "TrialError"]
@@ -217,15 +219,6 @@ class _Journal:
         self._f.close()
 
 
-def _atomic_write_text(path: Path, text: str) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    with open(tmp, "w") as f:
-        f.write(text)
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
-
-
 # ============================================================================ the sweep
 @dataclass(frozen=True)
 class SweepResult:
@@ -269,11 +262,16 @@ class Sweep:
     parquet : bool            also write ``<name>.parquet`` (needs pyarrow or fastparquet)
     chunk : int, optional     trials per task (default: about 32 tasks per worker, at most 16
                               trials each; 1 on the serial executor)
+    provenance : dict, optional  how the run was asked for (``runs.metadata.provenance``: the
+                              command line, the environment's hash, the seed), stored in
+                              config.json when the sweep starts but not compared on resume;
+                              each session records its own ``command``
     """
 
     def __init__(self, trial_fn: Callable, trials: Sequence[dict], root_seed: int,
                  out_dir, config: dict | None = None, *, name: str = "runs",
-                 parquet: bool = False, chunk: int | None = None) -> None:
+                 parquet: bool = False, chunk: int | None = None,
+                 provenance: dict | None = None) -> None:
         if not callable(trial_fn):
             raise UserError("the trial function is not callable.")
         qual = getattr(trial_fn, "__qualname__", "")
@@ -287,6 +285,7 @@ class Sweep:
         self.root_seed = int(root_seed)
         self.out_dir = Path(out_dir)
         self.config = json.loads(json.dumps(config or {}, default=str))
+        self.provenance = json.loads(json.dumps(provenance or {}, default=str))
         self.name = name
         self.parquet = parquet
         self.chunk = chunk
@@ -349,9 +348,9 @@ class Sweep:
         stored = self.check_folder()
         if stored is not None:
             return stored
-        stored = {**self.config, "sweep": self.identity, **run_metadata(),
-                  "created": datetime.now(UTC).isoformat(timespec="seconds"), "sessions": []}
-        _atomic_write_text(self.config_path, json.dumps(stored, indent=2, default=str) + "\n")
+        stored = config_record({**self.provenance, **self.config, "sweep": self.identity,
+                                "sessions": []})
+        atomic_write_text(self.config_path, json.dumps(stored, indent=2, default=str) + "\n")
         return stored
 
     # ------------------------------------------------------------------ run
@@ -396,14 +395,16 @@ class Sweep:
         if len(table):
             cols = ["trial", *self.trials[0].keys()]
             table = table[cols + [c for c in table.columns if c not in cols]]
-        _atomic_write_text(self.csv_path, table.to_csv(index=False))
+        atomic_write_text(self.csv_path, table.to_csv(index=False))
         if self.parquet:
             table.to_parquet(self.out_dir / f"{self.name}.parquet", index=False)
         desc = executor.describe() if todo else {"kind": "none (all trials were done)"}
         stored.setdefault("sessions", []).append(
-            {"started": started, "wall_s": round(wall, 3), "trials_run": len(todo),
+            {"started": started, **({"command": self.provenance["command"]}
+                                    if "command" in self.provenance else {}),
+             "wall_s": round(wall, 3), "trials_run": len(todo),
              "trials_resumed": n_resumed, "executor": desc})
-        _atomic_write_text(self.config_path, json.dumps(stored, indent=2, default=str) + "\n")
+        atomic_write_text(self.config_path, json.dumps(stored, indent=2, default=str) + "\n")
         return SweepResult(table=table, csv=self.csv_path, n_trials=n, n_resumed=n_resumed,
                            n_run=len(todo), wall_s=wall, executor=desc)
 
@@ -416,13 +417,13 @@ def _progress(total: int, initial: int, name: str, enabled: bool):
 
 def run_sweep(trial_fn: Callable, trials: Sequence[dict], root_seed: int, out_dir,
               config: dict | None = None, executor=None, *, progress: bool = True,
-              name: str = "runs", parquet: bool = False, chunk: int | None = None
-              ) -> pd.DataFrame:
+              name: str = "runs", parquet: bool = False, chunk: int | None = None,
+              provenance: dict | None = None) -> pd.DataFrame:
     """Run (or resume) a sweep and return its table; see :class:`Sweep`.
 
     ``executor`` defaults to a process pool on every core; pass :class:`SerialExecutor` to
     debug in-process, or ``make_executor(args)`` after :func:`add_executor_args`.
     """
     sweep = Sweep(trial_fn, trials, root_seed, out_dir, config, name=name, parquet=parquet,
-                  chunk=chunk)
+                  chunk=chunk, provenance=provenance)
     return sweep.run(executor, progress=progress).table

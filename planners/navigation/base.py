@@ -153,7 +153,13 @@ class Planner(Protocol):
     angles: tuple
 
     def plan(self, start: int, goal: int) -> Route | None:
-        """The planner's route from configuration ``start`` to ``goal``, or None."""
+        """The planner's route from configuration ``start`` to ``goal``, or None when its
+        model has none: no sequence of its bouncing angles leads from ``start`` to ``goal``
+        (the goal is not reachable from the start; with more angles, or another K, it may
+        be). None is an answer, not an error: ``bouncesim plan`` prints "no path with angles
+        ..." (JSON ``"plan": null``) and exits with status 3. Bad input (a configuration out
+        of range) raises :class:`envs.UserError` instead.
+        """
 
     def policy(self, start: int, goal: int):
         """What :func:`bouncesim.runs.execute.execute` runs from ``start`` to ``goal``: the
