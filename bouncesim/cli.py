@@ -82,6 +82,11 @@ def build_parser() -> argparse.ArgumentParser:
         epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action=_Version,
                         help="print the package version (and git revision) and exit")
+    parser.add_argument("--config", metavar="RUN.toml",
+                        help="first argument only: take the command and its options from a "
+                        "TOML file (command = \"coverage\", env = \"lab\", angles = [30, 75], "
+                        "no_plots = true, ...); flags after it override the file "
+                        "(docs/readme_cli.md)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMAND_MODULES:
         importlib.import_module(name).register(sub)
@@ -102,11 +107,23 @@ def main(argv: list[str] | None = None) -> int:
         flush_warnings,
         remove_created,
     )
+    from bouncesim.commands.config_file import apply_config, split_config
     from bouncesim.robots.base import RobotError
     from envs import UserError
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        config_path, rest = split_config(argv)
+        config = None
+        if config_path is not None:             # the file's values become the defaults
+            commands = next(a.choices for a in parser._actions
+                            if isinstance(a, argparse._SubParsersAction))
+            rest, config = apply_config(config_path, rest, commands)
+    except UserError as exc:
+        print(f"bouncesim: error: {exc}", file=sys.stderr)
+        return 2
+    args = parser.parse_args(rest)
     args.argv = argv                            # for provenance records
+    args.config_file = config
     if not getattr(args, "func", None):
         parser.print_help()
         return 2

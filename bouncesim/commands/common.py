@@ -221,9 +221,12 @@ def make_rng(seed) -> np.random.Generator:
 
 def cli_provenance(args, env=None) -> dict:
     """:func:`bouncesim.runs.metadata.provenance` of a CLI run: its command line, seed and
-    environment.
+    environment, and with ``--config`` the file's path and values (``config_file``).
     """
-    return provenance(getattr(args, "argv", sys.argv[1:]), env, getattr(args, "seed", None))
+    out = provenance(getattr(args, "argv", sys.argv[1:]), env, getattr(args, "seed", None))
+    if getattr(args, "config_file", None) is not None:      # --config FILE: its values
+        out["config_file"] = args.config_file
+    return out
 
 
 def write_config(out: Path, args, env=None) -> Path:
