@@ -22,6 +22,7 @@ from planners.cells import CellSpace
 from planners.navigation import Navigator
 
 from .common import experiment_parser, name_list, output_dir, run_main, write_config
+from .compare import add_compare_arg
 
 __all__ = ["Config", "claims", "main", "run"]
 
@@ -107,6 +108,7 @@ def run(config: Config) -> Path:
 def main(argv=None) -> int:
     """Parse the command line into a :class:`Config` and :func:`run` it (exit status)."""
     p = experiment_parser("allpairs_fig7", __doc__.splitlines()[0])
+    add_compare_arg(p, "allpairs_fig7")
     p.add_argument("--angles", default="45,90,135",
                    help="bouncing angles [deg] (default 45,90,135)")
     p.add_argument("--envs", default=None,
@@ -117,7 +119,7 @@ def main(argv=None) -> int:
     names = args.envs or ("lab" if args.quick else "lab,fig1")
     return run_main("allpairs_fig7", lambda: Config(
         angles=tuple(parse_angles(args.angles)), envs=name_list(names), quick=args.quick,
-        seed=args.seed, out=args.out), run)
+        seed=args.seed, out=args.out), run, args.compare)
 
 
 if __name__ == "__main__":

@@ -67,16 +67,20 @@ def name_list(text: str) -> tuple[str, ...]:
     return tuple(n.strip() for n in str(text).split(",") if n.strip())
 
 
-def run_main(name: str, make_config, run) -> int:
-    """An experiment's ``main`` after parsing: ``run(make_config())``; a :class:`UserError`
-    from either becomes ``<name>: error: <sentence>`` on stderr and exit status 2.
+def run_main(name: str, make_config, run, compare: Path | None = None) -> int:
+    """An experiment's ``main`` after parsing: ``run(make_config())``, then with ``compare``
+    (``--compare DIR``, :func:`experiments.compare.add_compare_arg`) the comparison of its
+    tables with DIR's (exit status 1 when they differ); a :class:`UserError` becomes
+    ``<name>: error: <sentence>`` on stderr and exit status 2.
     """
+    from .compare import report
     try:
-        run(make_config())
+        config = make_config()
+        run(config)
+        return 0 if compare is None else report(compare, config.out)
     except UserError as exc:
         print(f"{name}: error: {exc}", file=sys.stderr)
         return 2
-    return 0
 
 
 def _model_list(text: str) -> list[str]:

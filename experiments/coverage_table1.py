@@ -33,7 +33,14 @@ import numpy as np
 import pandas as pd
 
 import envs
-from experiments.common import add_models_arg, experiment_parser, output_dir, write_config
+from experiments.common import (
+    add_models_arg,
+    experiment_parser,
+    output_dir,
+    run_main,
+    write_config,
+)
+from experiments.compare import add_compare_arg
 from planners.cells import CellSpace
 from planners.coverage import TurnNoise, design_mix, model_for, solve_mix, uniform_target
 
@@ -242,9 +249,10 @@ def main(argv=None) -> int:
                            "(the paper's Table I) with Figs. 9-11 analogues.")
     add_models_arg(ap, "step", "each model after the paper's step model adds a column "
                    "alpha_<model> to table1.csv (e.g. step,event)")
+    add_compare_arg(ap, NAME)
     args = ap.parse_args(argv)
-    run(Config(models=tuple(args.models), quick=args.quick, seed=args.seed, out=args.out))
-    return 0
+    return run_main(NAME, lambda: Config(models=tuple(args.models), quick=args.quick,
+                                         seed=args.seed, out=args.out), run, args.compare)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -26,6 +26,7 @@ from planners.navigation.exact import ExactNavigator
 from planners.plan import Plan
 
 from .common import experiment_parser, output_dir, run_main, write_config
+from .compare import add_compare_arg
 
 __all__ = ["CONTRAST", "PAPER_PLANS", "QUERIES", "Config", "draw_step_vs_exact",
            "exact_routes", "main", "plan_routes", "run", "step_vs_exact_rows"]
@@ -229,6 +230,7 @@ def run(config: Config) -> Path:
 def main(argv=None) -> int:
     """Parse the command line into a :class:`Config` and :func:`run` it (exit status)."""
     p = experiment_parser("nav_fig3", __doc__.splitlines()[0])
+    add_compare_arg(p, "nav_fig3")
     p.add_argument("--angles", default="90,135",
                    help="bouncing angles [deg] (default 90,135: the angles of the paper's plans)")
     p.add_argument("--no-physics", action="store_true", help="plan only, skip execution")

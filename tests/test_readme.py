@@ -81,7 +81,8 @@ def relative_links(path: Path) -> list[str]:
     return targets
 
 
-@pytest.mark.parametrize("page", [README, INDEX], ids=["README.md", "docs/index.md"])
+@pytest.mark.parametrize("page", [README, INDEX, README.parent / "results" / "README.md"],
+                         ids=["README.md", "docs/index.md", "results/README.md"])
 def test_relative_links_resolve(page):
     assert page.exists(), f"{page} is missing"
     targets = relative_links(page)
