@@ -53,7 +53,8 @@ def _compare_table(old: pd.DataFrame, new: pd.DataFrame, name: str, rtol: float,
             x, y = a.to_numpy(dtype=float), b.to_numpy(dtype=float)
             bad = ~np.isclose(x, y, rtol=rtol, atol=atol, equal_nan=True)
         else:
-            bad = (a.astype(str) != b.astype(str)).to_numpy()
+            both_missing = (a.isna() & b.isna()).to_numpy()
+            bad = (a.astype(str) != b.astype(str)).to_numpy() & ~both_missing
         for i in np.flatnonzero(bad)[:3]:
             out.append(f"{name}: row {i}, {col}: stored {_show(a.iloc[i])}, "
                        f"now {_show(b.iloc[i])}")

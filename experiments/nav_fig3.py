@@ -239,7 +239,7 @@ def main(argv=None) -> int:
     matplotlib.use("Agg")                      # this script writes files only
     return run_main("nav_fig3", lambda: Config(
         angles=tuple(parse_angles(args.angles)), physics=not args.no_physics,
-        quick=args.quick, seed=args.seed, out=args.out), run)
+        quick=args.quick, seed=args.seed, out=args.out), run, args.compare)
 
 
 if __name__ == "__main__":
