@@ -138,7 +138,8 @@ def draw_env(ax: Axes, env: Any, cells: Any = None, grid: bool = True, *,
 
 
 def draw_route(ax: Axes, cells: Any, path: Sequence, color: str = "#1f77b4",
-               label: str | None = None, markers: bool = True) -> None:
+               label: str | None = None, markers: bool = True, lw: float = 2.0,
+               alpha: float = 0.8) -> None:
     """Draw a planned route: its poses joined, an arrow per heading.
 
     ``path`` holds configuration indices z (a step-model route,
@@ -146,11 +147,14 @@ def draw_route(ax: Axes, cells: Any, path: Sequence, color: str = "#1f77b4",
     (x [m], y [m], heading [deg]) (a route over exact poses,
     :attr:`planners.navigation.Route.poses`: the bump points themselves). With ``markers``
     the start is marked red and the goal green, with legend entries ``start`` and ``goal``.
+    ``lw`` and ``alpha``: a wide pale route lets a run drawn over it show (an executed path
+    that follows the plan exactly would hide under a line of the same width).
     """
     pts = np.asarray(path, dtype=float)
     if pts.ndim == 1:
         pts = np.array([cells.pose(int(z)) for z in path])
-    ax.plot(pts[:, 0], pts[:, 1], "-", color=color, lw=2, alpha=0.8, label=label)
+    ax.plot(pts[:, 0], pts[:, 1], "-", color=color, lw=lw, alpha=alpha, label=label,
+            solid_capstyle="round")
     L = 0.35 * cells.h
     for x, y, deg in pts:
         t = np.radians(deg)
@@ -217,13 +221,20 @@ def draw_cell_ids(ax: Axes, cells: Any, kind: str = "positions",
             texts.append(ax.text(x - d, y + d, str(p), ha="left", va="top", fontsize=fontsize,
                                  color="black", zorder=4, path_effects=halo))
         return texts
-    r = 0.33 * cells.h
+    r = 0.34 * cells.h
+    spokes = []
     for k in range(cells.K):
         t = math.radians(k * cells.delta_deg)
+        u = (math.cos(t), math.sin(t))
         for p, (x, y) in enumerate(c):
-            texts.append(ax.text(x + r * math.cos(t), y + r * math.sin(t), str(k * cells.P + p),
+            # a faint spoke from the centre towards the id ties it to its cell and heading
+            spokes.append([(x + 0.06 * cells.h * u[0], y + 0.06 * cells.h * u[1]),
+                           (x + 0.2 * cells.h * u[0], y + 0.2 * cells.h * u[1])])
+            texts.append(ax.text(x + r * u[0], y + r * u[1], str(k * cells.P + p),
                                  ha="center", va="center", fontsize=fontsize, color="black",
                                  zorder=4, path_effects=halo))
+    from matplotlib.collections import LineCollection
+    ax.add_collection(LineCollection(spokes, colors="#9a9a9a", linewidths=0.5, zorder=3))
     return texts
 
 
@@ -335,7 +346,7 @@ def draw_trace(trace: Any, env: Any = None, ax: Axes | None = None, *,
         else:
             ax.plot([x[-1]], [y[-1]], "s", color=GOAL_COLOR, ms=8, label="end", zorder=7)
     if legend:
-        ax.legend(fontsize=7, loc="best")
+        map_legend(ax)                  # below the map: it hides none of the path
     return ax
 
 

@@ -114,20 +114,27 @@ def _cost(plan: Plan, w1: float, w2: float) -> float:
 
 def draw(env, cells, routes, table, path, executed=None) -> None:
     """Write the planned routes (and the noise-free executed paths) on the map to ``path``."""
-    from bouncesim.plots import draw_env, draw_route, plt, save_figure
-    fig, axes = plt.subplots(1, len(routes), figsize=(5.2 * len(routes), 4))
+    from bouncesim.plots import draw_env, draw_route, map_legend, plt, save_figure
+    fig, axes = plt.subplots(1, len(routes), figsize=(5.2 * len(routes), 4.6),
+                             layout="constrained")
+    styles = {"pybullet": ("#1f77b4", "-", "o"), "kinematic": ("#ff7f0e", "--", "x")}
     for ax, route, (_, row) in zip(axes, routes, table.iterrows()):
         draw_env(ax, env, cells)
-        if route is not None:
-            draw_route(ax, cells, route.path, label="planned (cell centres)")
+        if route is not None:       # wide and pale: the runs drawn over it stay visible
+            draw_route(ax, cells, route.path, label="planned (cell centres)", color="#9ecae1",
+                       lw=7, alpha=0.6)
         if executed is not None:
             for (plan_label, backend), tr in executed.items():
                 if plan_label == row["plan"]:
-                    ax.plot(tr["x"], tr["y"], "--", lw=1.2,
+                    colour, ls, mark = styles.get(backend, ("#2ca02c", ":", "+"))
+                    bumps = tr[tr["event"] == "bump"] if "event" in tr else tr.iloc[:0]
+                    ax.plot(tr["x"], tr["y"], ls, color=colour, lw=1.4, zorder=5,
                             label=f"executed ({backend})")
+                    ax.plot(bumps["x"], bumps["y"], mark, color=colour, ms=7, ls="none",
+                            zorder=6, label=f"bumps ({backend})")
         ax.set_title(f"{row['plan']}: id {row['start_id']} → id {row['goal_id']}\n"
                      f"{row['ours']}", fontsize=9)
-        ax.legend(fontsize=7, loc="upper right")
+        map_legend(ax, ncol=3)
     save_figure(fig, path, dpi=130)
 
 
@@ -167,8 +174,9 @@ def draw_step_vs_exact(rows, path) -> None:
     """
     import textwrap
 
-    from bouncesim.plots import draw_env, draw_route, plt, save_figure
-    fig, axes = plt.subplots(len(rows), 2, figsize=(10.4, 3.9 * len(rows)), squeeze=False)
+    from bouncesim.plots import draw_env, draw_pose, draw_route, map_legend, plt, save_figure
+    fig, axes = plt.subplots(len(rows), 2, figsize=(10.4, 4.4 * len(rows)), squeeze=False,
+                             layout="constrained")
     for row_axes, (env, cells, title, step, exact) in zip(axes, rows):
         for ax, r, what, colour in ((row_axes[0], step, "step model (paper)", "#777777"),
                                     (row_axes[1], exact, "exact planner", "#3b75af")):
@@ -178,15 +186,18 @@ def draw_step_vs_exact(rows, path) -> None:
                 continue
             is_step = what.startswith("step")
             draw_route(ax, cells, r.path if is_step else r.poses, color=colour,
-                       label="planned")
+                       label="planned", markers=False, lw=5, alpha=0.45)
             ok, tr = _replay(env, cells, r)
             ax.plot(tr["x"], tr["y"], "--", color="#d62728", lw=1.1,
                     label=f"twin, noise-free: {'reached' if ok else 'missed'}")
-            text = str(r.plan) if is_step else r.plan.exact_text()
+            # the same start and goal configurations (their cell centres) in both panels
+            draw_pose(ax, cells.pose(r.start), "start", length=0.4 * cells.h)
+            draw_pose(ax, cells.pose(r.goal), "goal", label="goal (cell centre)",
+                      length=0.4 * cells.h)
+            text = str(r.plan) if is_step else r.plan.exact_text(decimals=2)
             lines = [f"{title}, {what}, cost {r.cost:.4g}", *textwrap.wrap(text, 72)]
             ax.set_title("\n".join(lines), fontsize=8)
-            ax.legend(fontsize=6.5, loc="best", framealpha=0.7)
-    fig.tight_layout()
+            map_legend(ax, fontsize=7)
     save_figure(fig, path, dpi=130)
 
 

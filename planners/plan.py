@@ -197,15 +197,24 @@ class Plan:
             raise PlanParseError(f"exact plan {s!r} needs '| flights ... m | final F m'.")
         return cls(base.labels, tuple(found["flights"]), found["final"][0], "exact")
 
-    def exact_text(self) -> str:
+    def exact_text(self, decimals: int | None = None) -> str:
         """The paper's form followed by the exact flights and the final drive [m] (for a
-        plan without flights, the paper's form alone).
+        plan without flights, the paper's form alone). Lengths are written to 1e-9 m (the
+        contact gap), or with ``decimals`` rounded for reading (a figure's title).
+
+        >>> Plan.exact([90, 90], [0.0, 2.719999999], 0.339999999, 0.34).exact_text(2)
+        '90° 00000000 90° 0 | flights 0 2.72 m | final 0.34 m'
         """
         if not self.is_exact:
             return str(self)
         head = "" if not self.labels else str(self)
-        flights = " ".join(_metres(v) for v in self.flights_m)
-        return (f"{head} | flights {flights} m | final {_metres(self.final_m)} m".replace(
+
+        def metres(v) -> str:
+            if decimals is None:
+                return _metres(v)
+            return f"{float(v):.{decimals}f}".rstrip("0").rstrip(".") or "0"
+        flights = " ".join(metres(v) for v in self.flights_m)
+        return (f"{head} | flights {flights} m | final {metres(self.final_m)} m".replace(
             "flights  m", "flights m")).strip()
 
     def to_json(self) -> dict:

@@ -224,7 +224,9 @@ def test_trace_csv_round_trip(tmp_path, lab):
     import pandas as pd
     df = pd.read_csv(path)
     assert list(df.columns) == list(Trace.COLUMNS)
-    assert df["event"].tolist()[0] == "start" and df["event"].tolist()[-1] == "stop"
+    assert df["event"].tolist()[0] == "start" and df["event"].tolist()[-2:] == ["stop",
+                                                                                "outcome"]
+    assert df["detail"].iloc[-1] == "success: reached the goal"
     assert (df["event"] == "bump").sum() == 4
     assert np.allclose(df["t"], run.trace.to_frame()["t"], atol=1e-6)
     with pytest.raises(ValueError):

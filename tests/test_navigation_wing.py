@@ -93,7 +93,9 @@ def test_one_run_loop_executes_all_four_planners():
         with make_robot("kinematic", LAB.env) as bot:
             run = execute(planner.policy(8, 0), bot, start=8, goal=0, cells=LAB)
         assert run.success, (name, run.reason)
-        assert run.trace[0].event == "start" and run.trace[-1].event == "stop"
+        assert run.trace[0].event == "start" and run.trace[-2].event == "stop"
+        assert (run.trace[-1].event, run.trace[-1].detail) == ("outcome",
+                                                               "success: reached the goal")
         assert [r.event for r in run.trace].count("turn") == run.plan.bumps
 
 

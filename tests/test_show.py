@@ -169,7 +169,7 @@ def test_trace_coordinates_are_the_csvs(inputs, tmp_path, figures):
     _show(["lab", "--trace", str(inputs / "run.csv")], tmp_path)
     rows = _rows(inputs / "run.csv")
     ax = figures[0].axes[0]
-    line = next(ln for ln in ax.lines if ln.get_label() == "executed")
+    line = next(ln for ln in ax.lines if ln.get_label().startswith("executed"))
     assert list(line.get_xdata()) == pytest.approx([float(r["x"]) for r in rows])
     assert list(line.get_ydata()) == pytest.approx([float(r["y"]) for r in rows])
     bumps = next(ln for ln in ax.lines if ln.get_label() == "bump")
@@ -236,7 +236,7 @@ def test_run_plan_plot_draws_plan_and_run(tmp_path, capsys, figures):
     for name in ("planned (cell centres)", "executed", "start", "goal"):
         assert name in labels
     rows = _rows(trace)
-    line = next(ln for ln in ax.lines if ln.get_label() == "executed")
+    line = next(ln for ln in ax.lines if ln.get_label().startswith("executed"))
     assert list(line.get_xdata()) == pytest.approx([float(r["x"]) for r in rows])
     planned = next(ln for ln in ax.lines if ln.get_label() == "planned (cell centres)")
     # 8 -> 0 on lab: along the bottom row from x = 2.89 to x = 0.17 (README's example)
@@ -394,3 +394,109 @@ def test_run_plan_record_gif_has_size_and_a_live_overlay(tmp_path, capsys):
         return ((r > 200) & (abs(g - 127) < 40) & (b < 80)).sum()
     # the path so far: no orange line in the first frame, some in the last
     assert orange(frames[n - 1, :map_h]) > orange(frames[0, :map_h]) + 20
+
+
+
+# ---------------------------------------------------------------- figures fit for a paper
+def _overlaps(fig, a, b) -> bool:
+    """Whether two artists' drawn boxes overlap (matplotlib's tight bounding boxes; a saved
+    and closed figure is drawn again on a canvas of its own).
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    canvas = fig.canvas if hasattr(fig.canvas, "get_renderer") else FigureCanvasAgg(fig)
+    canvas.draw()
+    r = canvas.get_renderer()
+    return a.get_window_extent(r).overlaps(b.get_window_extent(r))
+
+
+def test_fig3_panels_keep_legends_off_the_map_round_titles_and_share_the_goal(figures,
+                                                                              tmp_path):
+    """The step-vs-exact figure: every legend lies outside its map, no title prints a
+    length to more than two decimals (the exact text itself keeps 1e-9 m), and the goal
+    star of a query sits on the same point in its step and exact panels.
+    """
+    import re
+
+    from experiments import nav_fig3
+    cfg = nav_fig3.Config()
+    env, cells, _, routes, table = nav_fig3.plan_routes(cfg.angles, cfg.w1, cfg.w2)
+    exact = nav_fig3.exact_routes(cells, table, cfg.angles, cfg.w1, cfg.w2)
+    rows = nav_fig3.step_vs_exact_rows(env, cells, routes, exact, table, cfg.angles)
+    nav_fig3.draw_step_vs_exact(rows, tmp_path / "f.png")
+    fig = figures[-1]
+    axes = fig.axes
+    assert len(axes) == 2 * len(rows)
+    for ax in axes:
+        legend = ax.get_legend()
+        assert legend is not None and not _overlaps(fig, legend, ax.patch)
+        assert not re.search(r"\d\.\d{5,}", ax.get_title()), ax.get_title()
+    assert "2.719999999" in table["exact"].iloc[0]           # the CSV keeps the exact text
+
+    def star(ax):
+        (line,) = [ln for ln in ax.lines if ln.get_label() == "goal (cell centre)"]
+        return np.array(line.get_xydata())[0]
+    for left, right in zip(axes[::2], axes[1::2]):
+        assert np.allclose(star(left), star(right))
+
+
+def test_a_trace_legend_sits_below_the_map(figures, tmp_path):
+    from bouncesim.robots import make_robot
+    from bouncesim.runs.execute import execute
+    from planners.navigation import Navigator
+    cs = CellSpace(envs.load("lab"))
+    route = Navigator(cs, [90, 135]).plan(8, 0)
+    with make_robot("kinematic", cs.env) as bot:
+        run = execute(route.plan, bot, start=8, goal=0, cells=cs)
+    ax = plots.draw_trace(run, cs.env, goal=run.goal_pose)
+    assert not _overlaps(ax.figure, ax.get_legend(), ax.patch)
+    plt.close(ax.figure)
+
+
+def test_show_trace_of_a_failed_run_draws_it_and_says_failure(figures, tmp_path, capsys):
+    """A run that misses its goal: run-plan's trace ends with its outcome, and show draws
+    the path and says "failure: ..." in the title and "executed (failure)" in the legend.
+    """
+    trace = tmp_path / "t.csv"
+    argv = ["run-plan", "lab", "--angles", "45,90,135", "--orientations", "8", "--start",
+            "1", "--goal", "40", "--noise", "gauss:10", "--seed", "3", "--quiet",
+            "--trace", str(trace)]
+    assert main(argv) == 4                                   # this seed misses the goal
+    _show(["lab", "--trace", str(trace)], tmp_path)
+    ax = figures[-1].axes[0]
+    assert "failure: ended" in ax.get_title().replace("\n", " ")
+    labels = [ln.get_label() for ln in ax.lines]
+    (path,) = [ln for ln in ax.lines if ln.get_label() == "executed (failure)"]
+    assert len(path.get_xdata()) >= 2 and "executed (failure)" in labels
+    # a run that reaches its goal says so
+    ok = tmp_path / "ok.csv"
+    assert main(["run-plan", "lab", "--angles", "90,135", "--start", "8", "--goal", "0",
+                 "--quiet", "--trace", str(ok)]) == 0
+    _show(["lab", "--trace", str(ok)], tmp_path, "ok.png")
+    assert "success: reached the goal" in figures[-1].axes[0].get_title().replace("\n", " ")
+
+
+def test_configuration_ids_beyond_k8_fall_back_to_position_ids(figures, tmp_path, capsys):
+    _show(["lab", "--orientations", "16", "--ids", "configurations"], tmp_path)
+    assert "readable up to K = 8" in capsys.readouterr().err
+    ax = figures[-1].axes[0]
+    ids = {t.get_text() for t in ax.texts}
+    assert ids == {str(p) for p in range(48)}                # P = 48 position ids
+    assert "z = k·48 + p" in ax.get_title().replace("\n", " ")
+    _show(["lab", "--ids", "configurations"], tmp_path, "k8.png")
+    assert len(figures[-1].axes[0].texts) == 8 * 48
+
+
+@pytest.mark.parametrize("argv, name", [
+    (["allpairs", "lab", "--angles", "90,135", "--figures", "pdf", "--out", "{d}"],
+     "angles_used.pdf"),
+    (["coverage", "lab", "--angles", "90,135", "--orientations", "8", "--eps", "45",
+      "--figures", "svg", "--out", "{d}"], "heatmap_mix_vs_target.svg"),
+    (["run-plan", "lab", "--angles", "90,135", "--start", "8", "--goal", "0", "--quiet",
+      "--plot", "{d}/run.pdf"], "run.pdf"),
+    (["show", "lab", "--out", "{d}/map.pdf"], "map.pdf"),
+], ids=["allpairs", "coverage", "run-plan", "show"])
+def test_every_figure_can_be_vector_graphics(argv, name, tmp_path, capsys):
+    assert main([a.format(d=tmp_path) for a in argv]) == 0
+    head = (tmp_path / name).read_bytes()[:200]
+    assert head.startswith(b"%PDF") if name.endswith(".pdf") else b"<svg" in head or \
+        b"<?xml" in head

@@ -13,6 +13,7 @@ from planners.navigation import PLANNERS, planner_class
 
 from .common import (
     add_env_args,
+    add_figures_arg,
     add_output,
     check_fits,
     flush_warnings,
@@ -36,6 +37,7 @@ def register(sub) -> None:
     add_env_args(p)
     add_planner_args(p)
     add_output(p, "--out", folder=True, required=True, metavar="DIR", help="output folder")
+    add_figures_arg(p)
     p.set_defaults(func=run)
 
 
@@ -71,12 +73,13 @@ def run(args) -> int:
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     config = write_config(out, args, nav.cells.env)
     from bouncesim.plots import angle_use_bars
-    angle_use_bars(hist, out / "angles_used.png",
+    figure = out / f"angles_used.{args.figures}"
+    angle_use_bars(hist, figure,
                    title=f"{nav.cells.env.name}: angles used per shortest plan "
                    f"(Φ = {', '.join(f'{a:g}°' for a in nav.angles)})")
     print(hist.to_string(index=False))
     print(f"reachable pairs: {ap.reachable_fraction:.1%} of {summary['pairs']}; "
           f"{elapsed:.2f} s")
     report_written([out / "weights.npy", out / "angles_used.csv", out / "summary.json", config,
-                    out / "angles_used.png"], args)
+                    figure], args)
     return 0

@@ -35,11 +35,12 @@ from planners.resources import (
     parse_memory,
 )
 
-__all__ = ["add_angle_noise_args", "add_contact_arg", "add_env_args", "add_output", "check_fits",
-           "check_outputs", "cli_provenance", "contact_rule", "discard_warnings",
-           "flush_warnings", "load_env", "make_cells", "make_rng", "max_memory",
-           "parse_angles", "print_json", "progress", "remove_created", "report_written",
-           "warn", "writable_path", "write_config"]
+__all__ = ["FIGURE_FORMATS", "add_angle_noise_args", "add_contact_arg", "add_env_args",
+           "add_figures_arg", "add_output", "check_fits", "check_outputs",
+           "cli_provenance", "contact_rule", "discard_warnings", "flush_warnings",
+           "load_env", "make_cells", "make_rng", "max_memory", "parse_angles",
+           "print_json", "progress", "remove_created", "report_written", "warn",
+           "writable_path", "write_config"]
 
 _PENDING: list[str] = []            # warnings not printed yet (see the module docstring)
 
@@ -197,6 +198,17 @@ def remove_created(created) -> None:
 def make_cells(args: argparse.Namespace, env: envs.Environment) -> CellSpace:
     """The cell space of ENV, refusing a step table above --max-memory."""
     return CellSpace(env, max_memory=max_memory(args))
+
+
+FIGURE_FORMATS = (".png", ".svg", ".pdf")
+"""The figure files the commands write: a raster (PNG) or vector (SVG, PDF) by the suffix."""
+
+
+def add_figures_arg(p: argparse.ArgumentParser) -> None:
+    """``--figures png|svg|pdf``: the format of the figures a command writes into --out."""
+    p.add_argument("--figures", choices=[f.lstrip(".") for f in FIGURE_FORMATS], default="png",
+                   help="format of the figures written into --out (default png; svg and pdf "
+                   "are vector graphics for papers)")
 
 
 def check_fits(args: argparse.Namespace, cells: CellSpace, est: MemoryEstimate,

@@ -42,6 +42,7 @@ from .common import (
     add_angle_noise_args,
     add_contact_arg,
     add_env_args,
+    add_figures_arg,
     add_output,
     check_fits,
     contact_rule,
@@ -157,7 +158,8 @@ def register(sub) -> None:
                    "mode, or only bounded")
     add_output(p, "--out", folder=True, default=None, metavar="DIR",
                help="output folder (CSV, JSON, PNG); without it only the table is printed")
-    p.add_argument("--no-plots", action="store_true", help="skip the PNG heatmaps")
+    p.add_argument("--no-plots", action="store_true", help="skip the heatmaps")
+    add_figures_arg(p)
     p.add_argument("--json", action="store_true",
                    help="print alpha.json's content instead of the table")
     p.set_defaults(func=run)
@@ -254,7 +256,7 @@ def run(args) -> int:
                                             mix_limit)
     if args.out is not None:
         written = write_outputs(result, cs, args.out, summary, plots=not args.no_plots,
-                                timeshared=timeshared)
+                                timeshared=timeshared, figures=args.figures)
         written.append(write_config(Path(args.out), args, cs.env))
     if args.json:
         print(json.dumps(summary))
@@ -384,10 +386,11 @@ def format_table(summary: dict) -> str:
 
 
 def write_outputs(result: MixDesign, cs: CellSpace, out_dir, summary: dict,
-                  plots: bool = True, timeshared=None) -> list[Path]:
+                  plots: bool = True, timeshared=None, figures: str = "png") -> list[Path]:
     """Write coverage.csv, alpha.json (and the heatmaps) into out_dir; ``timeshared`` is the
     mix's predicted coverage when executed in epochs (series "mix_epochs"). Returns the
-    files written. Figure titles name ``summary["model"]`` when it is there.
+    files written. Figure titles name ``summary["model"]`` when it is there; ``figures`` is
+    their format (png, svg or pdf).
     """
     out = writable_path(out_dir, "the output folder", folder=True)
     ij, xy = cs.cells_ij, cs.centres
@@ -426,17 +429,17 @@ def write_outputs(result: MixDesign, cs: CellSpace, out_dir, summary: dict,
         over = "" if result.horizon is None else f" over {result.horizon} steps"
         for a, q in zip(result.per_angle, qs):
             written.append(save_heatmap(
-                out / f"heatmap_angle_{_num(a.angle)}.png", cs, q,
+                out / f"heatmap_angle_{_num(a.angle)}.{figures}", cs, q,
                 title=f"{cs.env.name}: coverage of {_num(a.angle)}°{over} "
                 f"({model}{_noise_label(result.noise)})"))
         alpha_title = f"{cs.env.name}, {model}alpha = " + ", ".join(
             f"{_num(a)}°: {al:.3f}" for a, al in zip(result.angles, result.alpha))
-        written.append(save_mix_vs_target(out / "heatmap_mix_vs_target.png", cs, mixed,
+        written.append(save_mix_vs_target(out / f"heatmap_mix_vs_target.{figures}", cs, mixed,
                                           target_q, title=alpha_title))
         if timeshared is not None:
             epoch = summary["timeshared"]["epoch"]
             written.append(save_mix_vs_target(
-                out / "heatmap_mix_epochs_vs_target.png", cs, timeshared, target_q,
+                out / f"heatmap_mix_epochs_vs_target.{figures}", cs, timeshared, target_q,
                 label="executed", title=f"{alpha_title}, executed in {epoch}-step epochs"))
     return written
 

@@ -15,6 +15,7 @@ from envs import UserError
 from planners.navigation import planner_class
 
 from .common import (
+    FIGURE_FORMATS,
     add_contact_arg,
     add_env_args,
     add_output,
@@ -131,8 +132,8 @@ def register(sub) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--quiet", action="store_true",
                    help="no progress lines (one per plan segment, on stderr)")
-    add_output(p, "--plot", as_path=False, metavar="FILE.png|.svg", default=None,
-               suffixes=(".png", ".svg"),
+    add_output(p, "--plot", as_path=False, metavar="FILE.png|.svg|.pdf", default=None,
+               suffixes=FIGURE_FORMATS,
                help="draw the executed path on the map, over the planned path (cell centres) "
                "of a planner that plans ahead")
     p.set_defaults(func=run)

@@ -18,13 +18,13 @@ from envs import UserError
 from planners.cells import CellSpace
 from planners.plan import Plan
 
-from .common import add_env_args, add_output, load_env, make_cells
+from .common import FIGURE_FORMATS, add_env_args, add_output, load_env, make_cells, warn
 from .plan import parse_config
 
 __all__ = ["FORMATS", "read_coverage", "read_plan", "read_trace", "register", "replay_plan",
            "run"]
 
-FORMATS = (".png", ".svg")
+FORMATS = FIGURE_FORMATS
 
 DESCRIPTION = """\
 Draw ENV's map and cell grid with, as the options ask: the cell ids (--ids: position id p in
@@ -71,7 +71,7 @@ def register(sub) -> None:
                    help="which coverage.csv series: mix (default), target, mix_epochs or a "
                    "bouncing angle")
     p.add_argument("--title", default=None, help="figure title (default: what is drawn)")
-    add_output(p, "--out", required=True, metavar="FILE.png|.svg", suffixes=FORMATS,
+    add_output(p, "--out", required=True, metavar="FILE.png|.svg|.pdf", suffixes=FORMATS,
                help="the figure file (.png or .svg)")
     p.set_defaults(func=run)
 
@@ -192,6 +192,19 @@ def read_trace(path: Path):
     return df
 
 
+MAX_K_IDS = 8
+"""``--ids configurations`` writes every configuration id up to this K (beyond it, the
+position ids and the rule z = k·P + p)."""
+
+
+def trace_outcome(trace) -> str | None:
+    """How the traced run ended ("success: ..." or "failure: ..."), from its ``outcome`` row
+    (traces written before that row existed have none: None).
+    """
+    rows = trace[trace["event"] == "outcome"]
+    return None if rows.empty else str(rows["detail"].iloc[-1])
+
+
 def read_coverage(folder: Path, cells: CellSpace, series: str = "mix") -> np.ndarray:
     """Column q of ``folder/coverage.csv`` for one series, in position order p (P values)."""
     import pandas as pd
@@ -265,16 +278,25 @@ def build_figure(args, env, cells):
     else:
         draw_env(ax, env, cells)
     if args.ids:
-        draw_cell_ids(ax, cells, args.ids, halo=q is not None)
-        what.append("position ids p" if args.ids == "positions" else
-                    f"configuration ids z = k·{cells.P} + p")
+        kind = args.ids
+        if kind == "configurations" and cells.K > MAX_K_IDS:
+            # K ids per cell would not fit: the position ids and the rule that gives z
+            warn(f"--ids configurations writes K ids per cell, readable up to K = "
+                 f"{MAX_K_IDS}; with K = {cells.K} the figure shows the position ids p "
+                 f"(z = k·{cells.P} + p for heading k·{cells.delta_deg:g}°).")
+            kind = "positions"
+        draw_cell_ids(ax, cells, kind, halo=q is not None)
+        what.append("position ids p" + (f" (z = k·{cells.P} + p)" if args.ids != kind else "")
+                    if kind == "positions" else f"configuration ids z = k·{cells.P} + p")
     if route is not None:
         draw_route(ax, cells, route, label=route_label(route), markers=False)
         what.append(f"plan {plan_text}")
     if trace is not None:
-        draw_trace(trace, ax=ax, legend=False, label="executed", color=EXECUTED_COLOR,
+        outcome = trace_outcome(trace)
+        draw_trace(trace, ax=ax, legend=False, color=EXECUTED_COLOR,
+                   label="executed" + (f" ({outcome.split(':')[0]})" if outcome else ""),
                    markers=start is None and goal is None)
-        what.append("executed trace")
+        what.append("executed trace" + (f" ({outcome})" if outcome else ""))
     if start is not None:
         draw_pose(ax, cells.pose(start), "start", label=f"start (z = {start})")
     if goal is not None:

@@ -175,7 +175,12 @@ def execute(policy, robot: Robot, *, start=None, cells: CellSpace | None = None,
     elapsed = robot.clock() - t0
     final = robot.true_pose()
     trace.add(elapsed, final, "stop", reason or runner.finished)
-    return runner.result(reason, elapsed, final, trace)
+    result = runner.result(reason, elapsed, final, trace)
+    success = getattr(result, "success", None)
+    if success is not None:                     # a run with a goal: how it ended
+        trace.add(elapsed, final, "outcome",
+                  f"{'success' if success else 'failure'}: {result.reason}")
+    return result
 
 
 def _runner(policy, robot, start, cells, goal, back_off, max_factor, steps, epoch, rng,

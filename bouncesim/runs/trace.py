@@ -5,7 +5,9 @@ time [s] on the robot's clock, the true pose (x [m], y [m], heading [deg]; NaN o
 where there is none) and an event name with a free-text detail.
 
 Events written by the executors: ``start``, ``bump``, ``back_off``, ``turn``, ``step``
-(a forward step of a coverage run), ``deviation``, ``no_bump``, ``stop``, ``error``.
+(a forward step of a coverage run), ``deviation``, ``no_bump``, ``stop``, ``error``, and
+after the stop of a run with a goal ``outcome`` ("success: ..." or "failure: ...", the
+run's reason), so that a trace file says how its run ended.
 
 Examples
 --------
@@ -33,7 +35,7 @@ if TYPE_CHECKING:
 __all__ = ["Trace", "TraceRow", "EVENTS"]
 
 EVENTS = ("start", "bump", "back_off", "turn", "step", "deviation", "no_bump", "stop",
-          "error")
+          "error", "outcome")
 _NAN = float("nan")
 
 
