@@ -470,3 +470,15 @@ def test_version_needs_none_of_the_numeric_stack():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          timeout=120, check=True).stdout
     assert out.startswith("bouncesim ") and out.rstrip().endswith("[]"), out
+
+
+def test_an_output_file_in_a_new_folder_says_it_made_the_folder(tmp_path, capsys):
+    out = tmp_path / "a" / "b" / "map.png"
+    assert main(["show", "lab", "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert f"bouncesim: warning: created the folder {tmp_path / 'a'} for --out {out}." in err
+    assert out.is_file()
+    # an --out folder the command is asked to make is made without a note
+    assert main(["coverage", "lab", "--angles", "90", "--orientations", "8", "--eps", "45",
+                 "--no-plots", "--out", str(tmp_path / "cov")]) == 0
+    assert "created the folder" not in capsys.readouterr().err

@@ -180,7 +180,11 @@ def check_outputs(args: argparse.Namespace, created: list | None = None) -> list
         try:
             writable_path(path, flag, folder=folder)
         finally:
-            created.extend(q for q in missing if q.is_dir())
+            made = [q for q in missing if q.is_dir()]
+            created.extend(made)
+        parents = [q for q in made if q != path]       # not the asked-for --out folder itself
+        if parents:         # said, not silent (queued: an error after it stays one line)
+            warn(f"created the folder {parents[-1]} for {flag} {value}.")
         if as_path:
             setattr(args, dest, path)
     return created
