@@ -29,7 +29,9 @@ Pairs: drawn uniformly from the (start, goal) pairs the exact planner reaches.
 Outputs in ``--out``: ``runs.csv`` (one row per run: success, bumps, bumps to localize, the
 turn estimate, decision CPU times), ``summary.csv`` (per planner, body and condition, pooled
 over the maps and per map: Wilson 95 % intervals, median bumps, median bumps to localize,
-decision CPU p50/p95/max), ``config.json``, ``success_vs_sigma.png`` (success against σ
+decision CPU p50/p95/max), ``outcomes.csv`` (runs per way of ending: reached, stopped
+outside the cell, heading off, bump budget spent, no bump; pooled and per map),
+``config.json``, ``success_vs_sigma.png`` (success against σ
 for the open-loop exact and reliable plans and feedback) and ``maps.png`` (every map with
 feedback's success at σ = 2° per body), drawn from runs.csv alone.
 """
@@ -237,6 +239,42 @@ def _p(values: pd.Series, q: float) -> float:
     return float(np.percentile(v, q)) if v.size else np.nan
 
 
+OUTCOMES = (("reached", "reached the goal"), ("stopped outside the cell", "ended "),
+            ("heading off", "heading off"), ("bump budget spent", "gave up"),
+            ("no bump", "no bump"))
+"""How a run ended, by the start of its reason (``bouncesim.runs.runners.plan_result`` and
+the feedback runner write them): (class, reason prefix); anything else is "other"."""
+
+
+def outcome_class(reason: str) -> str:
+    """The :data:`OUTCOMES` class of a run's reason.
+
+    >>> outcome_class("gave up after 40 bumps"), outcome_class("reached the goal")
+    ('bump budget spent', 'reached')
+    """
+    return next((name for name, prefix in OUTCOMES if str(reason).startswith(prefix)),
+                "other")
+
+
+def outcomes(runs: pd.DataFrame) -> pd.DataFrame:
+    """Runs per outcome class (:func:`outcome_class`) per (planner, body, condition), pooled
+    over the maps (env = 'all') and per map: where the failures come from.
+    """
+    runs = runs.assign(outcome=runs.reason.map(outcome_class))
+    names = [n for n, _ in OUTCOMES] + ["other"]
+    parts = []
+    for by, pooled in ((["planner", "body", "condition"], "all"),
+                       (["planner", "body", "condition", "env"], None)):
+        t = runs.pivot_table(index=by, columns="outcome", values="trial", aggfunc="size",
+                             fill_value=0).reindex(columns=names, fill_value=0).reset_index()
+        if pooled is not None:
+            t.insert(3, "env", pooled)
+        parts.append(t)
+    out = pd.concat(parts, ignore_index=True)
+    out.columns.name = None
+    return out
+
+
 def summarise(runs: pd.DataFrame) -> pd.DataFrame:
     """Per (planner, body, condition), pooled over the maps (env = 'all'), over the held-out
     maps (env = 'held-out': those not in :data:`TUNED`, when the run has any) and per map:
@@ -417,7 +455,12 @@ def _report(out: Path, runs: pd.DataFrame) -> None:
     cols = ["planner", "body", "condition", "runs", "success_rate", "ci_low", "ci_high",
             "median_bumps", "median_bumps_to_localize", "cpu_p95_ms"]
     print(pooled[cols].to_string(index=False, float_format=lambda v: f"{v:.3g}"))
-    print(f"wrote {out}/summary.csv, {out}/success_vs_sigma.png, {out}/maps.png")
+    ends = outcomes(runs)
+    ends.to_csv(out / "outcomes.csv", index=False)
+    print("how the runs ended (all maps):")
+    print(ends[ends.env == "all"].drop(columns="env").to_string(index=False))
+    print(f"wrote {out}/summary.csv, {out}/outcomes.csv, {out}/success_vs_sigma.png, "
+          f"{out}/maps.png")
 
 
 def main(argv: list[str] | None = None) -> int:

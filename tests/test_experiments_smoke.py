@@ -97,6 +97,13 @@ def test_nav_robustness_quick(tmp_path):
             & (summary["success_rate"] <= summary["ci_high"])).all()
     assert (tmp_path / "success_vs_sigma.png").stat().st_size > 0
     assert _config(tmp_path)["pairs_per_map"] == 2
+    # every run is counted once in its outcome class, and the reached ones are the successes
+    ends = pd.read_csv(tmp_path / "outcomes.csv")
+    pooled = ends[ends["env"] == "all"].set_index(["planner", "body", "condition"])
+    classes = [c for c in ends.columns if c not in ("planner", "body", "condition", "env")]
+    per = runs.groupby(["planner", "body", "condition"])
+    assert (pooled[classes].sum(axis=1) == per.size()).all()
+    assert (pooled["reached"] == per["success"].sum()).all()
 
 
 def test_nav_robustness_bad_feedback_setting_exits_2(tmp_path, capsys):
