@@ -53,7 +53,7 @@ def test_step_model_bump_rate_and_table(capsys):
     """
     assert main(LAB + ["--angles", "75", "--model", "step", "--steps", "4000"]) == 0
     out = capsys.readouterr().out.splitlines()
-    assert out[1].split()[:3] == ["angle", "tv", "floor"]
+    assert out[1].split()[:4] == ["angle", "tv", "tv_runs", "floor"]
     assert len(out) == 3 and out[2].split()[0] == "75"
     bm, bs = (float(v) for v in out[2].split()[-2:])
     assert 0 < bm < 1 and 0 < bs < 1
@@ -180,3 +180,26 @@ def test_floor_target_adds_independent_trials(capsys, tmp_path):
     halves = pd.concat([pd.read_csv(f / "runs.csv") for f in folders]).half.tolist()
     assert halves == [j % 2 for j in range(r["trials"])]
     assert r["tv"] <= 1.5 * r["floor"] + 0.01, r
+
+
+def test_short_runs_are_compared_with_the_models_prediction_of_them(capsys):
+    """Runs of 100 steps from the uniform start, no burn-in, on lab: far from the limit
+    (TV several floors), and the model's prediction of exactly those runs (the horizon
+    coverage of steps 0 … 99, ``tv_runs``) within the sampling floor; validate says the
+    runs are too short for the limit. With the default burn-in and long runs the two
+    predictions agree (``runs_to_limit`` well below the floor).
+    """
+    short = LAB + ["--angles", "30", "--model", "event", "--steps", "40000", "--burn-in", "0",
+                   "--json"]
+    assert main(short) == 0
+    io = capsys.readouterr()
+    (row,) = [json.loads(line) for line in io.out.splitlines() if line.strip()]
+    assert row["tv"] > 2.5 * row["floor"] and row["runs_to_limit"] > 2 * row["floor"]
+    assert row["tv_runs"] < 1.2 * row["floor"]
+    assert "are too short for the limit" in io.err
+    full = LAB + ["--angles", "30", "--model", "event", "--steps", "200000", "--json"]
+    assert main(full) == 0
+    io = capsys.readouterr()
+    (row,) = [json.loads(line) for line in io.out.splitlines() if line.strip()]
+    assert row["runs_to_limit"] < 0.5 * row["floor"] and "too short" not in io.err
+    assert abs(row["tv_runs"] - row["tv"]) <= row["runs_to_limit"] + 1e-12   # triangle

@@ -55,7 +55,7 @@ from .common import (
     writable_path,
 )
 
-__all__ = ["register", "run", "simulate_trial", "more_trials", "floors",
+__all__ = ["register", "run", "simulate_trial", "more_trials", "floors", "protocol_prediction",
            "BACKENDS"]
 
 BACKENDS = ("kinematic", "pybullet")
@@ -85,6 +85,12 @@ the bumps per step of the model and of the simulation. With --alpha also the pol
 executed in epochs of --epoch steps and predicted by the model's time-shared coverage
 (docs/model.md section 19). --contact sets the contact rule of the event model and the
 kinematic twin (docs/model.md section 9); the default follows the simulated body.
+
+tv compares the simulation with the model's limit; tv_runs with the model's prediction of the
+runs themselves (the horizon coverage of docs/model.md section 20: the uniform start, the
+burn-in not counted, the counted steps of one run), and runs_to_limit (JSON) is the TV
+between the two predictions. Where runs_to_limit exceeds the floor, validate says the runs
+are too short for the limit: compare tv_runs.
 
 Halves are groups of whole trials (batches of independent robots with their own seeds), never
 stretches of one robot's run, so they are independent. floor_splits (JSON) is the mean floor
@@ -347,6 +353,7 @@ def run(args) -> int:
         q["mix"] = timeshared_coverage(model, mix, epoch=args.epoch).q
         bumps_model["mix"] = float(sum(a * bumps_model[_label(x)]
                                        for x, a in zip(angles, alpha)))
+    run_q = protocol_prediction(model, policies, noise, args.burn_in, per_robot, args.epoch)
     predict_s = time.perf_counter() - t0
     progress = not args.no_progress and sys.stderr.isatty()
     trial_steps = robots * per_robot
@@ -389,8 +396,16 @@ def run(args) -> int:
         if args.floor is not None and max(floor, floor_splits) > args.floor:
             print(f"validate: {lab}: floor {max(floor, floor_splits):.4f} > {args.floor:g} "
                   f"at the cap of {steps} steps (--max-steps).", file=sys.stderr)
+        short = float(tv_distance(run_q[lab], q[lab]))
+        if short > max(floor, floor_splits):
+            print(f"validate: {_label_text(lab)}: the runs ({args.burn_in} steps of burn-in, "
+                  f"then {per_robot}) are too short for the limit: the model's prediction of "
+                  f"them is TV {short:.4f} from it, above the floor {floor:.4f}; compare "
+                  f"tv_runs.", file=sys.stderr)
         rows.append({"angle": lab if lab == "mix" else float(angs[0]),
                      "tv": float(tv_distance(q[lab], pooled)),
+                     "tv_runs": float(tv_distance(run_q[lab], pooled)),
+                     "runs_to_limit": short,
                      "floor": floor, "floor_splits": floor_splits,
                      "steps": steps, "trials": len(sub), "dropped": int(sub.dropped.sum()),
                      "bumps_per_step_model": bumps_model[lab],
@@ -412,13 +427,38 @@ def run(args) -> int:
     return 0
 
 
+def _label_text(lab: str) -> str:
+    return lab if lab == "mix" else f"{lab}°"
+
+
+def protocol_prediction(model, policies, noise, burn_in: int, steps: int,
+                        epoch: int) -> dict:
+    """What the simulated runs measure, predicted by the model (docs/model.md §20): per
+    policy (label, angles, α), the expected share of counted steps in each cell over steps
+    ``burn_in`` … ``burn_in + steps`` − 1 of a run from the uniform start over the
+    configurations (the batches' start), a mix in epochs of ``epoch`` steps from step 0.
+    Equal to the limit q once ``burn_in`` is long enough for the chain to forget its start.
+    """
+    from planners.coverage import horizon_of
+    hz, out = horizon_of(model), {}
+    ends = sorted({int(burn_in), int(burn_in) + int(steps)} - {0})
+    for lab, angs, al in policies:
+        mix = len(angs) > 1
+        got = {T: c for T, c, _ in hz.run(angs, ends, noise=noise,
+                                          alpha=al if mix else None,
+                                          epoch=epoch if mix else None)}
+        window = got[ends[-1]] - (got[ends[0]] if burn_in > 0 else 0.0)
+        out[lab] = window / window.sum()
+    return out
+
+
 def _print_table(rows, env, backend, cs, args) -> None:
     print(f"{env.name}: {args.model} model against {backend} (K = {cs.K}, eps {args.eps:g}, "
           f"r {args.r:g}, seed {args.seed})")
-    print(f"{'angle':>6} {'tv':>7} {'floor':>7} {'steps':>10} {'bumps/step model':>17} "
-          f"{'sim':>6}")
+    print(f"{'angle':>6} {'tv':>7} {'tv_runs':>8} {'floor':>7} {'steps':>10} "
+          f"{'bumps/step model':>17} {'sim':>6}")
     for r in rows:
         a = r["angle"] if r["angle"] == "mix" else _label(r["angle"])
-        print(f"{a:>6} {r['tv']:7.4f} {r['floor']:7.4f} {r['steps']:10d} "
+        print(f"{a:>6} {r['tv']:7.4f} {r['tv_runs']:8.4f} {r['floor']:7.4f} {r['steps']:10d} "
               f"{r['bumps_per_step_model']:17.3f} {r['bumps_per_step_sim']:6.3f}")
 
