@@ -396,12 +396,12 @@ def run(args) -> int:
         if args.floor is not None and max(floor, floor_splits) > args.floor:
             print(f"validate: {lab}: floor {max(floor, floor_splits):.4f} > {args.floor:g} "
                   f"at the cap of {steps} steps (--max-steps).", file=sys.stderr)
-        short = float(tv_distance(run_q[lab], q[lab]))
-        if short > max(floor, floor_splits):
+        short, noise_floor = float(tv_distance(run_q[lab], q[lab])), max(floor, floor_splits)
+        if short > noise_floor:
             print(f"validate: {_label_text(lab)}: the runs ({args.burn_in} steps of burn-in, "
                   f"then {per_robot}) are too short for the limit: the model's prediction of "
-                  f"them is TV {short:.4f} from it, above the floor {floor:.4f}; compare "
-                  f"tv_runs.", file=sys.stderr)
+                  f"them is TV {short:.4f} from it, above the floor {noise_floor:.4f}; "
+                  f"compare tv_runs.", file=sys.stderr)
         rows.append({"angle": lab if lab == "mix" else float(angs[0]),
                      "tv": float(tv_distance(q[lab], pooled)),
                      "tv_runs": float(tv_distance(run_q[lab], pooled)),
