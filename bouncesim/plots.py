@@ -10,7 +10,7 @@ matplotlib falls back to Agg by itself. Scripts that only write files may call
 - :func:`draw_trace`: an executed run's path, bumps and turns from its :class:`Trace`;
 - :func:`draw_pose`: a start or goal marker (dot or star, heading arrow, legend entry);
 - :func:`draw_cell_ids`: position ids p (or configuration ids z) in the cells, font scaled to
-  the cell size;
+  the cell size on the laid-out page (:func:`id_fontsize`, :func:`ids_figsize`);
 - :func:`plan_vs_executed`: a planned route and an executed trace on one map;
 - :func:`fit_title`: a title wrapped to its axes' width;
 - :func:`angle_use_bars`, :func:`save_figure` (constrained layout, so no title is clipped).
@@ -42,9 +42,9 @@ from matplotlib.figure import Figure
 from matplotlib.patches import FancyArrow
 from matplotlib.patches import Polygon as MplPolygon
 
-__all__ = ["angle_use_bars", "draw_cell_ids", "draw_env", "draw_pose", "draw_route",
-           "draw_trace", "fit_title", "map_figsize", "map_legend", "plan_vs_executed",
-           "save_figure"]
+__all__ = ["ID_MIN_PT", "angle_use_bars", "draw_cell_ids", "draw_env", "draw_pose",
+           "draw_route", "draw_trace", "fit_title", "id_fontsize", "ids_figsize", "map_figsize",
+           "map_legend", "plan_vs_executed", "save_figure"]
 
 START_COLOR, GOAL_COLOR, EXECUTED_COLOR = "#d62728", "#2ca02c", "#ff7f0e"
 
@@ -191,26 +191,61 @@ def draw_pose(ax: Axes, pose: Sequence[float], kind: str = "start", label: str |
         _arrow(ax, x, y, float(pose[2]), length, color)
 
 
+ID_MIN_PT = 5.0
+"""Smallest font size [pt] of cell ids that stays readable on the page; :func:`ids_figsize`
+sizes a figure so that its ids get at least this."""
+
+_DIGIT_EM = 0.64            # width of a digit [em] (DejaVu Sans: 0.636)
+
+
+def id_fontsize(cell_pt: float, digits: int, kind: str = "positions") -> float:
+    """Font size [pt] of cell ids of ``digits`` digits in a cell ``cell_pt`` [pt] wide on
+    the page: a position id fills half a cell's width in its top-left corner; the K
+    configuration ids of a cell sit around its centre (:func:`draw_cell_ids`), each at most
+    0.27 of the cell wide, so that the ids of one cell stand closer to each other (0.04 of
+    the cell apart) than to those of the next cell (0.11).
+    """
+    if kind == "positions":
+        return min(0.5 * cell_pt / (_DIGIT_EM * digits), 0.3 * cell_pt)
+    return min(0.27 * cell_pt / (_DIGIT_EM * digits), 0.22 * cell_pt)
+
+
+def _id_digits(cells: Any, kind: str) -> int:
+    return len(str(max((cells.P if kind == "positions" else cells.N) - 1, 0)))
+
+
+def ids_figsize(env: Any, cells: Any, kind: str = "positions", width: float = 7.0,
+                extra: float = 0.9) -> tuple[float, float]:
+    """(width, height) [in] of a one-map figure (:func:`map_figsize`) at least ``width``
+    wide, wider where its cell ids of ``kind`` would otherwise be set below
+    :data:`ID_MIN_PT`; ``extra`` [in] is the room for labels (and a colour bar).
+    """
+    cell_pt = ID_MIN_PT / id_fontsize(1.0, _id_digits(cells, kind), kind)   # proportional
+    x0, y0, x1, y1 = env.bounds
+    w = 1.1 * cell_pt * (x1 - x0) / cells.h / 72 + extra     # 10 %: ticks and the layout
+    if w <= width:
+        return map_figsize(env, width, extra)
+    return w, (w - extra) * (y1 - y0) / max(x1 - x0, 1e-9) + extra
+
+
 def draw_cell_ids(ax: Axes, cells: Any, kind: str = "positions",
                   fontsize: float | None = None, halo: bool = False) -> list:
     """Write the id of every cell on ``ax``: the position id p in each cell's top-left corner
-    (the centre stays free for paths and poses), or (kind
-    ``configurations``) the K configuration ids z = k·P + p around it, each towards its
-    heading 360° k / K. The font size follows the cell size on the page unless given;
-    ``halo`` outlines the digits in white (readable on a heatmap, slower to draw).
+    (the centre stays free for paths and poses), or (kind ``configurations``) the K
+    configuration ids z = k·P + p around it, each towards its heading 360° k / K on a square
+    0.31 of the cell from its centre (the outer squares of a 3 x 3 grid for K = 8), tied to
+    the centre by a faint spoke. The font size
+    (:func:`id_fontsize`) follows the cell's size on the page once the figure is laid out,
+    so draw the ids after the title and legend; ``halo`` outlines the digits in white
+    (readable on a heatmap, slower to draw).
 
     Returns the list of Text artists (P of them, or N).
     """
     if kind not in ("positions", "configurations"):
         raise ValueError(f"kind must be 'positions' or 'configurations', got {kind!r}.")
-    fig = ax.figure
-    xr = np.ptp(ax.get_xlim()) or 1.0
-    cell_pt = cells.h * ax.get_position().width * fig.get_figwidth() * 72 / xr
-    n = cells.P if kind == "positions" else cells.N
-    digits = len(str(max(n - 1, 0)))
     if fontsize is None:
-        share = 0.5 if kind == "positions" else 0.27
-        fontsize = float(np.clip(share * cell_pt / (0.62 * digits), 2.0, 9.0))
+        fontsize = float(np.clip(id_fontsize(_cell_points(ax, cells), _id_digits(cells, kind),
+                                             kind), 2.0, 9.0))
     from matplotlib import patheffects
     halo = [patheffects.withStroke(linewidth=2.2, foreground="white")] if halo else None
     texts = []
@@ -221,21 +256,34 @@ def draw_cell_ids(ax: Axes, cells: Any, kind: str = "positions",
             texts.append(ax.text(x - d, y + d, str(p), ha="left", va="top", fontsize=fontsize,
                                  color="black", zorder=4, path_effects=halo))
         return texts
-    r = 0.34 * cells.h
     spokes = []
     for k in range(cells.K):
         t = math.radians(k * cells.delta_deg)
         u = (math.cos(t), math.sin(t))
+        edge = 0.31 * cells.h / max(abs(u[0]), abs(u[1]))   # on a square around the centre
         for p, (x, y) in enumerate(c):
             # a faint spoke from the centre towards the id ties it to its cell and heading
-            spokes.append([(x + 0.06 * cells.h * u[0], y + 0.06 * cells.h * u[1]),
-                           (x + 0.2 * cells.h * u[0], y + 0.2 * cells.h * u[1])])
-            texts.append(ax.text(x + r * u[0], y + r * u[1], str(k * cells.P + p),
+            spokes.append([(x + 0.05 * cells.h * u[0], y + 0.05 * cells.h * u[1]),
+                           (x + 0.14 * cells.h * u[0], y + 0.14 * cells.h * u[1])])
+            texts.append(ax.text(x + edge * u[0], y + edge * u[1], str(k * cells.P + p),
                                  ha="center", va="center", fontsize=fontsize, color="black",
                                  zorder=4, path_effects=halo))
     from matplotlib.collections import LineCollection
     ax.add_collection(LineCollection(spokes, colors="#9a9a9a", linewidths=0.5, zorder=3))
     return texts
+
+
+def _cell_points(ax: Axes, cells: Any) -> float:
+    """The side [pt] of a cell on the page once the figure is laid out (its layout engine
+    run, the map's equal aspect applied).
+    """
+    fig = ax.figure
+    engine = fig.get_layout_engine()
+    if engine is not None:
+        engine.execute(fig)
+    ax.apply_aspect()
+    (x0, _), (x1, _) = ax.transData.transform([(0.0, 0.0), (cells.h, 0.0)])
+    return abs(x1 - x0) * 72 / fig.dpi
 
 
 def plan_vs_executed(env: Any, cells: Any, path: Sequence[int] | None, trace: Any,
@@ -261,13 +309,23 @@ def map_figsize(env: Any, width: float = 7.0, extra: float = 0.9) -> tuple[float
 
 
 def map_legend(ax: Axes, **kw) -> Any:
-    """A legend outside the map (below it), so it hides nothing; duplicate labels once."""
+    """A legend outside the map, below its x tick labels and x label (offset in points, so
+    it clears them on a map of any height), hiding nothing; duplicate labels once.
+    """
+    from matplotlib.transforms import offset_copy
     handles, labels = ax.get_legend_handles_labels()
     seen: dict = {}
     for h, lab in zip(handles, labels):
         seen.setdefault(lab, h)
-    opts = {"loc": "upper center", "bbox_to_anchor": (0.5, -0.12), "fontsize": 8,
-            "ncol": min(len(seen), 4), "frameon": False}
+    tick, label = ax.xaxis.get_major_ticks()[:1], ax.xaxis.label
+    below = 6.0 + (tick[0].label1.get_size() + tick[0].get_pad() + tick[0].get_tick_padding()
+                   if tick else 0.0)
+    if label.get_text():
+        below += 1.2 * label.get_size() + ax.xaxis.labelpad
+    opts = {"loc": "upper center", "bbox_to_anchor": (0.5, 0.0),
+            "bbox_transform": offset_copy(ax.transAxes, fig=ax.figure, y=-below,
+                                          units="points"),
+            "fontsize": 8, "ncol": min(len(seen), 4), "frameon": False}
     opts.update(kw)
     return ax.legend(list(seen.values()), list(seen.keys()), **opts)
 
@@ -336,8 +394,9 @@ def draw_trace(trace: Any, env: Any = None, ax: Axes | None = None, *,
         for kind, marker, ms, name in (("bump", "x", 7, "bump"), ("turn", ".", 5, "turn")):
             sel = ev == kind
             if sel.any():
+                # above the start and end markers: a run often bumps where it starts or ends
                 ax.plot(x[sel], y[sel], marker, color="black" if kind == "bump" else color,
-                        ms=ms, ls="none", label=name, zorder=6)
+                        ms=ms, ls="none", label=name, zorder=9)
     L = 0.12 * max(np.ptp(ax.get_xlim()), np.ptp(ax.get_ylim())) / 2
     if markers:
         draw_pose(ax, (x[0], y[0], h[0]), "start", length=L)

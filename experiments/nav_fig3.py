@@ -113,25 +113,35 @@ def _cost(plan: Plan, w1: float, w2: float) -> float:
 
 
 def draw(env, cells, routes, table, path, executed=None) -> None:
-    """Write the planned routes (and the noise-free executed paths) on the map to ``path``."""
-    from bouncesim.plots import draw_env, draw_route, map_legend, plt, save_figure
-    fig, axes = plt.subplots(1, len(routes), figsize=(5.2 * len(routes), 4.6),
+    """Write the planned routes (and the noise-free executed paths) on the map to ``path``.
+
+    The plan is a wide pale band; PyBullet's path a solid line and the twin's a thin dashed
+    one over it, so both show where they coincide with the plan and with each other; bumps
+    are drawn above the start and goal markers (these runs bump where they start or end).
+    The start and goal markers are the query's configurations at their cell centres.
+    """
+    from bouncesim.plots import draw_env, draw_pose, draw_route, map_legend, plt, save_figure
+    fig, axes = plt.subplots(1, len(routes), figsize=(5.2 * len(routes), 4.3),
                              layout="constrained")
-    styles = {"pybullet": ("#1f77b4", "-", "o"), "kinematic": ("#ff7f0e", "--", "x")}
+    styles = {"pybullet": ("#1f4e9c", "-", 3.0, "o"), "kinematic": ("#ff7f0e", "--", 1.3, "x")}
     for ax, route, (_, row) in zip(axes, routes, table.iterrows()):
         draw_env(ax, env, cells)
         if route is not None:       # wide and pale: the runs drawn over it stay visible
             draw_route(ax, cells, route.path, label="planned (cell centres)", color="#9ecae1",
-                       lw=7, alpha=0.6)
+                       lw=9, alpha=0.6, markers=False)
+        draw_pose(ax, cells.pose(int(row["start_z"])), "start", label="start (cell centre)",
+                  length=0.4 * cells.h)
+        draw_pose(ax, cells.pose(int(row["goal_z"])), "goal", label="goal (cell centre)",
+                  length=0.4 * cells.h)
         if executed is not None:
             for (plan_label, backend), tr in executed.items():
                 if plan_label == row["plan"]:
-                    colour, ls, mark = styles.get(backend, ("#2ca02c", ":", "+"))
+                    colour, ls, lw, mark = styles.get(backend, ("#2ca02c", ":", 1.3, "+"))
                     bumps = tr[tr["event"] == "bump"] if "event" in tr else tr.iloc[:0]
-                    ax.plot(tr["x"], tr["y"], ls, color=colour, lw=1.4, zorder=5,
+                    ax.plot(tr["x"], tr["y"], ls=ls, color=colour, lw=lw, zorder=5,
                             label=f"executed ({backend})")
-                    ax.plot(bumps["x"], bumps["y"], mark, color=colour, ms=7, ls="none",
-                            zorder=6, label=f"bumps ({backend})")
+                    ax.plot(bumps["x"], bumps["y"], mark, color=colour, ms=8, mew=1.6,
+                            mfc="none", ls="none", zorder=9, label=f"bumps ({backend})")
         ax.set_title(f"{row['plan']}: id {row['start_id']} → id {row['goal_id']}\n"
                      f"{row['ours']}", fontsize=9)
         map_legend(ax, ncol=3)
@@ -191,7 +201,8 @@ def draw_step_vs_exact(rows, path) -> None:
             ax.plot(tr["x"], tr["y"], "--", color="#d62728", lw=1.1,
                     label=f"twin, noise-free: {'reached' if ok else 'missed'}")
             # the same start and goal configurations (their cell centres) in both panels
-            draw_pose(ax, cells.pose(r.start), "start", length=0.4 * cells.h)
+            draw_pose(ax, cells.pose(r.start), "start", label="start (cell centre)",
+                      length=0.4 * cells.h)
             draw_pose(ax, cells.pose(r.goal), "goal", label="goal (cell centre)",
                       length=0.4 * cells.h)
             text = str(r.plan) if is_step else r.plan.exact_text(decimals=2)

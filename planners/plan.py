@@ -204,7 +204,11 @@ class Plan:
 
         >>> Plan.exact([90, 90], [0.0, 2.719999999], 0.339999999, 0.34).exact_text(2)
         '90° 00000000 90° 0 | flights 0 2.72 m | final 0.34 m'
+        >>> Plan.exact([90], [10.2], 0.0, 3.4).exact_text(decimals=0)
+        '000 90° | flights 10 m | final 0 m'
         """
+        if decimals is not None and (int(decimals) != decimals or decimals < 0):
+            raise ValueError(f"decimals must be a whole number >= 0, got {decimals!r}.")
         if not self.is_exact:
             return str(self)
         head = "" if not self.labels else str(self)
@@ -212,7 +216,8 @@ class Plan:
         def metres(v) -> str:
             if decimals is None:
                 return _metres(v)
-            return f"{float(v):.{decimals}f}".rstrip("0").rstrip(".") or "0"
+            text = f"{float(v):.{int(decimals)}f}"     # no trailing zeros after the point
+            return text.rstrip("0").rstrip(".") if "." in text else text
         flights = " ".join(metres(v) for v in self.flights_m)
         return (f"{head} | flights {flights} m | final {metres(self.final_m)} m".replace(
             "flights  m", "flights m")).strip()

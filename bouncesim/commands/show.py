@@ -32,8 +32,9 @@ each cell's corner, or --ids configurations: z = k*P + p around each centre towa
 360 k/K), start and goal poses, a planned path (--plan: the JSON of `bouncesim plan --json`,
 or a file holding an observation string, replayed on the step model from --start), the
 executed trace of `run-plan --trace` over it, and a coverage heatmap (--coverage DIR: the
-coverage.csv of `bouncesim coverage --out DIR`, series --series). Writes one PNG or SVG (by
-the suffix).
+coverage.csv of `bouncesim coverage --out DIR`, series --series). Writes one PNG, SVG or PDF
+(by the suffix; SVG and PDF are vector graphics). A figure with ids is made wide enough for
+them to stay readable.
 """
 
 EXAMPLES = """\
@@ -72,7 +73,7 @@ def register(sub) -> None:
                    "bouncing angle")
     p.add_argument("--title", default=None, help="figure title (default: what is drawn)")
     add_output(p, "--out", required=True, metavar="FILE.png|.svg|.pdf", suffixes=FORMATS,
-               help="the figure file (.png or .svg)")
+               help="the figure file (.png, or .svg or .pdf for vector graphics)")
     p.set_defaults(func=run)
 
 
@@ -196,13 +197,39 @@ MAX_K_IDS = 8
 """``--ids configurations`` writes every configuration id up to this K (beyond it, the
 position ids and the rule z = k·P + p)."""
 
+MAX_IDS_WIDTH = 24.0
+"""[in] the widest figure ``--ids`` makes to keep its ids readable; a map that would need a
+wider one for its configuration ids gets its position ids and the rule z = k·P + p."""
+
 
 def trace_outcome(trace) -> str | None:
-    """How the traced run ended ("success: ..." or "failure: ..."), from its ``outcome`` row
-    (traces written before that row existed have none: None).
+    """How the traced run ended ("success: ..." or "failure: ..."), from its ``outcome`` row;
+    None when the trace does not say (written before that row existed, or a run without a
+    goal), so that nothing false is drawn.
     """
     rows = trace[trace["event"] == "outcome"]
-    return None if rows.empty else str(rows["detail"].iloc[-1])
+    detail = None if rows.empty else rows["detail"].iloc[-1]
+    if not isinstance(detail, str) or detail.split(":")[0] not in ("success", "failure"):
+        return None
+    return detail
+
+
+def ids_kind(asked: str | None, cells: CellSpace, env, width: float, extra: float):
+    """The ids ``--ids`` draws and the figure size [in]: configuration ids only while K ids
+    fit around a cell (K <= :data:`MAX_K_IDS`) and the figure they need stays at most
+    :data:`MAX_IDS_WIDTH` wide, else position ids (with a warning naming z = k·P + p).
+    """
+    from bouncesim.plots import ids_figsize, map_figsize
+    if asked is None:
+        return None, map_figsize(env, width=width, extra=extra)
+    size = ids_figsize(env, cells, asked, width, extra)
+    if asked == "configurations" and (cells.K > MAX_K_IDS or size[0] > MAX_IDS_WIDTH):
+        why = (f"readable up to K = {MAX_K_IDS}; with K = {cells.K}" if cells.K > MAX_K_IDS
+               else f"here they would need a figure {size[0]:.0f} in wide;")
+        warn(f"--ids configurations writes K ids per cell, {why} the figure shows the "
+             f"position ids p (z = k·{cells.P} + p for heading k·{cells.delta_deg:g}°).")
+        return "positions", ids_figsize(env, cells, "positions", width, extra)
+    return asked, size
 
 
 def read_coverage(folder: Path, cells: CellSpace, series: str = "mix") -> np.ndarray:
@@ -245,7 +272,6 @@ def build_figure(args, env, cells):
         draw_route,
         draw_trace,
         fit_title,
-        map_figsize,
         map_legend,
         route_label,
     )
@@ -262,9 +288,9 @@ def build_figure(args, env, cells):
     trace = read_trace(args.trace) if args.trace is not None else None
     q = read_coverage(args.coverage, cells, args.series) if args.coverage is not None else None
 
-    width = 7.5 if q is not None else 7.0
-    fig, ax = plt.subplots(figsize=map_figsize(env, width=width, extra=1.6 if q is not None
-                                               else 0.9))
+    kind, size = ids_kind(args.ids, cells, env, 7.5 if q is not None else 7.0,
+                          1.6 if q is not None else 0.9)
+    fig, ax = plt.subplots(figsize=size, layout="constrained")
     what = []
     if q is not None:
         series = args.series
@@ -277,17 +303,10 @@ def build_figure(args, env, cells):
         what.append(f"coverage ({series}{'°' if _is_number(series) else ''})")
     else:
         draw_env(ax, env, cells)
-    if args.ids:
-        kind = args.ids
-        if kind == "configurations" and cells.K > MAX_K_IDS:
-            # K ids per cell would not fit: the position ids and the rule that gives z
-            warn(f"--ids configurations writes K ids per cell, readable up to K = "
-                 f"{MAX_K_IDS}; with K = {cells.K} the figure shows the position ids p "
-                 f"(z = k·{cells.P} + p for heading k·{cells.delta_deg:g}°).")
-            kind = "positions"
-        draw_cell_ids(ax, cells, kind, halo=q is not None)
+    if kind is not None:                    # drawn last: their font follows the layout
         what.append("position ids p" + (f" (z = k·{cells.P} + p)" if args.ids != kind else "")
-                    if kind == "positions" else f"configuration ids z = k·{cells.P} + p")
+                    if kind == "positions" else f"configuration ids z = k·{cells.P} + p "
+                    f"(towards heading k·{cells.delta_deg:g}°)")
     if route is not None:
         draw_route(ax, cells, route, label=route_label(route), markers=False)
         what.append(f"plan {plan_text}")
@@ -310,6 +329,8 @@ def build_figure(args, env, cells):
         fit_title(ax, title, fontsize=10)
     if ax.get_legend_handles_labels()[0]:
         map_legend(ax)
+    if kind is not None:
+        draw_cell_ids(ax, cells, kind, halo=q is not None)
     return fig
 
 

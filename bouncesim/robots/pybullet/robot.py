@@ -281,7 +281,7 @@ class PyBulletRobot(Robot):
                     constraintSolverType=p.CONSTRAINT_SOLVER_LCP_DANTZIG, **kw)
         if self.gui:
             p.configureDebugVisualizer(p.COV_ENABLE_GUI, 0, **kw)
-        # floor
+        # floor (drawn: a slab whose top is 1 mm above the plane; coplanar faces speckle)
         plane = p.createCollisionShape(p.GEOM_PLANE, **kw)
         self._floor = p.createMultiBody(0, plane, **kw)
         p.changeDynamics(self._floor, -1, lateralFriction=1.0, **kw)
@@ -291,7 +291,7 @@ class PyBulletRobot(Robot):
             vis = p.createVisualShape(p.GEOM_BOX, halfExtents=[(x1 - x0) / 2 + m,
                                                                (y1 - y0) / 2 + m, 0.0005],
                                       rgbaColor=[0.93, 0.93, 0.88, 1], **kw)
-            p.createMultiBody(0, -1, vis, basePosition=[(x0 + x1) / 2, (y0 + y1) / 2, -0.0005],
+            p.createMultiBody(0, -1, vis, basePosition=[(x0 + x1) / 2, (y0 + y1) / 2, 0.0005],
                               **kw)
         # walls: the boundary slabs and the obstacles' convex pieces, extruded
         self._walls: list[int] = []

@@ -17,11 +17,13 @@ import numpy as np
 
 from envs import UserError
 
-__all__ = ["Camera", "Recorder", "check_record_format", "plan_segments", "render_top_down",
-           "write_video"]
+__all__ = ["Camera", "Recorder", "check_record_format", "gif_frames", "plan_segments",
+           "render_top_down", "write_video"]
 
 _MARGIN = 0.15           # [m] around the room's bounding box
 _FOV = 20.0              # [deg] vertical field of view
+_GOAL_RGB, _PATH_RGB, _TEXT_RGB, _PAPER_RGB = (44, 160, 44), (255, 127, 14), (0, 0, 0), \
+    (255, 255, 255)      # the overlay's colours: kept exactly in a GIF's palette
 
 
 def check_record_format(path: Path) -> None:
@@ -169,25 +171,25 @@ class Recorder:
         font = _font(size)
         lines = [s for s in (self.title, self.caption(i)) if s]
         strip = int(len(lines) * size * 1.35 + size * 0.6) // 2 * 2 + 2   # even: for mp4
-        img = Image.new("RGB", (W, H + strip), "white")
+        img = Image.new("RGB", (W, H + strip), _PAPER_RGB)
         img.paste(Image.fromarray(self.frames[i]), (0, 0))
         draw = ImageDraw.Draw(img)
         lw = max(1, W // 240)
         if self.goal is not None:
             gx, gy = (float(v) for v in cam.to_pixels(self.goal[0], self.goal[1]))
             r = max(3, W // 50)
-            draw.ellipse([gx - r, gy - r, gx + r, gy + r], outline=(44, 160, 44), width=lw + 1)
+            draw.ellipse([gx - r, gy - r, gx + r, gy + r], outline=_GOAL_RGB, width=lw + 1)
             if len(self.goal) > 2:
                 a = math.radians(self.goal[2])
                 draw.line([gx, gy, gx + 2.5 * r * math.cos(a), gy - 2.5 * r * math.sin(a)],
-                          fill=(44, 160, 44), width=lw + 1)
+                          fill=_GOAL_RGB, width=lw + 1)
         xs, ys = cam.to_pixels([q[0] for q in self.poses[:i + 1]],
                                [q[1] for q in self.poses[:i + 1]])
         if i > 0:
-            draw.line(list(zip(xs.tolist(), ys.tolist())), fill=(255, 127, 14), width=lw)
+            draw.line(list(zip(xs.tolist(), ys.tolist())), fill=_PATH_RGB, width=lw)
         y = H + int(size * 0.3)
         for s in lines:
-            draw.text((int(size * 0.5), y), s, fill=(0, 0, 0), font=font)
+            draw.text((int(size * 0.5), y), s, fill=_TEXT_RGB, font=font)
             y += int(size * 1.35)
         return np.asarray(img)
 
@@ -211,9 +213,30 @@ def _font(size: int):
 
 def write_video(path: Path, frames: list, period: float) -> None:
     """Write ``frames`` taken every ``period`` [s] of simulated time to ``path``."""
-    import imageio.v3 as iio
     path.parent.mkdir(parents=True, exist_ok=True)
     if path.suffix.lower() == ".gif":
-        iio.imwrite(path, np.stack(frames), duration=1000 * period, loop=0)
+        first, *rest = gif_frames(frames)
+        first.save(path, save_all=True, append_images=rest, duration=round(1000 * period),
+                   loop=0)
     else:
+        import imageio.v3 as iio
         iio.imwrite(path, np.stack(frames), fps=1 / period, plugin="FFMPEG")
+
+
+def gif_frames(frames: list) -> list:
+    """RGB frames as palette images for a GIF: one palette for every frame (a
+    maximum-coverage cut of the first, middle and last frames' colours, plus the overlay's
+    colours exactly), each pixel mapped to its nearest palette colour without dithering
+    (dithering scatters dots over flat areas such as the floor, changing from frame to frame).
+    """
+    from PIL import Image
+    frames = [np.asarray(f, dtype=np.uint8) for f in frames]
+    sample = np.concatenate([frames[0], frames[len(frames) // 2], frames[-1]], axis=0)
+    exact = [_GOAL_RGB, _PATH_RGB, _TEXT_RGB, _PAPER_RGB]
+    cut = Image.fromarray(sample).quantize(256 - len(exact), method=Image.Quantize.MAXCOVERAGE)
+    colours = cut.getpalette()[:3 * (256 - len(exact))]
+    palette = Image.new("P", (1, 1))
+    palette.putpalette(colours + [c for rgb in exact for c in rgb])
+    return [Image.fromarray(f).quantize(palette=palette, dither=Image.Dither.NONE)
+            for f in frames]
+
