@@ -192,7 +192,7 @@ def test_heatmap_is_coverage_csv_q(inputs, tmp_path, figures, series):
 
 
 BAD = {
-    "suffix": (["lab"], "x.jpg", "--out must end in .png or .svg"),
+    "suffix": (["lab"], "x.jpg", "--out must end in .png, .svg or .pdf"),
     "folder": (["lab"], "dir.png", "is a folder"),
     "no_plan_file": (["lab", "--plan", "{d}/nope.json"], "f.png", "no plan file"),
     "no_plan": (["lab", "--plan", "{d}/noplan.json"], "f.png", "holds no plan"),
@@ -297,7 +297,7 @@ def test_run_plan_plot_refuses_a_bad_name_before_running(tmp_path, capsys):
     rc = main(["run-plan", "lab", "--angles", "90,135", "--start", "8", "--goal", "0",
                "--plot", str(tmp_path / "run.gif")])
     captured = capsys.readouterr()
-    assert rc == 2 and "--plot must end in .png or .svg" in captured.err
+    assert rc == 2 and "--plot must end in .png, .svg or .pdf" in captured.err
     assert captured.out == ""                                  # nothing was run
 
 

@@ -33,7 +33,8 @@ def register(sub) -> None:
         "allpairs", help="shortest plans for every ordered pair and the angle-use histogram",
         description="Run Algorithm 2 (docs/model.md §12): the weight matrix L (-1 where "
         "unreachable) and the number of distinct angles each shortest plan uses. Writes "
-        "weights.npy, angles_used.csv, summary.json and angles_used.png to --out.")
+        "weights.npy, angles_used.csv, summary.json, config.json and angles_used.png (or "
+        ".svg/.pdf with --figures) to --out.")
     add_env_args(p)
     add_planner_args(p)
     add_output(p, "--out", folder=True, required=True, metavar="DIR", help="output folder")

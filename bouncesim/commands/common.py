@@ -173,7 +173,9 @@ def check_outputs(args: argparse.Namespace, created: list | None = None) -> list
             raise UserError(f"{flag} needs a {'folder' if folder else 'file'} name.")
         path = Path(value)
         if suffixes and path.suffix.lower() not in suffixes:
-            raise UserError(f"{flag} must end in {' or '.join(suffixes)}, "
+            listed = (f"{', '.join(suffixes[:-1])} or {suffixes[-1]}" if len(suffixes) > 1
+                      else suffixes[0])
+            raise UserError(f"{flag} must end in {listed}, "
                             f"got {path.name!r}.")
         base = path if folder else path.parent
         missing = [q for q in (base, *base.parents) if not q.exists()]

@@ -70,7 +70,8 @@ for A alpha and "target" for b, over position cells), alpha.json (angles, alpha,
 ||A alpha - b||_2 not squared, tv = 0.5 ||A alpha - b||_1, and per angle the persistent
 groups, their sizes in the model's states (see "states") and in position cells
 ("group_cells", comparable across models) and the transient fraction of the states),
-heatmap_angle_<A>.png per angle and heatmap_mix_vs_target.png. With --target-space
+heatmap_angle_<A>.png per angle and heatmap_mix_vs_target.png (.svg or .pdf with
+--figures). With --target-space
 configurations also
 coverage_configurations.csv (angle,z,p,k,pi).
 
@@ -157,7 +158,8 @@ def register(sub) -> None:
                    "(default 5); beyond it the answer is extrapolated from the run's slow "
                    "mode, or only bounded")
     add_output(p, "--out", folder=True, default=None, metavar="DIR",
-               help="output folder (CSV, JSON, PNG); without it only the table is printed")
+               help="output folder (CSV, JSON, config.json and heatmaps in the --figures "
+               "format); without it only the table is printed")
     p.add_argument("--no-plots", action="store_true", help="skip the heatmaps")
     add_figures_arg(p)
     p.add_argument("--json", action="store_true",
