@@ -72,3 +72,21 @@ def pytest_runtest_makereport(item, call):
     out.parent.mkdir(parents=True, exist_ok=True)
     with open(out, "a") as fh:
         fh.write(f"{'=' * 100}\n{item.nodeid}\n{'-' * 100}\n{text}\n\n")
+
+
+@pytest.fixture
+def figures(monkeypatch):
+    """The figures the commands and experiments save through ``save_figure`` (matplotlib
+    objects stay readable after closing), in order.
+    """
+    import bouncesim.coverage_plots as coverage_plots
+    import bouncesim.plots as plots
+    saved = []
+    original = plots.save_figure
+
+    def keep(fig, path, dpi=120):
+        saved.append(fig)
+        return original(fig, path, dpi=dpi)
+    monkeypatch.setattr(plots, "save_figure", keep)
+    monkeypatch.setattr(coverage_plots, "save_figure", keep)
+    return saved

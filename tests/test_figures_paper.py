@@ -37,19 +37,6 @@ CORRIDOR = {"name": "corridor", "boundary": [[0, 0], [6.12, 0], [6.12, 0.68], [0
             "discretization": {"cell_size": 0.34, "orientations": 8}}
 
 
-@pytest.fixture
-def figures(monkeypatch):
-    """The figures the commands and experiments save (kept readable after closing)."""
-    saved = []
-    original = plots.save_figure
-
-    def keep(fig, path, dpi=120):
-        saved.append(fig)
-        return original(fig, path, dpi=dpi)
-    monkeypatch.setattr(plots, "save_figure", keep)
-    return saved
-
-
 def _renderer(fig):
     canvas = fig.canvas if hasattr(fig.canvas, "get_renderer") else FigureCanvasAgg(fig)
     canvas.draw()

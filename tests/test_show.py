@@ -21,7 +21,6 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-import bouncesim.coverage_plots as coverage_plots  # noqa: E402
 import bouncesim.plots as plots  # noqa: E402
 import envs  # noqa: E402
 from bouncesim.cli import main  # noqa: E402
@@ -56,20 +55,6 @@ def inputs(tmp_path_factory):
     (d / "noplan.json").write_text(json.dumps({"start": 0, "goal": 1, "plan": None}) + "\n")
     (d / "bad.csv").write_text("a,b\n1,2\n")
     return d
-
-
-@pytest.fixture
-def figures(monkeypatch):
-    """The figures the commands save (matplotlib objects stay readable after closing)."""
-    saved = []
-    original = plots.save_figure
-
-    def keep(fig, path, dpi=120):
-        saved.append(fig)
-        return original(fig, path, dpi=dpi)
-    monkeypatch.setattr(plots, "save_figure", keep)
-    monkeypatch.setattr(coverage_plots, "save_figure", keep)
-    return saved
 
 
 def _show(args, tmp_path, name="fig.png"):
