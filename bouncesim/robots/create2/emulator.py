@@ -76,8 +76,8 @@ import numpy as np
 from envs import Environment, UserError
 
 from ..base import CREATE2
-from ..kinematic import KinematicRobot
-from ..noise import NoiseModel, noise_and_rng
+from ..noise import NoiseModel
+from ..wheel_body import WheelBody
 from . import oi
 from .faults import Fault
 from .lockstep import Lockstep
@@ -89,8 +89,6 @@ BANNER = b"\r\nbouncesim OI emulator\r\nfirmware: emulated 3.4.1\r\n"
 """Sent after a Reset (7), like the robot's boot banner."""
 
 _PERIOD = CREATE2.sensor_period        # [s] of emulated time between stream frames
-_SUBSTEP = 0.005                       # [s] sub-step of a curved motion
-_EPS_W = 1e-9
 
 
 class OIEmulator:
@@ -153,15 +151,13 @@ class OIEmulator:
             raise UserError(f"time scale must lie in (0, 20], got {time_scale:g}.")
         self.env = env
         self.time_scale = float(time_scale)
-        self.noise, rng = noise_and_rng(noise, rng)
-        self.rng = rng if rng is not None else np.random.default_rng()   # faults' random bytes
-        self.angle_bug = bool(angle_bug)
+        self.body = WheelBody(env, noise, rng, start=start, glance_deg=glance_deg)
+        self.noise = self.body.noise
+        self.rng = self.body.rng if self.body.rng is not None else np.random.default_rng()
+        self.angle_bug = bool(angle_bug)                # (the faults' random bytes use rng)
         self.faults = tuple(faults)
         self._log = log
-        self._bot = KinematicRobot(env, glance_deg=glance_deg)
-        self.spec = self._bot.spec
-        if start is not None:
-            self._bot.place(*start)
+        self.spec = self.body.spec
         self._enc_offset = (int(encoder_offset[0]), int(encoder_offset[1]))
         self._transport = Transport(transport, host, port)
         self.url = self._transport.url
@@ -174,21 +170,16 @@ class OIEmulator:
         # state
         self.mode = oi.MODE_OFF
         self._right = self._left = 0               # accepted wheel command [mm/s]
+        self._stalled = self.body.stalled
         self._requested = (0, 0)                   # (velocity, radius) of the last Drive
         self._stream_ids: list[int] | None = None
         self._stream_on = False
         self._wheel_drop = False
-        self._stalled = {"left": False, "right": False}
         self._muted = False
         self._drop_next = False
-        self._spin = 0.0                           # commanded rotation of the current spin
-        self._dist_acc = 0.0                       # [mm] since the last read of packet 19
-        self._angle_acc = 0.0                      # [deg] since the last read of packet 20
-        self._wheel_m = [0.0, 0.0]                 # (left, right) wheel travel [m]
         self._first_drive: float | None = None
         self._pending_faults = sorted(self.faults, key=lambda f: f.at)
         self._t0_wall = time.monotonic()
-        self._t_phys = 0.0
         self._next_tick = _PERIOD
         self.opcodes: Counter = Counter()
         self.packets_requested: Counter = Counter()
@@ -232,15 +223,14 @@ class OIEmulator:
         """Put the robot down at a pose (a person placing it; clears a wheel drop)."""
         with self._lock:
             self._advance_to(self.clock())
-            self._bot.place(x, y, heading_deg)
-            self._spin = 0.0
+            self.body.place(x, y, heading_deg)
             self._wheel_drop = False
 
     def true_pose(self) -> tuple[float, float, float]:
         """(x [m], y [m], heading [deg]) now."""
         with self._lock:
             self._advance_to(self.clock())
-            return self._bot.true_pose()
+            return self.body.true_pose()
 
     @property
     def wheel_command(self) -> tuple[int, int]:
@@ -326,7 +316,7 @@ class OIEmulator:
             if self._stop_evt.is_set() and not final:
                 return
             self._receive(tr, ready)
-            now = self._t_phys
+            now = self.body.t
             if now >= self._next_tick:
                 self._next_tick += _PERIOD
                 if self._next_tick < now:              # fell behind: skip, don't burst
@@ -405,7 +395,7 @@ class OIEmulator:
 
     def _set_mode(self, mode: int) -> None:
         if mode != self.mode:
-            x, y, h = self._bot.true_pose()
+            x, y, h = self.body.true_pose()
             self._note(f"OI mode {oi.MODE_NAMES[self.mode]} -> {oi.MODE_NAMES[mode]}; robot "
                        f"at ({x:.3f}, {y:.3f}) facing {h:.1f}°")
         self.mode = mode
@@ -415,20 +405,10 @@ class OIEmulator:
     def _set_wheels(self, right: int, left: int) -> None:
         right = max(-oi.MAX_WHEEL_MM_S, min(oi.MAX_WHEEL_MM_S, int(right)))
         left = max(-oi.MAX_WHEEL_MM_S, min(oi.MAX_WHEEL_MM_S, int(left)))
-        if (right, left) != (self._right, self._left) and \
-                _spin_sense(right, left) != _spin_sense(self._right, self._left):
-            self._end_spin()                   # (slowing a spin down does not end it)
+        self.body.set_wheels(left, right)
         self._right, self._left = right, left
         if (right or left) and self._first_drive is None:
             self._first_drive = self.clock()
-
-    def _end_spin(self) -> None:
-        """At the end of an in-place spin the body slips by the noise model's draw."""
-        if self._spin and not self.noise.exact:
-            actual = self.noise.sample(self.rng, self._spin)
-            x, y, h = self._bot.true_pose()
-            self._bot.place(x, y, h + (actual - self._spin))
-        self._spin = 0.0
 
     # ------------------------------------------------------------------ faults
     def _strike(self, kind: str) -> None:
@@ -457,59 +437,21 @@ class OIEmulator:
             self._strike(self._pending_faults.pop(0).kind)
 
     # ------------------------------------------------------------------ physics
-    def _actual_wheels(self) -> tuple[float, float]:
-        """(right, left) wheel speeds [m/s] actually turning."""
-        right = 0.0 if self._stalled["right"] else self._right / 1000.0
-        left = 0.0 if self._stalled["left"] else self._left / 1000.0
-        return right, left
-
     def _advance_to(self, now: float) -> None:
-        if now <= self._t_phys:
+        if now <= self.body.t:
             return
         self._due_faults(now)
-        dt = now - self._t_phys
-        self._t_phys = now
-        vr, vl = self._actual_wheels()
-        if vr == 0 and vl == 0:
-            return
-        b = self.spec.wheel_base
-        # the encoders count the wheels' own turning (a blocked body's wheels slip, a lifted
-        # robot's spin freely; a stalled wheel does not turn)
-        self._wheel_m[0] += vl * dt
-        self._wheel_m[1] += vr * dt
-        self._dist_acc += (vl + vr) / 2 * dt * 1000.0
-        self._angle_acc += math.degrees((vr - vl) * dt / b)
-        if self._wheel_drop:
-            return
-        v, w = (vr + vl) / 2, (vr - vl) / b
-        bot = self._bot
-        if abs(w) < _EPS_W:
-            bot.drive(v)
-            bot.wait(dt)
-            bot.stop()
-        elif abs(v) < 1e-12:
-            step = math.degrees(w * dt)
-            bot.turn(step)
-            self._spin += step
-        else:
-            n = max(1, int(math.ceil(dt / _SUBSTEP)))
-            h = dt / n
-            half = math.degrees(w * h) / 2
-            for _ in range(n):
-                bot.turn(half)
-                bot.drive(v)
-                bot.wait(h)
-                bot.turn(half)
-            bot.stop()
+        self.body.lifted = self._wheel_drop
+        self.body.advance_to(now)
 
     # ------------------------------------------------------------------ sensors
     def _values(self, ids) -> dict[int, int]:
-        left, right = self._bot.bumper()
+        left, right = self.body.bumper()
         bits = (oi.BUMP_LEFT if left else 0) | (oi.BUMP_RIGHT if right else 0)
         if self._wheel_drop:
             bits |= oi.WHEEL_DROP_LEFT | oi.WHEEL_DROP_RIGHT
         mpc = self.spec.metres_per_count
-        el, er = (int(round(w / mpc)) for w in self._wheel_m)
+        el, er = (int(round(w / mpc)) for w in self.body.wheel_m)
         vals = {7: bits, 35: (self.mode + self.mode_offset) % 256, 21: 0, 22: 14_800,
                 23: -300, 24: 25, 25: 2000, 26: 2696, 38: len(self._stream_ids or ()),
                 39: self._requested[0], 40: self._requested[1], 41: self._right, 42: self._left,
@@ -517,12 +459,12 @@ class OIEmulator:
         for pid, side, cmd in ((54, "left", self._left), (55, "right", self._right)):
             vals[pid] = 0 if cmd == 0 else (1500 if self._stalled[side] else 150)
         if 19 in ids:
-            d = int(self._dist_acc)                  # the fraction is lost on every read
-            self._dist_acc -= d
+            d = int(self.body.dist_acc)              # the fraction is lost on every read
+            self.body.dist_acc -= d
             vals[19] = max(-32768, min(32767, d))
         if 20 in ids:
-            a = self._angle_acc * (oi.ANGLE_BUG_FACTOR if self.angle_bug else 1.0)
-            self._angle_acc = 0.0                    # and so is the angle's
+            a = self.body.angle_acc * (oi.ANGLE_BUG_FACTOR if self.angle_bug else 1.0)
+            self.body.angle_acc = 0.0                # and so is the angle's
             vals[20] = max(-32768, min(32767, int(a)))
         return vals
 
@@ -535,13 +477,6 @@ class OIEmulator:
             else:
                 items.append((pid, vals.get(pid, 0)))
         return items
-
-
-def _spin_sense(right: int, left: int) -> int:
-    """+1 / -1 for an in-place spin CCW / CW, 0 for anything else."""
-    if right == -left and right != 0:
-        return 1 if right > 0 else -1
-    return 0
 
 
 def _wrap16(v: int) -> int:
