@@ -25,8 +25,14 @@ def _pybullet(env):
     return PyBulletRobot(env)
 
 
+def _create3_emulator(env):
+    from bouncesim.robots import make_robot
+    return make_robot("create3-emulator", env)
+
+
 BACKENDS = [
     pytest.param(_kinematic, id="kinematic"),
+    pytest.param(_create3_emulator, id="create3-emulator"),
     pytest.param(_kinematic_glance, id="kinematic-glance80"),
     pytest.param(_pybullet, id="pybullet", marks=pytest.mark.physics),
 ]

@@ -1,5 +1,5 @@
 """``bouncesim run-plan``: plan from START to GOAL and execute the plan on a robot (simulated,
-emulated or a real Create 2).
+emulated, or a real Create 2 or Create 3).
 """
 
 from __future__ import annotations
@@ -73,15 +73,22 @@ def register(sub) -> None:
     p.add_argument("--goal", required=True, metavar="G", help="goal: z or X,Y,DEG")
     p.add_argument("--robot", choices=ROBOTS, default="kinematic",
                    help="the exact kinematic twin (default), PyBullet, a real Create 2 over "
-                   "its Open Interface (create2, needs --port), or the Create 2 adapter "
+                   "its Open Interface (create2, needs --port), the Create 2 adapter "
                    "driving an in-process OI emulator through a real serial transport "
-                   "(emulator)")
+                   "(emulator), a real Create 3 over Bluetooth through iRobot's SDK "
+                   "(create3, extra create3), or the Create 3 adapter on an in-process "
+                   "emulator the SDK can also talk to, in emulated time (create3-emulator)")
     p.add_argument("--port", default=None, metavar="PORT",
                    help="create2: serial port or pyserial URL (/dev/ttyUSB0, COM3, "
                    "socket://127.0.0.1:8765); emulator: pty (default) or tcp")
-    p.add_argument("--turn", choices=("encoders", "clock"), default="encoders",
-                   help="create2/emulator: turn in place by the wheel encoders (default) or "
-                   "by the clock alone")
+    p.add_argument("--turn", choices=("encoders", "rotate", "clock"), default=None,
+                   help="how a real or emulated robot turns in place: create2/emulator by "
+                   "the wheel encoders (encoders, their default); create3/create3-emulator "
+                   "by the robot's own turn command (rotate, their default); any of them by "
+                   "the clock alone (clock, the paper's robot)")
+    p.add_argument("--name", default=None, metavar="NAME",
+                   help="create3: the robot's Bluetooth name (default: the first Create 3 "
+                   "found)")
     p.add_argument("--full", action="store_true",
                    help="create2/emulator: drive in Full mode (no cliff, wheel-drop or "
                    "charger stops by the robot itself) instead of Safe")
@@ -103,9 +110,10 @@ def register(sub) -> None:
                    "(it moves only when the adapter reads the sensors): as fast as the host "
                    "allows, and the same result on a busy machine")
     p.add_argument("--fault", action="append", default=[], metavar="KIND[@S]",
-                   help="emulator only: inject a fault S seconds after the first drive "
-                   "(wheel-drop, charger, stall-left, stall-right, drop-byte, garbage, "
-                   "mute); "
+                   help="emulators only: inject a fault S seconds after the first drive "
+                   "(emulator: wheel-drop, charger, stall-left, stall-right, drop-byte, "
+                   "garbage, mute) or after connecting (create3-emulator: disconnect, "
+                   "drop-response, stall-left, stall-right, garbage, no-connect); "
                    "repeatable")
     p.add_argument("--noise", default="none", metavar="SPEC",
                    help="rotation noise: none, gauss:SIGMA or model:eps=E,r=R [deg], "
@@ -151,25 +159,13 @@ def run(args) -> int:
     start = None if unknown_start else parse_config(args.start, cells, "start")
     goal = parse_config(args.goal, cells, "goal")
     noise = parse_noise(args.noise, cells.delta_deg)
-    if args.robot == "kinematic" and (args.gui or args.record):
-        raise UserError("--gui and --record need --robot pybullet.")
-    if args.robot != "kinematic" and args.glance is not None:
-        raise UserError("--glance is for --robot kinematic (the PyBullet bumper has its own "
-                        "80° arc).")
-    if args.robot not in ("create2", "emulator") and (args.port or args.full or
-                                                      args.wheel_base is not None or
-                                                      args.link_timeout is not None):
-        raise UserError("--port, --full, --wheel-base and --link-timeout are for --robot "
-                        "create2 or emulator.")
+    _check_robot_flags(args)
     if args.link_timeout is not None and not 0 < args.link_timeout < float("inf"):
         raise UserError(f"--link-timeout must be a positive number of seconds, got "
                         f"{args.link_timeout:g}.")
-    if args.robot != "emulator" and (args.time_scale != 1.0 or args.fault or args.lockstep):
-        raise UserError("--time-scale, --lockstep and --fault are for --robot emulator.")
-    if args.robot == "create2" and not noise.exact:
-        raise UserError("--noise is for simulated robots; a real Create 2 brings its own.")
-    if args.robot in ("create2", "emulator") and (args.gui or args.record):
-        raise UserError("--gui and --record need --robot pybullet.")
+    if args.robot in ("create2", "create3") and not noise.exact:
+        body = {"create2": "Create 2", "create3": "Create 3"}[args.robot]
+        raise UserError(f"--noise is for simulated robots; a real {body} brings its own.")
     if cls.closed_loop:
         return _run_closed_loop(args, env, cells, start, goal, noise)
     if args.turn_sigma is not None:
@@ -231,13 +227,45 @@ def run(args) -> int:
     return 0 if result.success or unknown else EXIT_FAILURE
 
 
+_ROBOT_FLAGS = (
+    # (flags, set in args?, the robots they are for)
+    ("--gui and --record", lambda a: a.gui or a.record, ("pybullet",)),
+    ("--glance", lambda a: a.glance is not None, ("kinematic",)),
+    ("--port, --full, --sensing, --wheel-base and --link-timeout",
+     lambda a: a.port or a.full or a.sensing != "stream" or a.wheel_base is not None or
+     a.link_timeout is not None, ("create2", "emulator")),
+    ("--time-scale and --lockstep", lambda a: a.time_scale != 1.0 or a.lockstep,
+     ("emulator",)),
+    ("--fault", lambda a: a.fault, ("emulator", "create3-emulator")),
+    ("--name", lambda a: a.name, ("create3",)),
+    ("--turn encoders", lambda a: a.turn == "encoders", ("create2", "emulator")),
+    ("--turn rotate", lambda a: a.turn == "rotate", ("create3", "create3-emulator")),
+    ("--turn clock", lambda a: a.turn == "clock",
+     ("create2", "emulator", "create3", "create3-emulator")),
+)
+
+
+def _check_robot_flags(args) -> None:
+    """Refuse, in one sentence, a flag that the chosen ``--robot`` does not take."""
+    for flags, given, robots in _ROBOT_FLAGS:
+        if given(args) and args.robot not in robots:
+            verb = "is" if " and " not in flags else "are"
+            names = " or ".join(robots)
+            raise UserError(f"{flags} {verb} for --robot {names}, not {args.robot}.")
+
+
 def _robot_options(args) -> dict:
     """The options of :func:`bouncesim.robots.make_robot` for ``--robot``."""
     if args.robot == "kinematic":
         return {"glance_deg": args.glance}
     if args.robot == "pybullet":
         return {"gui": args.gui, "record": args.record}
-    options = {"mode": "full" if args.full else "safe", "turn": args.turn,
+    if args.robot in ("create3", "create3-emulator"):
+        options = {"turn": args.turn or "rotate"}
+        if args.robot == "create3":
+            return {**options, "name": args.name}
+        return {**options, "faults": args.fault}
+    options = {"mode": "full" if args.full else "safe", "turn": args.turn or "encoders",
                "sensing": args.sensing, "wheel_base": args.wheel_base}
     if args.link_timeout is not None:
         options["link_timeout"] = args.link_timeout

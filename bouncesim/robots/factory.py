@@ -21,11 +21,13 @@ from .noise import NoiseModel, noise_and_rng
 
 __all__ = ["KINDS", "make_robot"]
 
-KINDS = ("kinematic", "pybullet", "create2", "emulator")
+KINDS = ("kinematic", "pybullet", "create2", "emulator", "create3", "create3-emulator")
 """The robots :func:`make_robot` builds."""
 
 _EXTRAS = {"pybullet": ("pybullet", "sim"), "create2": ("serial", "hardware"),
-           "emulator": ("serial", "hardware")}
+           "emulator": ("serial", "hardware"), "create3": ("irobot_edu_sdk", "create3")}
+_CREATE3_EMULATOR = ("start", "reflex", "slowdown", "reflex_distance", "slowdown_distance",
+                     "glance_deg", "faults", "name")
 _EMULATOR_OPTIONS = ("transport", "host", "port", "time_scale", "angle_bug", "faults",
                      "encoder_offset", "start", "glance_deg", "mode_offset", "lockstep", "log")
 
@@ -37,14 +39,20 @@ def make_robot(kind: str, env: Environment, *, noise: NoiseModel | None = None,
 
     Parameters
     ----------
-    kind : {"kinematic", "pybullet", "create2", "emulator"}
+    kind : {"kinematic", "pybullet", "create2", "emulator", "create3", "create3-emulator"}
         ``kinematic``: :class:`~bouncesim.robots.kinematic.KinematicRobot`; ``pybullet``:
         :class:`~bouncesim.robots.pybullet.PyBulletRobot`; ``create2``: a real Create 2 through
         :class:`~bouncesim.robots.create2.Create2Robot` (``port`` required; it brings its own
         noise, so ``noise`` must be exact); ``emulator``: an
         :class:`~bouncesim.robots.create2.OIEmulator` of ``env`` started in this process (on a
         pty, or ``transport="tcp"``) and the Create 2 adapter connected to it through pyserial;
-        closing the robot closes the emulator.
+        closing the robot closes the emulator; ``create3``: a real Create 3 over Bluetooth
+        through :class:`~bouncesim.robots.create3.Create3Robot` (``name``: the robot's
+        Bluetooth name, default the first one found; it brings its own noise);
+        ``create3-emulator``: the same adapter on an in-process
+        :class:`~bouncesim.robots.create3.EmulatorBackend`, in lockstep (emulated time), with
+        the robot's bump reflex and proximity slowdown off unless ``reflex=True`` /
+        ``slowdown=True`` (our navigators assume a robot that stays at the wall).
     env : Environment
     noise : NoiseModel, optional
         Rotation noise of a simulated body (the emulator's body slip); None: exact turns.
@@ -72,7 +80,8 @@ def make_robot(kind: str, env: Environment, *, noise: NoiseModel | None = None,
     >>> make_robot("roomba", envs.load("lab"))
     Traceback (most recent call last):
     ...
-    envs.errors.UserError: unknown robot 'roomba'; use kinematic, pybullet, create2 or emulator.
+    envs.errors.UserError: unknown robot 'roomba'; use kinematic, pybullet, create2, emulator,
+    create3 or create3-emulator.
     """
     if kind not in KINDS:
         raise UserError(f"unknown robot {kind!r}; use {', '.join(KINDS[:-1])} or {KINDS[-1]}.")
@@ -88,6 +97,8 @@ def make_robot(kind: str, env: Environment, *, noise: NoiseModel | None = None,
         from .pybullet import PyBulletRobot
         _check_options(kind, PyBulletRobot, options)
         return PyBulletRobot(env, noise, rng, **options)
+    if kind in ("create3", "create3-emulator"):
+        return _create3(kind, env, noise, rng, options)
     from .create2 import Create2Robot, OIEmulator, parse_fault
     options = dict(options)
     wheel_base = options.pop("wheel_base", None)
@@ -135,3 +146,28 @@ def _check_options(kind: str, cls, options: dict) -> None:
     if unknown:
         raise UserError(f"the {kind} robot takes no option {unknown[0]!r}; it takes "
                         f"{', '.join(names)}.")
+
+
+def _create3(kind: str, env: Environment, noise, rng, options: dict) -> Robot:
+    """The Create 3 adapter on Bluetooth (``create3``) or on the in-process emulator."""
+    from .create3 import Create3Robot, EmulatorBackend
+    options = dict(options)
+    if kind == "create3":
+        noise, _ = noise_and_rng(noise, rng)
+        if not getattr(noise, "exact", False):
+            raise UserError("rotation noise is for simulated robots; a real Create 3 brings "
+                            "its own.")
+        name = options.pop("name", None)
+        _check_options(kind, Create3Robot, options)
+        from irobot_edu_sdk.backend.bluetooth import Bluetooth
+        bot = Create3Robot(Bluetooth(name), **options)
+        bot.env = env
+        return bot
+    emu = {k: options.pop(k) for k in _CREATE3_EMULATOR if k in options}
+    emu.setdefault("reflex", False)
+    emu.setdefault("slowdown", False)
+    _check_options(kind, Create3Robot, options)
+    backend = EmulatorBackend(env, noise=noise, rng=rng, time="lockstep", **emu)
+    bot = Create3Robot(backend, **options)
+    bot.env = env
+    return bot

@@ -126,24 +126,31 @@ class WheelBody:
         right = 0.0 if self.stalled["right"] else self.right / 1000.0
         return left, right
 
-    def advance_to(self, now: float) -> None:
-        """Move the body under the current command up to emulated time ``now`` [s]."""
+    def advance_to(self, now: float) -> float | None:
+        """Move the body under the current command up to emulated time ``now`` [s].
+
+        Returns the time [s] at which a straight forward drive met a wall that stopped it in
+        this interval (exact, from the twin's ray cast), else None.
+        """
         if now <= self.t:
-            return
-        dt = now - self.t
+            return None
+        t0, dt = self.t, now - self.t
         self.t = now
         vl, vr = self.actual_wheels()
         if vr == 0 and vl == 0:
-            return
+            return None
         b = self.spec.wheel_base
         self.wheel_m[0] += vl * dt
         self.wheel_m[1] += vr * dt
         self.dist_acc += (vl + vr) / 2 * dt * 1000.0
         self.angle_acc += math.degrees((vr - vl) * dt / b)
         if self.lifted:
-            return
+            return None
         v, w = (vr + vl) / 2, (vr - vl) / b
         bot = self.bot
+        if abs(w) < _EPS_W and v > 0:
+            t_bump, _ = bot._forward(v, dt)         # the twin's wait(), with the contact time
+            return None if t_bump is None else t0 + t_bump
         if abs(w) < _EPS_W:
             bot.drive(v)
             bot.wait(dt)
@@ -152,6 +159,7 @@ class WheelBody:
             step = math.degrees(w * dt)
             bot.turn(step)
             self.spin += step
+            return None
         else:
             n = max(1, int(math.ceil(dt / SUBSTEP)))
             h = dt / n
@@ -162,6 +170,7 @@ class WheelBody:
                 bot.wait(h)
                 bot.turn(half)
             bot.stop()
+        return None
 
     def free_ahead(self) -> float:
         """Free distance [m] along the heading before the body touches a wall."""

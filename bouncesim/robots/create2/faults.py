@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import ClassVar
 
 from envs import UserError
 
@@ -30,25 +31,27 @@ class Fault:
     at : float      [s]
     """
 
+    KINDS: ClassVar[tuple] = FAULT_KINDS
     kind: str
     at: float = 0.0
 
     def __post_init__(self) -> None:
-        if self.kind not in FAULT_KINDS:
-            raise UserError(f"unknown fault {self.kind!r}; use one of {', '.join(FAULT_KINDS)}.")
+        if self.kind not in self.KINDS:
+            raise UserError(f"unknown fault {self.kind!r}; use one of {', '.join(self.KINDS)}.")
         if not (math.isfinite(self.at) and self.at >= 0):
             raise UserError(f"a fault time must be a non-negative number of seconds, "
                             f"got {self.at}.")
 
 
-def parse_fault(text: str) -> Fault:
-    """``KIND`` or ``KIND@SECONDS`` -> :class:`Fault`.
+def parse_fault(text: str, cls: type = Fault) -> Fault:
+    """``KIND`` or ``KIND@SECONDS`` -> :class:`Fault` (or ``cls``, a subclass with its own
+    ``KINDS``).
 
     >>> parse_fault("wheel-drop@2.5")
     Fault(kind='wheel-drop', at=2.5)
     """
     kind, _, at = str(text).strip().partition("@")
     try:
-        return Fault(kind, float(at) if at else 0.0)
+        return cls(kind, float(at) if at else 0.0)
     except ValueError:
         raise UserError(f"a fault is KIND or KIND@SECONDS, got {text!r}.") from None
