@@ -89,6 +89,13 @@ class WheelBody:
         self.angle_acc = 0.0
         self.t = 0.0
 
+    @property
+    def contact(self):
+        """The twin's contact rule (:class:`envs.motion.ContactParams`, or None: the
+        front-half bumper): what a filter that models this body should assume.
+        """
+        return self.bot.contact
+
     def place(self, x: float, y: float, heading_deg: float) -> None:
         """Put the body at a pose, its current spin forgotten and its wheels on the floor."""
         self.bot.place(x, y, heading_deg)

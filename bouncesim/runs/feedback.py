@@ -97,8 +97,9 @@ def body_contact(robot) -> ContactParams | None:
     """The contact rule (docs/model.md §9) a body declares, as ``validate --contact auto``
     takes it: its ``contact`` attribute when that is a :class:`~envs.motion.ContactParams`
     (PyBullet's fitted ``envs.motion.PYBULLET_CONTACT``, the twin made with ``contact=`` or
-    ``glance_deg=``, a wrapper's body's); for any other body (the twin by default, the Create 2
-    and its emulator, a user's own) the front-half bumper (None).
+    ``glance_deg=``, a wrapper's body's, the Create 2 and Create 3 adapters on an emulator: the
+    emulated body's); for any other body (the twin by default, a real Create 2 or Create 3, a
+    user's own) the front-half bumper (None).
     """
     rule = getattr(robot, "contact", None)
     return rule if isinstance(rule, ContactParams) else None

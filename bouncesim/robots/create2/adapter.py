@@ -461,6 +461,13 @@ class Create2Robot(SensingMixin, TurningMixin, Robot):
             return super().place(x, y, heading_deg)
         self.emulator.place(x, y, heading_deg)
 
+    @property
+    def contact(self):
+        """The emulated body's contact rule (simulation only; None on a real robot, whose
+        rule a user declares with ``--contact``): what the feedback filter assumes.
+        """
+        return None if self.emulator is None else self.emulator.body.contact
+
     def true_pose(self) -> tuple[float, float, float] | None:
         """The emulator's true pose (x [m], y [m], heading [deg]); None on hardware."""
         return None if self.emulator is None else self.emulator.true_pose()

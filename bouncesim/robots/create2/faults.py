@@ -52,6 +52,7 @@ def parse_fault(text: str, cls: type = Fault) -> Fault:
     """
     kind, _, at = str(text).strip().partition("@")
     try:
-        return cls(kind, float(at) if at else 0.0)
+        seconds = float(at) if at else 0.0
     except ValueError:
         raise UserError(f"a fault is KIND or KIND@SECONDS, got {text!r}.") from None
+    return cls(kind, seconds)

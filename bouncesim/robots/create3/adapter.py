@@ -102,7 +102,16 @@ class Create3Robot(Robot):
             raise err from None
 
     async def _connect(self) -> None:
-        await self.backend.connect()
+        try:
+            await self.backend.connect()
+        except (OSError, ConnectionError) as exc:
+            raise RobotError(f"cannot connect to the Create 3 ({type(exc).__name__}: {exc}); "
+                             "is Bluetooth on and this program allowed to use it?") from None
+        except Exception as exc:            # bleak's own errors (BleakError, D-Bus, ...)
+            if type(exc).__module__.split(".")[0] not in ("bleak", "dbus_fast"):
+                raise
+            raise RobotError(f"cannot connect to the Create 3 ({type(exc).__name__}: "
+                             f"{exc}).") from None
         self._reader = self._loop.create_task(self._read())
 
     async def _read(self) -> None:
@@ -251,6 +260,14 @@ class Create3Robot(Robot):
             super().place(x, y, heading_deg)
         self.backend.place(x, y, heading_deg)
         self._run(asyncio.sleep(0))
+
+    @property
+    def contact(self):
+        """The emulated body's contact rule (simulation only; None on a real robot, whose
+        rule a user declares with ``--contact``): what the feedback filter assumes.
+        """
+        emulator = getattr(self.backend, "emulator", None)
+        return None if emulator is None else emulator.body.contact
 
     def true_pose(self) -> tuple[float, float, float] | None:
         """The emulated body's pose; None on a real robot."""

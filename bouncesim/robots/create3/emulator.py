@@ -26,8 +26,9 @@ spin slip shows in it).
 
 The robot's own behaviour (options; on by default, as the robot ships):
 
-- ``reflex``: on a bump the robot backs off ``reflex_distance`` (2 cm) at 0.1 m/s, ignoring
-  wheel commands meanwhile (Create 3's bump reflex);
+- ``reflex``: on a bump the robot drops its wheel command and backs off ``reflex_distance``
+  (2 cm) at 0.1 m/s; commands that arrive meanwhile start when it is done (Create 3's bump
+  reflex);
 - ``slowdown``: closer than ``slowdown_distance`` (0.15 m) to a wall ahead, forward speed is
   capped at 0.1 m/s (its proximity slowdown).
 The distances and speeds are our assumptions: iRobot documents the behaviours, not the
@@ -200,6 +201,8 @@ class Create3Emulator:
             times.append(tick)
         if self._task is not None:
             times.append(self._task[2])
+        if self._reflex_until is not None:
+            times.append(self._reflex_until)
         return min(times) if times else None
 
     def _moving(self) -> bool:
@@ -216,6 +219,8 @@ class Create3Emulator:
                 t = max(self.body.t, self.t_connect + self.faults[0].at)
             if self._task is not None:
                 t = min(t, max(self.body.t, self._task[2]))
+            if self._reflex_until is not None:
+                t = min(t, max(self.body.t, self._reflex_until))
             self._limit_speed()
             contact = self.body.advance_to(t)
             at = contact if contact is not None else t
@@ -242,6 +247,10 @@ class Create3Emulator:
         if self._reflex_until is None:
             self.body.set_wheels(*self._cmd)
 
+    def _free_at(self, now: float) -> float:
+        """When the wheels obey commands again: now, or the end of a running reflex."""
+        return now if self._reflex_until is None else max(now, self._reflex_until)
+
     def _check_bumper(self, now: float) -> None:
         state = self.body.bumper()
         if state == self._bumper:
@@ -254,14 +263,15 @@ class Create3Emulator:
             if self._task is not None and self._task[0] == "move":
                 self._finish_task(now)
             if self.reflex and self._reflex_until is None:
-                self._reflex_until = now + self.reflex_distance / (REFLEX_SPEED_MM_S / 1000)
+                start = max(now, self.body.t)       # (a contact mid-tick: from the tick's end)
+                self._reflex_until = start + self.reflex_distance / (REFLEX_SPEED_MM_S / 1000)
                 self._cmd = (0.0, 0.0)
                 self.body.set_wheels(-REFLEX_SPEED_MM_S, -REFLEX_SPEED_MM_S)
 
     def _check_task(self, now: float) -> None:
         if self._reflex_until is not None and now >= self._reflex_until - 1e-12:
             self._reflex_until = None
-            self.body.set_wheels(0.0, 0.0)
+            self.body.set_wheels(*self._cmd)        # what was commanded meanwhile
         task = self._task
         if task is None:
             return
@@ -318,7 +328,7 @@ class Create3Emulator:
             self._set_wheels(v, right) if cmd == 6 else self._set_wheels(left, v)
         elif (dev, cmd) == (1, 8):
             (mm,) = struct.unpack(">i", pl[:4])
-            self._task = ("move", inc, now + abs(mm) / MOVE_SPEED_MM_S)
+            self._task = ("move", inc, self._free_at(now) + abs(mm) / MOVE_SPEED_MM_S)
             s = MOVE_SPEED_MM_S if mm >= 0 else -MOVE_SPEED_MM_S
             self._set_wheels(s, s)
             if mm == 0:
@@ -328,7 +338,7 @@ class Create3Emulator:
             deg = -dd / 10.0                                    # positive clockwise
             self.body.end_spin()
             w = self.spec.wheel_base / 2 * math.radians(TURN_DEG_S) * 1000
-            self._task = ("turn", inc, now + abs(deg) / TURN_DEG_S)
+            self._task = ("turn", inc, self._free_at(now) + abs(deg) / TURN_DEG_S)
             self._set_wheels(-w, w) if deg > 0 else self._set_wheels(w, -w)
             if deg == 0:
                 self._finish_task(now)
