@@ -241,12 +241,14 @@ class _Team:
         if self.task == "navigate":
             self.reached[i] = e.by == "clock"
             reward = 1.0 if self.reached[i] else -self.step_cost if self.steps[i] else 0.0
-        else:
+        else:       # a first flight is counted; TV and rewards start at its first bounce
             p = flight_cells(self.cells, e.start, e.end)
             np.add.at(self.visits, p[p >= 0], 1)
             self.dropped += int((p < 0).sum())
-            tv = tv_distance(self.visits, self.target) if self.visits.any() else 1.0
-            reward, self.tv = self.tv - tv, tv
+            reward = 0.0
+            if self.steps[i]:
+                tv = tv_distance(self.visits, self.target) if self.visits.any() else 1.0
+                reward, self.tv = self.tv - tv, tv
         self.infos[i] = self._info(i, e.end, e.by)
         return float(reward)
 

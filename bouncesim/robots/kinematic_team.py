@@ -185,7 +185,6 @@ class KinematicTeam:
         self._event[i] = ev
         self._by[i] = "wall" if ev.bumped else "cap"
         self._state[i] = _TURNING if turn > 0 else _FLYING
-        bot.place(*start)                         # the world moves it from here
         return TeamFlight(start, end[:2], ev)
 
     def clock_stop(self, i: int, xy) -> None:
@@ -260,9 +259,21 @@ class KinematicTeam:
         return out
 
     def _finish(self, i: int, by: str, xy) -> FlightEnd:
+        """End robot i's flight at ``xy`` on it. The body is still at the planned end (the
+        twin's own pose after ``drive_until_bump``): a clock stop puts it at ``xy`` as
+        Bounce-v0 does, a robot contact backs it up along its flight by the twin's motion.
+        """
         bot = self.robots[i]
         start = self._pose0[i]
-        bot.place(float(xy[0]), float(xy[1]), start[2])
+        if by == "clock":
+            bot.place(float(xy[0]), float(xy[1]), start[2])
+        elif by == "robot":
+            back = math.hypot(*(np.subtract(bot.true_pose()[:2], xy)))
+            if back > 0:
+                bot.drive(-self.speed)
+                bot.wait(back / self.speed)
+                bot.stop()
+            xy = bot.true_pose()[:2]
         self._pos[i] = xy
         self._state[i] = _STILL
         if by == "clock":
