@@ -338,3 +338,11 @@ def test_import_bouncesim_leaves_pettingzoo_alone_and_a_missing_extra_is_one_sen
                          check=True).stdout.strip()
     assert out == ("bouncesim.team needs pettingzoo, the optional extra team: "
                    "pip install 'bouncesim[team]'.")
+
+
+def test_the_docs_example_runs():
+    import re
+    from pathlib import Path
+    page = Path(__file__).resolve().parent.parent / "docs" / "readme_team.md"
+    (code,) = re.findall(r"^```python\n(.*?)^```", page.read_text(encoding="utf-8"), re.S | re.M)
+    exec(compile(code, "docs/readme_team.md", "exec"), {})
