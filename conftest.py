@@ -18,3 +18,6 @@ if importlib.util.find_spec("serial") is None:
 if importlib.util.find_spec("gymnasium") is None:
     # the Gymnasium environment needs its extra (gym)
     collect_ignore += ["bouncesim/gym.py"]
+if importlib.util.find_spec("pettingzoo") is None:
+    # the team environments need their extra (team)
+    collect_ignore += ["bouncesim/team.py"]

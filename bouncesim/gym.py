@@ -63,15 +63,14 @@ except ModuleNotFoundError as exc:          # the optional extra is not installe
 
 import envs
 from envs import Environment, UserError
-from envs.motion import flight_steps, unit
 from planners.cells import CellSpace
 from planners.coverage.targets import load_target, uniform_target
-from planners.measures import heading_ok
 from planners.metrics import tv_distance
 
 from .robots.base import CREATE2
 from .robots.factory import make_robot
 from .robots.noise import NoiseModel, parse_noise
+from .tasks import flight_cells, flight_reaches, goal_stop
 
 __all__ = ["ENV_ID", "TASKS", "BounceEnv", "flight_reaches", "goal_stop"]
 
@@ -80,75 +79,6 @@ ENV_ID = "bouncesim/Bounce-v0"
 TASKS = ("navigate", "cover")
 _MAX_STARTS = 10_000          # random starts tried before giving up (navigate)
 _TRAIL = 400                  # flights kept for rendering
-
-
-def flight_reaches(start_xy, end_xy, heading_deg: float, cells: CellSpace, goal: int) -> bool:
-    """Whether a straight flight reaches goal configuration ``goal`` (docs/model.md §23):
-    :func:`goal_stop` is not None.
-
-    True when the flight's heading [deg] is within ±(Δ/2 + 1e-9°) of the goal heading and the
-    segment from ``start_xy`` to ``end_xy`` [m] meets the goal's position cell, a half-open
-    square as in docs/model.md §4 (its left and bottom borders belong to it).
-
-    >>> import envs
-    >>> cs = CellSpace(envs.load("lab"))
-    >>> flight_reaches((2.89, 0.17), (0.17, 0.17), 180.0, cs, cs.z(0, 4))   # west, row 0
-    True
-    >>> flight_reaches((2.89, 0.17), (0.34, 0.17), 180.0, cs, cs.z(0, 4))   # at its right border
-    False
-    >>> flight_reaches((2.89, 0.17), (0.34, 0.17), 180.0, cs, cs.z(1, 4))   # cell 1's left border
-    True
-    >>> flight_reaches((2.89, 0.17), (0.35, 0.17), 180.0, cs, cs.z(0, 4))   # short of it
-    False
-    >>> flight_reaches((2.89, 0.17), (0.17, 0.17), 135.0, cs, cs.z(0, 4))   # wrong heading
-    False
-    """
-    return goal_stop(start_xy, end_xy, heading_deg, cells, goal) is not None
-
-
-def goal_stop(start_xy, end_xy, heading_deg: float, cells: CellSpace,
-              goal: int) -> np.ndarray | None:
-    """Where a robot on this flight stops in the goal configuration's cell (docs/model.md
-    §23): the midpoint of the part of the segment in the cell, the point farthest from its
-    borders along the flight; None when the flight does not reach the goal.
-
-    >>> import envs
-    >>> cs = CellSpace(envs.load("lab"))
-    >>> goal_stop((2.89, 0.17), (0.17, 0.17), 180.0, cs, cs.z(1, 4)).round(6).tolist()
-    [0.51, 0.17]
-    >>> goal_stop((2.89, 0.17), (0.17, 0.17), 180.0, cs, cs.z(0, 4)).round(6).tolist()
-    [0.255, 0.17]
-
-    In cell 0 the flight ends at the wall, x = 0.17 m: it stops half-way through the part
-    of the cell it crosses.
-    """
-    p, k = (int(v) for v in cells.pk(int(goal)))
-    if not heading_ok(heading_deg, k * cells.delta_deg, cells.delta_deg):
-        return None
-    h = cells.h
-    cx, cy = cells.centres[p]
-    lo = np.array([cx - h / 2, cy - h / 2])
-    hi = lo + h
-    a = np.asarray(start_xy, dtype=float)
-    b = np.asarray(end_xy, dtype=float)
-    d = b - a
-    t0, t1 = 0.0, 1.0                       # Liang-Barsky clip of the segment to the square
-    for i in range(2):
-        if d[i] == 0.0:
-            if not lo[i] <= a[i] <= hi[i]:
-                return None
-            continue
-        ta, tb = (lo[i] - a[i]) / d[i], (hi[i] - a[i]) / d[i]
-        t0, t1 = max(t0, min(ta, tb)), min(t1, max(ta, tb))
-    if t0 > t1:
-        return None
-    # the clipped part may only touch the square's right or top border, which belongs to the
-    # neighbouring cell: its midpoint decides with the §4 point -> cell rule
-    def at(t: float) -> np.ndarray:         # the end points exactly, not a + d rounded
-        return a if t == 0.0 else b if t == 1.0 else a + t * d
-
-    mid = 0.5 * (at(t0) + at(t1))
-    return mid if int(cells.cell_of_point([mid])[0]) == p else None
 
 
 class BounceEnv(gymnasium.Env):
@@ -270,13 +200,7 @@ class BounceEnv(gymnasium.Env):
         """Add the flight's counted steps to the visit histogram (docs/model.md §8, §17);
         returns the position cell of the contact (−1: none).
         """
-        x, y, deg = before
-        u = unit(np.array([deg]))[0]            # the twin's unit vectors, axes exact
-        length = math.hypot(after[0] - x, after[1] - y)
-        n = int(flight_steps(length, self.cells.h))
-        pts = np.vstack([np.array([x, y]) + np.arange(n)[:, None] * self.cells.h * u,
-                         [after[:2]]])
-        p = self.cells.cell_of_point(pts)
+        p = flight_cells(self.cells, before, after)
         np.add.at(self._visits, p[p >= 0], 1)
         self._dropped += int((p < 0).sum())
         return int(p[-1])

@@ -37,10 +37,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .motion import BUMP_RANGE, GRAZE_TOL, ContactParams, WallCaster, drive_distance
+from .motion import (
+    BUMP_RANGE,
+    CENTRE_ZONE_DEG,
+    GRAZE_TOL,
+    ContactParams,
+    WallCaster,
+    drive_distance,
+)
 
-__all__ = ["advance", "slide_on", "front_contacts", "closes_bumper", "leg_point", "leg_length",
-           "ContactFlights", "contact_flights", "glancing"]
+__all__ = ["advance", "slide_on", "front_contacts", "closes_bumper", "switches", "leg_point",
+           "leg_length", "ContactFlights", "contact_flights", "glancing"]
 
 _MAX_EVENTS = 1000       # contacts handled within one drive (collinear wall pieces add events)
 _SAME_CONTACT = 1e-5     # [m] contacts closer than this are one (a side's end and its vertex)
@@ -63,6 +70,21 @@ def closes_bumper(bearing_deg: float, contact: ContactParams | None) -> bool:
     """Whether a front contact at ``bearing_deg`` [deg] closes the bumper."""
     arc = 90.0 if contact is None else 90.0 - contact.beta_deg
     return abs(bearing_deg) <= arc
+
+
+def switches(bearings_deg) -> tuple[bool, bool]:
+    """(left, right) bumper switches closed by front contacts at these bearings [deg] from the
+    heading (+ to the left): a bearing within ±``CENTRE_ZONE_DEG`` closes both, one further left
+    the left switch, one further right the right switch (docs/model.md §8).
+
+    >>> switches([0.0]), switches([30.0]), switches([-30.0]), switches([30.0, -30.0]), switches([])
+    ((True, True), (True, False), (False, True), (True, True), (False, False))
+    """
+    left = right = False
+    for beta in bearings_deg:
+        left |= beta >= -CENTRE_ZONE_DEG
+        right |= beta <= CENTRE_ZONE_DEG
+    return bool(left), bool(right)
 
 
 def _group(contacts) -> list[list]:

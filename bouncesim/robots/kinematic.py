@@ -55,7 +55,14 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from envs import Environment, UserError
-from envs.contact import advance, closes_bumper, front_contacts, glancing, leg_length
+from envs.contact import (
+    advance,
+    closes_bumper,
+    front_contacts,
+    glancing,
+    leg_length,
+    switches,
+)
 
 # The motion layer (shared with the coverage models in planners); the casters and constants
 # are re-exported here under their old names.
@@ -228,13 +235,8 @@ class KinematicRobot(Robot):
         touched = [c for c in front_contacts(self.local, self._x, self._y, self._ux, self._uy)
                    if closes_bumper(c[0], self.contact)]
         if self.side_rule == "nearest" and touched:
-            beta = self._nearest_wall_bearing()
-            return bool(beta >= -CENTRE_ZONE_DEG), bool(beta <= CENTRE_ZONE_DEG)
-        left = right = False
-        for beta, *_ in touched:
-            left |= beta >= -CENTRE_ZONE_DEG
-            right |= beta <= CENTRE_ZONE_DEG
-        return bool(left), bool(right)
+            return switches([self._nearest_wall_bearing()])
+        return switches([beta for beta, *_ in touched])
 
     def _nearest_wall_bearing(self) -> float:
         """Bearing [deg] of the wall point nearest the centre, + to the left (ties: the
