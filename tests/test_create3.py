@@ -352,3 +352,24 @@ def test_nav_create3_quick_plans_end_where_the_twin_ends_them(tmp_path):
     assert (plans["gap_deg_emulator"] < 0.5).all()           # encoder turns: ~0.2°
     assert json.loads((tmp_path / "config.json").read_text())["bodies"][-1] == \
         "create3-emulator"
+
+
+def test_sigterm_stops_the_robot(tmp_path):
+    script = tmp_path / "term.py"
+    script.write_text(
+        "import os, signal, sys\n"
+        "import envs\n"
+        "from bouncesim.robots import make_robot\n"
+        "bot = make_robot('create3-emulator', envs.load('lab'))\n"
+        "try:\n"
+        "    with bot:\n"
+        "        bot.place(0.51, 0.51, 0.0)\n"
+        "        bot.drive(0.2)\n"
+        "        os.kill(os.getpid(), signal.SIGTERM)\n"
+        "        bot.wait(1.0)\n"
+        "finally:\n"
+        "    print(bot.backend.emulator.body.actual_wheels(), file=sys.stderr)\n")
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 143
+    assert done.stderr.strip().splitlines()[-1] == "(0.0, 0.0)"

@@ -73,6 +73,9 @@ ROBOTS = {"kinematic": 200, "pybullet": 16}
 PER_ROBOT = {"kinematic": 2500, "pybullet": 625}
 """Counted steps per robot in one trial, about (trials are cut to at least two halves)."""
 BURN_IN = {"kinematic": 200, "pybullet": 50}
+TEAM_STEPS = 100_000
+"""Default steps per angle of a team run (--robots K: one world of K robots per trial)."""
+TEAM_PER_ROBOT = 2500
 
 DESCRIPTION = """\
 For every bouncing angle: the coverage q predicted by --model and the step-sampled visit
@@ -100,6 +103,14 @@ floor and floor_splits is <= 0.02: a first round of 40 000 steps per angle (4 tr
 robots x 625 steps), then more trials for the angles still above, sized by floor ~ 1/sqrt(steps),
 up to 1e6 steps per angle (--max-steps; an angle that stops at the cap is reported on stderr).
 --steps N fixes the count; --floor F with --steps N makes N the first round.
+
+Teams (--robots K, kinematic only; docs/model.md section 24): each trial is one room with K
+robots that start in distinct cells and bounce by the angle; --interact bump (default) makes
+robot-robot contact a bump, as real robots feel it, --interact off lets them pass through each
+other. The prediction stays the model's single-robot coverage (K independent robots share
+it), so with --interact bump tv measures how far the robots' meetings move the team's
+coverage; meetings_per_1000_steps says how often a robot's flight was ended by another. Steps
+default to 100 000 per angle (2500 per robot and trial).
 """
 
 EXAMPLES = """\
@@ -108,6 +119,7 @@ examples:
   bouncesim validate lab --orientations 72 --angles 75 --eps 5 --r 0.8 --model event \\
       --backend pybullet --steps 20000 --json
   bouncesim validate fig1 --orientations 72 --angles 30,75,315 --eps 5 --r 0.8 --alpha design
+  bouncesim validate complex --orientations 72 --angles 75 --eps 5 --r 0.8 --robots 4
 """
 
 
@@ -139,6 +151,12 @@ def register(sub) -> None:
                    "for the model's best mix for the uniform target")
     p.add_argument("--epoch", type=int, default=1000, metavar="STEPS",
                    help="steps per epoch of the mix (default 1000)")
+    p.add_argument("--robots", type=int, default=None, metavar="K",
+                   help="kinematic only: simulate teams of K robots in one room (see below; "
+                   "default: independent robots)")
+    p.add_argument("--interact", choices=("bump", "off"), default=None,
+                   help="with --robots: robot-robot contact is a bump (default) or the robots "
+                   "pass through each other")
     p.add_argument("--speed", type=float, default=0.3, metavar="M/S",
                    help="PyBullet drive speed [m/s] (default 0.3)")
     add_contact_arg(p, auto=True, what=" of the event model and the twin")
@@ -170,7 +188,15 @@ def simulate_trial(params: dict, rng: np.random.Generator) -> dict:
     contact = None if contact == "off" else ContactParams(*map(float, contact.split()))
     epoch, burn_in = int(params["epoch"]), int(params["burn_in"])
     t0 = time.perf_counter()
-    if params["backend"] == "kinematic":
+    meetings = None
+    if params.get("team"):
+        from ..robots.noise import parse_noise
+        from ..runs.team_runs import team_coverage
+        noise = parse_noise(f"model:eps={params['eps']},r={params['r']}", cs.delta_deg)
+        res = team_coverage(env, mix.angles[0], noise, robots=n, steps=steps,
+                            burn_in=burn_in, interact=params["interact"], rng=rng, cells=cs)
+        counts, dropped, bumps, meetings = res.counts, res.dropped, res.flights, res.meetings
+    elif params["backend"] == "kinematic":
         from ..robots.kinematic import KinematicBatch
         res = KinematicBatch(env, n, rng, cells=cs, contact=contact).run(
             mix, steps, epoch=epoch, burn_in=burn_in)
@@ -182,6 +208,7 @@ def simulate_trial(params: dict, rng: np.random.Generator) -> dict:
         counts, dropped, bumps = res.pooled, int(res.dropped.sum()), int(res.bumps.sum())
     return {"counted": int(counts.sum()), "dropped": int(dropped), "bumps": int(bumps),
             "wall_s": round(time.perf_counter() - t0, 3),
+            **({} if meetings is None else {"meetings": int(meetings)}),
             "counts": " ".join(str(int(c)) for c in counts)}
 
 
@@ -283,6 +310,18 @@ def _check(args) -> None:
         raise UserError(f"--speed must lie in (0, 0.5] m/s, got {args.speed:g}.")
     if args.seed < 0:
         raise UserError(f"--seed must be a non-negative integer, got {args.seed}.")
+    if args.robots is None:
+        if args.interact is not None:
+            raise UserError("--interact is for teams: give --robots K.")
+        return
+    if args.robots < 1:
+        raise UserError(f"--robots must be at least 1, got {args.robots}.")
+    if args.backend != "kinematic" or args.alpha is not None:
+        raise UserError("--robots runs teams in the kinematic twin, one angle at a time (no "
+                        "--backend pybullet, no --alpha).")
+    if args.contact not in (None, "auto", "off"):
+        raise UserError("--robots teams use the front-half bumper (--contact off).")
+    args.interact = args.interact or "bump"
 
 
 def run(args) -> int:
@@ -294,10 +333,13 @@ def run(args) -> int:
     angles = check_angles(cs.K, parse_angles(args.angles), noise)
     out = writable_path(args.out, folder=True) if args.out is not None else None
     backend = args.backend
-    total = args.steps if args.steps is not None else DEFAULT_STEPS[backend]
-    robots = ROBOTS[backend]
+    team = args.robots is not None
+    total = args.steps if args.steps is not None else (
+        TEAM_STEPS if team else DEFAULT_STEPS[backend])
+    robots = args.robots if team else ROBOTS[backend]
+    per_robot_trial = TEAM_PER_ROBOT if team else PER_ROBOT[backend]
     # two halves, each of at least one batch: an even number of trials per policy
-    trials_per = max(2, 2 * math.ceil(total / (2 * robots * PER_ROBOT[backend])))
+    trials_per = max(2, 2 * math.ceil(total / (2 * robots * per_robot_trial)))
     per_robot = max(1, math.ceil(total / (trials_per * robots)))
     if backend == "pybullet":
         from ..robots.pybullet.robot import import_pybullet
@@ -313,7 +355,8 @@ def run(args) -> int:
                 "alpha": " ".join(repr(float(a)) for a in al), "eps": float(args.eps),
                 "r": float(args.r), "backend": backend, "robots": robots,
                 "steps": per_robot, "burn_in": args.burn_in, "epoch": args.epoch,
-                "speed": float(args.speed), "contact": contact_text}
+                "speed": float(args.speed), "contact": contact_text,
+                **({"team": robots, "interact": args.interact} if team else {})}
 
     # the sweep's identity: what decides the trials and their meaning, never a timing (a
     # second run, or one after Ctrl-C, resumes the same sweep)
@@ -413,6 +456,9 @@ def run(args) -> int:
                      "model": args.model, "backend": backend, "env": env.name,
                      "predict_s": round(predict_s, 3),
                      "contact": "off" if contact is None else "pybullet",
+                     **({"robots": robots, "interact": args.interact,
+                         "meetings_per_1000_steps": 1000 * float(sub.meetings.sum()) / steps}
+                        if team else {}),
                      **({"alpha": list(al)} if lab == "mix" else {})})
     if out is not None:
         pd.DataFrame(rows).to_csv(out / "validation.csv", index=False)
@@ -455,10 +501,15 @@ def protocol_prediction(model, policies, noise, burn_in: int, steps: int,
 def _print_table(rows, env, backend, cs, args) -> None:
     print(f"{env.name}: {args.model} model against {backend} (K = {cs.K}, eps {args.eps:g}, "
           f"r {args.r:g}, seed {args.seed})")
+    team = "robots" in rows[0]
+    if team:
+        print(f"teams of {rows[0]['robots']} robots, interact {rows[0]['interact']}; the "
+              "prediction is one robot's")
     print(f"{'angle':>6} {'tv':>7} {'tv_runs':>8} {'floor':>7} {'steps':>10} "
-          f"{'bumps/step model':>17} {'sim':>6}")
+          f"{'bumps/step model':>17} {'sim':>6}" + (f" {'meetings/1000':>14}" if team else ""))
     for r in rows:
         a = r["angle"] if r["angle"] == "mix" else _label(r["angle"])
         print(f"{a:>6} {r['tv']:7.4f} {r['tv_runs']:8.4f} {r['floor']:7.4f} {r['steps']:10d} "
-              f"{r['bumps_per_step_model']:17.3f} {r['bumps_per_step_sim']:6.3f}")
+              f"{r['bumps_per_step_model']:17.3f} {r['bumps_per_step_sim']:6.3f}"
+              + (f" {r['meetings_per_1000_steps']:14.1f}" if team else ""))
 

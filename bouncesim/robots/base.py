@@ -12,10 +12,12 @@ Units: metres, seconds, degrees (angles at this interface), CCW positive.
 from __future__ import annotations
 
 import math
+import signal
+import threading
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 
-__all__ = ["CREATE2", "BumpEvent", "Robot", "RobotError", "RobotSpec"]
+__all__ = ["CREATE2", "BumpEvent", "Robot", "RobotError", "RobotSpec", "SigtermStop"]
 
 
 class RobotError(RuntimeError):
@@ -163,3 +165,42 @@ class Robot(ABC):
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+class SigtermStop:
+    """For hardware adapters: SIGTERM (a process manager, ``kill``) ends the program through
+    SystemExit(143), so that the adapter's ``with`` block and ``close`` stop the robot, as
+    Ctrl-C does. Installed only in the main thread and only over the default handler;
+    :meth:`_on_sigterm` may stop the wheels at once first (when that is safe to do from a
+    signal handler).
+    """
+
+    _prev_sigterm = None
+    _sigterm_handler = None
+
+    def _on_sigterm(self) -> None:
+        """Called first in the handler (default: nothing)."""
+
+    def _install_sigterm(self) -> None:
+        if threading.current_thread() is not threading.main_thread():
+            return
+        if signal.getsignal(signal.SIGTERM) not in (signal.SIG_DFL, None):
+            return
+
+        def on_sigterm(signum, frame):
+            self._on_sigterm()
+            raise SystemExit(128 + signum)
+
+        self._prev_sigterm = signal.getsignal(signal.SIGTERM)
+        self._sigterm_handler = on_sigterm
+        signal.signal(signal.SIGTERM, on_sigterm)
+
+    def _restore_sigterm(self) -> None:
+        if self._prev_sigterm is None:
+            return
+        try:
+            if signal.getsignal(signal.SIGTERM) is self._sigterm_handler:
+                signal.signal(signal.SIGTERM, self._prev_sigterm)
+        except ValueError:                        # not the main thread
+            pass
+        self._prev_sigterm = None

@@ -63,7 +63,6 @@ from __future__ import annotations
 
 import atexit
 import math
-import signal
 import socket
 import threading
 import time
@@ -72,7 +71,7 @@ from typing import TYPE_CHECKING, Any
 
 from envs import UserError
 
-from ..base import CREATE2, BumpEvent, Robot, RobotError, RobotSpec
+from ..base import CREATE2, BumpEvent, Robot, RobotError, RobotSpec, SigtermStop
 from . import oi
 from .sensing import SENSOR_IDS, SensingMixin, SensorState
 from .turning import TurningMixin
@@ -82,7 +81,7 @@ if TYPE_CHECKING:
 
 __all__ = ["Create2Robot", "SensorState", "SENSOR_IDS"]
 
-class Create2Robot(SensingMixin, TurningMixin, Robot):
+class Create2Robot(SigtermStop, SensingMixin, TurningMixin, Robot):
     """An iRobot Create 2 over its Open Interface.
 
     Parameters
@@ -201,7 +200,6 @@ class Create2Robot(SensingMixin, TurningMixin, Robot):
         self._closing = False
         self._thread: threading.Thread | None = None
         self._parser = oi.StreamParser(SENSOR_IDS)
-        self._prev_sigterm = None
         self._ser = link if link is not None else self._open(port, baudrate)
         atexit.register(self.close)
         try:
@@ -278,29 +276,8 @@ class Create2Robot(SensingMixin, TurningMixin, Robot):
                           f"{self._expected_mode}; mode checks are off, wheel drops are "
                           "still detected.", stacklevel=3)
 
-    def _install_sigterm(self) -> None:
-        if threading.current_thread() is not threading.main_thread():
-            return
-        if signal.getsignal(signal.SIGTERM) not in (signal.SIG_DFL, None):
-            return
-
-        def on_sigterm(signum, frame):
-            self.stop()
-            raise SystemExit(128 + signum)
-
-        self._prev_sigterm = signal.getsignal(signal.SIGTERM)
-        self._sigterm_handler = on_sigterm
-        signal.signal(signal.SIGTERM, on_sigterm)
-
-    def _restore_sigterm(self) -> None:
-        if self._prev_sigterm is None:
-            return
-        try:
-            if signal.getsignal(signal.SIGTERM) is self._sigterm_handler:
-                signal.signal(signal.SIGTERM, self._prev_sigterm)
-        except ValueError:                        # not the main thread
-            pass
-        self._prev_sigterm = None
+    def _on_sigterm(self) -> None:
+        self.stop()                               # a serial write: safe in the handler
 
     # ------------------------------------------------------------------ low level
     def _write(self, data: bytes) -> None:

@@ -24,7 +24,7 @@ from dataclasses import replace
 
 from envs import UserError
 
-from ..base import CREATE2, BumpEvent, Robot, RobotError
+from ..base import CREATE2, BumpEvent, Robot, RobotError, SigtermStop
 from .emulator import TURN_DEG_S, raw_bytes
 from .packets import MAX_SPEED_MM_S, Packet, bump_event, pose_of
 
@@ -34,7 +34,7 @@ CREATE3 = replace(CREATE2, radius=0.171, max_wheel_speed=MAX_SPEED_MM_S / 1000)
 """The Create 3 (a Roomba i3 base): 508.8 encoder counts per wheel turn, 0.306 m/s."""
 
 
-class Create3Robot(Robot):
+class Create3Robot(SigtermStop, Robot):
     """A Create 3 (or its emulator) as a bump-and-clock :class:`~bouncesim.robots.base.Robot`.
 
     Parameters
@@ -49,12 +49,16 @@ class Create3Robot(Robot):
         Wheel speed [m/s] of clock turns.
     connect_timeout, answer_timeout : float
         Seconds to wait for the connection and for an answer before the link counts as lost.
+    handle_sigterm : bool
+        SIGTERM ends the program through SystemExit, so the robot is stopped on the way out
+        (:class:`~bouncesim.robots.base.SigtermStop`).
     """
 
     spec = CREATE3
 
     def __init__(self, backend, *, turn: str = "rotate", turn_speed: float = 0.1,
-                 connect_timeout: float = 20.0, answer_timeout: float = 3.0) -> None:
+                 connect_timeout: float = 20.0, answer_timeout: float = 3.0,
+                 handle_sigterm: bool = True) -> None:
         if turn not in ("rotate", "clock"):
             raise UserError(f"turn must be 'rotate' or 'clock', got {turn!r}.")
         self.backend = backend
@@ -78,6 +82,8 @@ class Create3Robot(Robot):
         except BaseException:
             self._shutdown()
             raise
+        if handle_sigterm:
+            self._install_sigterm()             # SystemExit: the with block stops the robot
 
     # ------------------------------------------------------------------ the loop
     def _run(self, coro, timeout: float | None = None, lost: str | None = None,
@@ -283,6 +289,7 @@ class Create3Robot(Robot):
 
     def _shutdown(self) -> None:
         self._closed = True
+        self._restore_sigterm()
         fault, self._fault = self._fault, None
         try:
             if self._loop.is_closed():
