@@ -64,13 +64,12 @@ except ModuleNotFoundError as exc:          # the optional extra is not installe
 import envs
 from envs import Environment, UserError
 from planners.cells import CellSpace
-from planners.coverage.targets import load_target, uniform_target
 from planners.metrics import tv_distance
 
 from .robots.base import CREATE2
 from .robots.factory import make_robot
 from .robots.noise import NoiseModel, parse_noise
-from .tasks import flight_cells, flight_reaches, goal_stop
+from .tasks import check_goal, cover_target, flight_cells, flight_reaches, goal_stop
 
 __all__ = ["ENV_ID", "TASKS", "BounceEnv", "flight_reaches", "goal_stop"]
 
@@ -123,8 +122,8 @@ class BounceEnv(gymnasium.Env):
         for a in self.angles:
             cells.angle_steps(a)
         self.noise = parse_noise(noise, cells.delta_deg) if isinstance(noise, str) else noise
-        self.goal = self._check_goal(goal)
-        self.target = self._load_target(target)
+        self.goal = check_goal(self.cells, goal)
+        self.target = cover_target(self.cells, target)
         self.max_steps = int(max_steps)
         if self.max_steps < 1:
             raise UserError(f"max_steps must be at least 1, got {max_steps}.")
@@ -150,28 +149,6 @@ class BounceEnv(gymnasium.Env):
         self._fig = None
 
     # ------------------------------------------------------------------ checks
-    def _check_goal(self, goal) -> int:
-        try:
-            z = int(goal)
-        except (TypeError, ValueError):
-            raise UserError(f"goal {goal!r} is not a configuration index.") from None
-        if not 0 <= z < self.cells.N:
-            raise UserError(f"goal {z} is out of range: configurations are 0 to "
-                            f"{self.cells.N - 1}.")
-        return z
-
-    def _load_target(self, target) -> np.ndarray:
-        if target is None:
-            return uniform_target(self.cells)
-        if isinstance(target, (str, Path)):
-            return load_target(target, self.cells)
-        b = np.asarray(target, dtype=float).ravel()
-        if b.shape != (self.cells.P,) or not np.all(np.isfinite(b)) or (b < 0).any() \
-                or not b.sum() > 0:
-            raise UserError(f"the target must be {self.cells.P} non-negative weights with a "
-                            "positive sum, one per position cell.")
-        return b / b.sum()
-
     # ------------------------------------------------------------------ simulation
     def _fly(self) -> tuple[dict, tuple, tuple]:
         """Drive until a bump: (observation, pose before, pose after)."""
@@ -251,7 +228,7 @@ class BounceEnv(gymnasium.Env):
         unknown = set(options) - {"start", "goal"}
         if unknown:
             raise UserError(f"unknown reset option {sorted(unknown)[0]!r}; use start or goal.")
-        self._goal = self._check_goal(options.get("goal", self.goal))
+        self._goal = check_goal(self.cells, options.get("goal", self.goal))
         start = options.get("start")
         self._robot = make_robot("kinematic", self.room, noise=self.noise, rng=self.np_random)
         self._steps, self._reached, self._tv, self._dropped = 0, False, 1.0, 0

@@ -8,14 +8,51 @@ team's robot reaches its goal and counts its visits exactly as ``bouncesim/Bounc
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 
+from envs import UserError
 from envs.motion import flight_steps, unit
 from planners.cells import CellSpace
+from planners.coverage.targets import load_target, uniform_target
 from planners.measures import heading_ok
 
-__all__ = ["flight_reaches", "goal_stop", "flight_cells"]
+__all__ = ["check_goal", "cover_target", "flight_reaches", "goal_stop", "flight_cells"]
+
+
+def check_goal(cells: CellSpace, goal) -> int:
+    """A navigate task's goal: a configuration index z of ``cells`` (one sentence otherwise).
+
+    >>> import envs
+    >>> check_goal(CellSpace(envs.load("lab")), 999)
+    Traceback (most recent call last):
+    ...
+    envs.errors.UserError: goal 999 is out of range: configurations are 0 to 383.
+    """
+    try:
+        z = int(goal)
+    except (TypeError, ValueError):
+        raise UserError(f"goal {goal!r} is not a configuration index.") from None
+    if not 0 <= z < cells.N:
+        raise UserError(f"goal {z} is out of range: configurations are 0 to {cells.N - 1}.")
+    return z
+
+
+def cover_target(cells: CellSpace, target) -> np.ndarray:
+    """A cover task's target over the P position cells, summing to 1: uniform (None), a
+    target file (docs/model.md §17) or P non-negative weights.
+    """
+    if target is None:
+        return uniform_target(cells)
+    if isinstance(target, (str, Path)):
+        return load_target(target, cells)
+    b = np.asarray(target, dtype=float).ravel()
+    if b.shape != (cells.P,) or not np.all(np.isfinite(b)) or (b < 0).any() \
+            or not b.sum() > 0:
+        raise UserError(f"the target must be {cells.P} non-negative weights with a "
+                        "positive sum, one per position cell.")
+    return b / b.sum()
 
 
 def flight_reaches(start_xy, end_xy, heading_deg: float, cells: CellSpace, goal: int) -> bool:

@@ -35,7 +35,6 @@ from __future__ import annotations
 
 import math
 import warnings
-from pathlib import Path
 
 import numpy as np
 
@@ -53,13 +52,12 @@ except ModuleNotFoundError as exc:          # the optional extra is not installe
 import envs
 from envs import Environment, UserError
 from planners.cells import CellSpace
-from planners.coverage.targets import load_target, uniform_target
 from planners.metrics import tv_distance
 
 from .robots.base import CREATE2
 from .robots.kinematic_team import INTERACT, FlightEnd, KinematicTeam
 from .robots.noise import NoiseModel, parse_noise
-from .tasks import flight_cells, goal_stop
+from .tasks import check_goal, cover_target, flight_cells, goal_stop
 
 __all__ = ["TASKS", "TeamAECEnv", "TeamParallelEnv", "env", "raw_env", "parallel_env"]
 
@@ -92,7 +90,7 @@ class _Team:
             cells.angle_steps(a)
         self.noise = parse_noise(noise, cells.delta_deg) if isinstance(noise, str) else noise
         self.goals = None if goals is None else self._check_goals(goals)
-        self.target = self._load_target(target)
+        self.target = cover_target(self.cells, target)
         self.max_steps = int(max_steps)
         if self.max_steps < 1:
             raise UserError(f"max_steps must be at least 1, got {max_steps}.")
@@ -119,29 +117,7 @@ class _Team:
         goals = [goals] * self.k if np.ndim(goals) == 0 else list(goals)
         if len(goals) != self.k:
             raise UserError(f"give one goal per robot: {self.k} robots, {len(goals)} goals.")
-        out = []
-        for g in goals:
-            try:
-                z = int(g)
-            except (TypeError, ValueError):
-                raise UserError(f"goal {g!r} is not a configuration index.") from None
-            if not 0 <= z < self.cells.N:
-                raise UserError(f"goal {z} is out of range: configurations are 0 to "
-                                f"{self.cells.N - 1}.")
-            out.append(z)
-        return out
-
-    def _load_target(self, target) -> np.ndarray:
-        if target is None:
-            return uniform_target(self.cells)
-        if isinstance(target, (str, Path)):
-            return load_target(target, self.cells)
-        b = np.asarray(target, dtype=float).ravel()
-        if b.shape != (self.cells.P,) or not np.all(np.isfinite(b)) or (b < 0).any() \
-                or not b.sum() > 0:
-            raise UserError(f"the target must be {self.cells.P} non-negative weights with a "
-                            "positive sum, one per position cell.")
-        return b / b.sum()
+        return [check_goal(self.cells, g) for g in goals]
 
     def action(self, action) -> float:
         """The angle [deg] an action indexes (one-sentence error otherwise)."""
@@ -404,20 +380,7 @@ class TeamParallelEnv(_Base, ParallelEnv):
     and a step lasts until every robot's flight has ended (a robot that bumped waits still);
     truncation after max_steps steps.
 
-    Parameters
-    ----------
-    env : str, Path or Environment     a catalogue name, an env file or an environment
-    robots : int                       K, the number of robots (agents ``robot_0`` ...)
-    task : {"cover", "navigate"}
-    interact : {"bump", "off"}         robot-robot contact is a bump, or the robots pass
-                                       through each other (docs/model.md §24)
-    angles : sequence of float         the bouncing angles Φ [deg] the actions index
-    noise : str or NoiseModel          turn noise (``"none"``, ``"gauss:S"``, ``"model:eps=E,r=R"``)
-    goals : None, int or K ints        navigate: goal configurations (None: drawn per episode)
-    target : None, path or P weights   cover: the target (default uniform)
-    max_steps : int                    bounces per robot before truncation
-    step_cost : float                  navigate: −this for a bounce that misses the goal
-    speed : float                      drive speed [m/s]
+    Parameters are :class:`TeamAECEnv`'s (``max_steps``: steps of the team here).
     """
 
     def __init__(self, env="lab", robots: int = 2, task: str = "cover", *,
