@@ -163,3 +163,43 @@ def test_run_plan_fig3_on_mujoco(capsys):
     out = capsys.readouterr().out
     assert rc == 0, out
     assert "success" in out
+
+
+def test_batch_robot_follows_the_single_robot():
+    """Robot 0 of a batch of three (the others elsewhere in the same world, ignored) bumps
+    where one MuJoCoRobot driven by the same program bumps: same start, same turns.
+    """
+    from bouncesim.robots.mujoco.batch import MuJoCoBatch
+    from bouncesim.robots.noise import NoNoise
+    from planners.cells import CellSpace
+    env = envs.load("lab")
+    cs = CellSpace(env)
+    with MuJoCoBatch(env, 3, 0, cells=cs, noise=NoNoise(), starts=[16, 40, 200],
+                     speed=0.3) as batch:
+        res = batch.run(90.0, 30, record=True)
+    bumps = [t[:2] for t in res.turns[0]]
+    assert len(bumps) >= 3
+    # the same program on one robot, by hand: drive by the clock a cell at a time
+    bot = MuJoCoRobot(env)
+    bot.place(*cs.pose(16))
+    got = []
+    for _ in range(30):
+        ev = bot.drive_for(0.3, cs.h / 0.3)
+        if ev.bumped and 0.3 * ev.elapsed < cs.h:
+            got.append(bot.true_pose()[:2])
+            bot.turn(90.0)
+    bot.close()
+    assert len(got) == len(bumps)
+    assert np.allclose(got, bumps, atol=5e-3)
+
+
+@pytest.mark.slow
+def test_validate_mujoco_backend_few_steps(capsys):
+    import json
+    assert main(["validate", "lab", "--orientations", "72", "--eps", "5", "--r", "0.8",
+                 "--angles", "75", "--backend", "mujoco", "--steps", "128", "--burn-in",
+                 "2", "--json"]) == 0
+    r = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert r["backend"] == "mujoco" and r["steps"] == 128
+    assert 0 <= r["bumps_per_step_sim"] <= 1 and 0 < r["tv"] <= 1
+    assert math.isfinite(r["floor"])

@@ -155,6 +155,11 @@ class MuJoCoRobot(Robot):
         in PyBullet: exact tangency with a wall is fragile in a physics engine).
     solver_iterations : int
         MuJoCo's constraint solver iterations.
+    cone : {"elliptic", "pyramidal"}
+        MuJoCo's friction cone of the wheel–floor contacts: Coulomb's isotropic cone
+        (default) or MuJoCo's default four-sided pyramid, under which a wheel slips sideways
+        more easily along some directions than others (a pushed robot turns into a wall
+        about four times faster with it).
     spec : RobotSpec, optional
         Body and drive figures (default the Create 2 with the environment's robot radius).
     start : (x, y, heading_deg), optional
@@ -179,7 +184,7 @@ class MuJoCoRobot(Robot):
                  turn_speed: float = DEFAULT_TURN_SPEED, wheel_torque: float = 2.0,
                  wheel_gain: float = 2.0, bumper_arc_deg: float = 80.0,
                  clearance: float = 0.002, solver_iterations: int = 50,
-                 spec: RobotSpec | None = None,
+                 cone: str = "elliptic", spec: RobotSpec | None = None,
                  start: tuple[float, float, float] | None = None) -> None:
         self._closed = True
         if isinstance(env, (str, Path)):
@@ -197,6 +202,10 @@ class MuJoCoRobot(Robot):
             raise UserError(f"clearance must be in [0, {spec.radius / 2}) m, got {clearance}.")
         if not (wheel_torque > 0 and wheel_gain > 0):
             raise UserError("wheel_torque and wheel_gain must be positive.")
+        if cone not in ("elliptic", "pyramidal"):
+            raise UserError(f"cone must be 'elliptic' or 'pyramidal', got {cone!r}.")
+        self.cone = cone
+        self.solver_iterations = int(solver_iterations)
         self.noise, self.rng = noise_and_rng(noise, rng)
         self.time_step = float(time_step)
         self.turn_speed = float(turn_speed)
@@ -207,7 +216,7 @@ class MuJoCoRobot(Robot):
         mj = self._mj = import_mujoco()
         self.model = mj.MjModel.from_xml_string(world_xml(
             env, 1, spec=spec, params=self.params, time_step=self.time_step,
-            solver_iterations=int(solver_iterations)))
+            solver_iterations=self.solver_iterations, cone=cone))
         self.data = mj.MjData(self.model)
         self.bodies = Bodies(mj, self.model, 1)
         self._wheel_r = spec.wheel_diameter / 2

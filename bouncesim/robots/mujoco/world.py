@@ -136,9 +136,11 @@ def _prism(name: str, piece) -> tuple[str, str]:
 
 def world_xml(env: Environment, n_robots: int = 1, *, spec: RobotSpec | None = None,
               params: BodyParams | None = None, time_step: float = 0.005,
-              solver_iterations: int = 50) -> str:
+              solver_iterations: int = 50, cone: str = "elliptic") -> str:
     """MJCF text of ``env`` with ``n_robots`` Create 2 bodies (all at the origin, to be
-    placed); geoms ``wall{k}`` are the walls, ``floor`` the floor.
+    placed); geoms ``wall{k}`` are the walls, ``floor`` the floor. ``cone``: MuJoCo's
+    friction cone, ``"elliptic"`` (Coulomb's isotropic cone) or ``"pyramidal"`` (MuJoCo's
+    default, a four-sided approximation whose lateral slip depends on the direction).
     """
     from ..base import CREATE2
     spec = spec if spec is not None else CREATE2
@@ -159,7 +161,7 @@ def world_xml(env: Environment, n_robots: int = 1, *, spec: RobotSpec | None = N
     size = max(x1 - x0, y1 - y0) + 1.0
     return f"""<mujoco model="bouncesim-{env.name}">
   <option timestep="{time_step:.9g}" integrator="implicitfast" iterations="{solver_iterations}"
-          gravity="0 0 -9.81"/>
+          cone="{cone}" gravity="0 0 -9.81"/>
   <asset>
 {''.join(assets)}  </asset>
   <worldbody>
