@@ -203,3 +203,26 @@ def test_validate_mujoco_backend_few_steps(capsys):
     assert r["backend"] == "mujoco" and r["steps"] == 128
     assert 0 <= r["bumps_per_step_sim"] <= 1 and 0 < r["tv"] <= 1
     assert math.isfinite(r["floor"])
+
+
+def test_contact_calibration_quick_mujoco(tmp_path):
+    """The MuJoCo body bumps at once above 10.5° (the ±80° arc), slides at 0.5°–1°, and in
+    between turns into the wall and bumps (β between 1° and 3°, against PyBullet's 9.6°:
+    the engines disagree there, docs/readme_physics_mujoco.md).
+    """
+    import json
+
+    import pandas as pd
+
+    from experiments import contact_calibration as cc
+    out = tmp_path / "cc"
+    assert cc.main(["--quick", "--backend", "mujoco", "--out", str(out)]) == 0
+    cfg = json.loads((out / "config.json").read_text())
+    assert cfg["backend"] == "mujoco"
+    assert 1.0 <= cfg["fit"]["beta_deg"] <= 3.0
+    t = pd.read_csv(out / "trials.csv")
+    assert (t[t.incidence_deg >= 3].bump == 1).all()
+    assert (t[t.incidence_deg <= 1].bump == 0).all()
+    assert (t[t.incidence_deg >= 11].slide_m <= 1e-3).all()
+    turned = t[(t.incidence_deg >= 3) & (t.incidence_deg <= 9)]
+    assert (turned.heading_change_deg < -1.0).all()          # into the wall
