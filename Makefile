@@ -9,7 +9,7 @@ STAMP := $(VENV)/.installed
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[sim,hardware,dist,maps,gym,team,create3,dev]'
+	$(PY) -m pip install --quiet -e '.[sim,hardware,dist,maps,gym,team,create3,mujoco,dev]'
 	touch $(STAMP)
 
 run: $(STAMP)

@@ -21,3 +21,6 @@ if importlib.util.find_spec("gymnasium") is None:
 if importlib.util.find_spec("pettingzoo") is None:
     # the team environments need their extra (team)
     collect_ignore += ["bouncesim/team.py"]
+if importlib.util.find_spec("mujoco") is None:
+    # the MuJoCo Create 2's examples build a MuJoCo world (extra mujoco)
+    collect_ignore += ["bouncesim/robots/mujoco/robot.py", "bouncesim/robots/mujoco/batch.py"]

@@ -1,4 +1,8 @@
-"""Contact calibration: the PyBullet Create 2 driven into a straight wall at incidences 0.5°–90°.
+"""Contact calibration: a physics Create 2 driven into a straight wall at incidences 0.5°–90°.
+
+``--backend pybullet`` (default) calibrates the PyBullet body, ``--backend mujoco`` the MuJoCo
+one (:class:`bouncesim.robots.mujoco.MuJoCoRobot`, the same ±80° bumper arc, built by another
+engine); the PyBullet figures below are the ones stored in ``envs.motion.PYBULLET_CONTACT``.
 
 A disk that meets a wall at incidence α (the angle between its heading and the wall) touches
 it at a bearing of α − 90° from its heading. The PyBullet bumper reads contacts within ±80° of
@@ -19,7 +23,8 @@ its bearing, then either a bump (the bumper closes) or a slide of ``slide_budget
 wall without one. Recorded: bump, bearing, the slide length (along-wall travel from the first
 contact to the bump or the end), the speed factor v_t / v and the heading change.
 
-Outputs (under ``--out``, default results/contact_calibration/): ``trials.csv`` (one row per
+Outputs (under ``--out``, default results/contact_calibration/, or
+results/contact_calibration_mujoco/ for MuJoCo): ``trials.csv`` (one row per
 trial), ``fit.csv`` (bump rate and means per incidence), ``config.json`` (parameters, the
 fitted ``beta_deg`` and ``slide_friction``, versions, git revision) and ``contact.png`` (bump
 rate, slide length, heading change and speed factor against incidence, from the CSV alone).
@@ -37,17 +42,18 @@ import numpy as np
 import pandas as pd
 
 import envs
-from bouncesim.robots.pybullet import PyBulletRobot
 from envs.motion import PYBULLET_CONTACT
 from experiments.common import experiment_parser, output_dir, write_config
 
-__all__ = ["INCIDENCES", "QUICK_INCIDENCES", "Config", "draw_figure", "fit", "main", "run",
+__all__ = ["BACKENDS", "INCIDENCES", "QUICK_INCIDENCES", "Config", "draw_figure", "fit", "main",
+           "make_body", "run",
            "trial", "wall_room"]
 
 NAME = "contact_calibration"
 INCIDENCES = (0.5, 1, 2, 3, 5, 7, 8, 9, 9.5, 9.75, 9.9, 10, 10.1, 10.25, 10.5, 11, 12, 15,
               20, 30, 45, 60, 75, 90)
 QUICK_INCIDENCES = (0.5, 1, 3, 9, 9.75, 10.25, 11, 15, 30, 45, 60, 90)
+BACKENDS = ("pybullet", "mujoco")
 MUJOCO_SLIDES = ((1.0, 0.45), (3.0, 1.21), (10.0, 1.46))
 """(incidence [deg], slide [m]) of the separate MuJoCo check quoted in the issue."""
 
@@ -59,9 +65,20 @@ def wall_room() -> envs.Environment:
                                        "robot_radius": 0.17})
 
 
-def trial(bot: PyBulletRobot, incidence: float, gap: float, speed: float,
+def make_body(backend: str, bumper_arc_deg: float):
+    """The calibrated body in :func:`wall_room`: a PyBullet or a MuJoCo Create 2."""
+    if backend == "mujoco":
+        from bouncesim.robots.mujoco import MuJoCoRobot
+        return MuJoCoRobot(wall_room(), bumper_arc_deg=bumper_arc_deg)
+    from bouncesim.robots.pybullet import PyBulletRobot
+    return PyBulletRobot(wall_room(), bumper_arc_deg=bumper_arc_deg)
+
+
+def trial(bot, incidence: float, gap: float, speed: float,
           slide_budget: float) -> dict:
-    """One approach to the bottom wall at ``incidence`` [deg] from ``gap`` [m]; the record."""
+    """One approach of ``bot`` (a PyBullet or MuJoCo Create 2 with ``wall_contacts``) to the
+    bottom wall at ``incidence`` [deg] from ``gap`` [m]; the record.
+    """
     x0 = 0.5
     bot.place(x0, bot.body_radius + gap, -float(incidence))
     period = bot.spec.sensor_period
@@ -137,7 +154,8 @@ def draw_figure(out: Path) -> Path:
     g = t.groupby("incidence_deg")
     fig, ax = plt.subplots(2, 2, figsize=(11, 7.5))
     a = ax[0, 0]
-    a.plot(g.bump.mean().index, g.bump.mean(), "o-", label="PyBullet bump rate")
+    engine = {"pybullet": "PyBullet", "mujoco": "MuJoCo"}[cfg.get("backend", "pybullet")]
+    a.plot(g.bump.mean().index, g.bump.mean(), "o-", label=f"{engine} bump rate")
     a.axvline(beta, color="C3", ls="--", label=f"fitted β = {beta:.2f}°")
     a.axvline(90 - cfg["bumper_arc_deg"], color="0.5", ls=":",
               label=f"geometry: 90° − arc = {90 - cfg['bumper_arc_deg']:g}°")
@@ -168,7 +186,7 @@ def draw_figure(out: Path) -> Path:
     a.plot(xs, np.cos(np.radians(xs)), ":", color="0.5", label="frictionless: cos α")
     a.set(xlabel="incidence α [deg]", ylabel="speed factor", title="slide rule")
     a.legend(fontsize=8)
-    fig.suptitle(f"PyBullet Create 2 against a straight wall at {cfg['speed']} m/s "
+    fig.suptitle(f"{engine} Create 2 against a straight wall at {cfg['speed']} m/s "
                  f"({len(t)} trials)")
     fig.tight_layout()
     return save_figure(fig, out / "contact.png", dpi=100)
@@ -184,7 +202,8 @@ class Config:
     repeats : int                 trials per incidence (random gaps)
     speed : float                 drive speed [m/s]
     slide_budget : float          along-wall travel [m] after which a slide ends unbumped
-    bumper_arc_deg : float        the PyBullet bumper arc [deg]
+    bumper_arc_deg : float        the bumper arc [deg]
+    backend : str                 the physics engine: "pybullet" or "mujoco"
     quick : bool
     seed : int
     out : Path
@@ -195,6 +214,7 @@ class Config:
     speed: float = 0.3
     slide_budget: float = 3.0
     bumper_arc_deg: float = 80.0
+    backend: str = "pybullet"
     quick: bool = False
     seed: int = 0
     out: Path = Path("results") / NAME
@@ -205,7 +225,7 @@ def run(config: Config) -> Path:
     out = output_dir(config.out)
     rng = np.random.default_rng(config.seed)
     rows = []
-    with PyBulletRobot(wall_room(), bumper_arc_deg=config.bumper_arc_deg) as bot:
+    with make_body(config.backend, config.bumper_arc_deg) as bot:
         for inc in config.incidences:
             for rep in range(config.repeats):
                 gap = float(rng.uniform(0.0005, 0.005))
@@ -239,10 +259,15 @@ def main(argv=None) -> int:
     p.add_argument("--repeats", type=int, default=None, help="trials per incidence (default 6; "
                    "quick 2)")
     p.add_argument("--speed", type=float, default=0.3, help="drive speed [m/s] (default 0.3)")
+    p.add_argument("--backend", choices=BACKENDS, default="pybullet",
+                   help="the physics engine of the body (default pybullet)")
     args = p.parse_args(argv)
     q = args.quick
+    if args.backend != "pybullet" and args.out == Path("results") / NAME:
+        args.out = Path("results") / f"{NAME}_{args.backend}"
     config = Config(incidences=QUICK_INCIDENCES if q else INCIDENCES,
-                    repeats=args.repeats or (2 if q else 6), speed=args.speed, quick=q,
+                    repeats=args.repeats or (2 if q else 6), speed=args.speed,
+                    backend=args.backend, quick=q,
                     seed=args.seed, out=args.out)
     run(config)
     return 0

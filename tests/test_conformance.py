@@ -25,6 +25,12 @@ def _pybullet(env):
     return PyBulletRobot(env)
 
 
+def _mujoco(env):
+    pytest.importorskip("mujoco")
+    from bouncesim.robots.mujoco import MuJoCoRobot
+    return MuJoCoRobot(env)
+
+
 def _create3_emulator(env):
     from bouncesim.robots import make_robot
     return make_robot("create3-emulator", env)
@@ -35,6 +41,7 @@ BACKENDS = [
     pytest.param(_create3_emulator, id="create3-emulator"),
     pytest.param(_kinematic_glance, id="kinematic-glance80"),
     pytest.param(_pybullet, id="pybullet", marks=pytest.mark.physics),
+    pytest.param(_mujoco, id="mujoco", marks=pytest.mark.physics),
 ]
 
 

@@ -64,7 +64,8 @@ def test_make_robot_user_errors(lab, kind, options, message):
 
 
 def test_kinds():
-    assert KINDS == ("kinematic", "pybullet", "create2", "emulator", "create3", "create3-emulator")
+    assert KINDS == ("kinematic", "pybullet", "mujoco", "create2", "emulator", "create3",
+                     "create3-emulator")
 
 
 @pytest.mark.skipif(importlib.util.find_spec("serial") is None, reason="needs pyserial")

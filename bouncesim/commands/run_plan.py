@@ -55,6 +55,7 @@ def register(sub) -> None:
         "    (exits 4: with any rotation noise this plan ends one cell from the goal)\n"
         "  bouncesim run-plan lab --angles 90,135 --start 8 --goal 0 --robot pybullet "
         "--record run.mp4\n"
+        "  bouncesim run-plan lab --angles 90,135 --start 8 --goal 0 --robot mujoco\n"
         "  bouncesim run-plan lab --angles 90,135 --start 8 --goal 0 --robot emulator\n"
         "  bouncesim run-plan lab --angles 90,135 --start 8 --goal 0 --robot create2 "
         "--port /dev/ttyUSB0",
@@ -72,9 +73,10 @@ def register(sub) -> None:
                    "--seed) and localizes from its bumps first")
     p.add_argument("--goal", required=True, metavar="G", help="goal: z or X,Y,DEG")
     p.add_argument("--robot", choices=ROBOTS, default="kinematic",
-                   help="the exact kinematic twin (default), PyBullet, a real Create 2 over "
-                   "its Open Interface (create2, needs --port), the Create 2 adapter "
-                   "driving an in-process OI emulator through a real serial transport "
+                   help="the exact kinematic twin (default), PyBullet, MuJoCo (extra "
+                   "mujoco), a real Create 2 over its Open Interface (create2, needs "
+                   "--port), the Create 2 adapter driving an in-process OI emulator through "
+                   "a real serial transport "
                    "(emulator), a real Create 3 over Bluetooth through iRobot's SDK "
                    "(create3, extra create3), or the Create 3 adapter on an in-process "
                    "emulator the SDK can also talk to, in emulated time (create3-emulator)")
@@ -260,6 +262,8 @@ def _robot_options(args) -> dict:
         return {"glance_deg": args.glance}
     if args.robot == "pybullet":
         return {"gui": args.gui, "record": args.record}
+    if args.robot == "mujoco":
+        return {}
     if args.robot in ("create3", "create3-emulator"):
         options = {"turn": args.turn or "rotate"}
         if args.robot == "create3":

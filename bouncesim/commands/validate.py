@@ -4,7 +4,8 @@ For every bouncing angle (and, with ``--alpha``, the policy mix) it predicts the
 with a coverage model (:func:`planners.coverage.model_for`, ``analyse``; a mix with
 :func:`planners.coverage.timeshared_coverage`), simulates the step-sampled visit histogram q̂
 (docs/model.md §8) on the kinematic twin (:class:`~bouncesim.robots.kinematic.KinematicBatch`)
-or in PyBullet (:class:`~bouncesim.robots.pybullet.batch.PyBulletBatch`) through the seeded,
+in PyBullet (:class:`~bouncesim.robots.pybullet.batch.PyBulletBatch`) or in MuJoCo
+(:class:`~bouncesim.robots.mujoco.batch.MuJoCoBatch`) through the seeded,
 resumable sweep runner (:mod:`bouncesim.runs.sweep`), and compares them: TV(q, q̂), the noise
 floor (TV between two independent halves of the simulation), the steps behind q̂ and the
 bumps per step of the model and of the simulation.
@@ -58,21 +59,21 @@ from .common import (
 __all__ = ["register", "run", "simulate_trial", "more_trials", "floors", "protocol_prediction",
            "BACKENDS"]
 
-BACKENDS = ("kinematic", "pybullet")
-DEFAULT_STEPS = {"kinematic": 1_000_000, "pybullet": 40_000}
-"""Steps per angle: all of them (kinematic), or the first round's (pybullet, which then adds
-trials until the floor target is met)."""
-DEFAULT_FLOOR = {"kinematic": None, "pybullet": 0.02}
+BACKENDS = ("kinematic", "pybullet", "mujoco")
+DEFAULT_STEPS = {"kinematic": 1_000_000, "pybullet": 40_000, "mujoco": 40_000}
+"""Steps per angle: all of them (kinematic), or the first round's (pybullet, mujoco, which
+then add trials until the floor target is met)."""
+DEFAULT_FLOOR = {"kinematic": None, "pybullet": 0.02, "mujoco": 0.02}
 """The floor target of a run without --steps (None: the steps are fixed)."""
 MAX_STEPS = 1_000_000
 """Default cap on the steps per angle of a run with a floor target."""
 SPLITS = 200
 """Random balanced splits of the trials behind ``floor_splits``."""
-ROBOTS = {"kinematic": 200, "pybullet": 16}
+ROBOTS = {"kinematic": 200, "pybullet": 16, "mujoco": 16}
 """Robots per simulated batch (one sweep trial)."""
-PER_ROBOT = {"kinematic": 2500, "pybullet": 625}
+PER_ROBOT = {"kinematic": 2500, "pybullet": 625, "mujoco": 625}
 """Counted steps per robot in one trial, about (trials are cut to at least two halves)."""
-BURN_IN = {"kinematic": 200, "pybullet": 50}
+BURN_IN = {"kinematic": 200, "pybullet": 50, "mujoco": 50}
 TEAM_STEPS = 100_000
 """Default steps per angle of a team run (--robots K: one world of K robots per trial)."""
 TEAM_PER_ROBOT = 2500
@@ -98,10 +99,11 @@ are too short for the limit: compare tv_runs.
 Halves are groups of whole trials (batches of independent robots with their own seeds), never
 stretches of one robot's run, so they are independent. floor_splits (JSON) is the mean floor
 over 200 random splits of the trials into two equal groups: the same quantity, less noisy.
-Steps: the kinematic default is 1e6 per angle. PyBullet without --steps runs until every
-floor and floor_splits is <= 0.02: a first round of 40 000 steps per angle (4 trials of 16
-robots x 625 steps), then more trials for the angles still above, sized by floor ~ 1/sqrt(steps),
-up to 1e6 steps per angle (--max-steps; an angle that stops at the cap is reported on stderr).
+Steps: the kinematic default is 1e6 per angle. PyBullet (and MuJoCo) without --steps runs
+until every floor and floor_splits is <= 0.02: a first round of 40 000 steps per angle (4
+trials of 16 robots x 625 steps), then more trials for the angles still above, sized by
+floor ~ 1/sqrt(steps), up to 1e6 steps per angle (--max-steps; an angle that stops at the
+cap is reported on stderr).
 --steps N fixes the count; --floor F with --steps N makes N the first round.
 
 Teams (--robots K, kinematic only; docs/model.md section 24): each trial is one room with K
@@ -136,16 +138,16 @@ def register(sub) -> None:
                    help="simulator (default kinematic)")
     p.add_argument("--steps", type=int, default=None, metavar="N",
                    help="simulated steps per angle, after the burn-in (default 1e6 "
-                   "kinematic; pybullet: until the floor target, see --floor)")
+                   "kinematic; pybullet, mujoco: until the floor target, see --floor)")
     p.add_argument("--floor", type=float, default=None, metavar="F",
                    help="add trials until every angle's floor (and floor_splits) is <= F "
-                   "(default 0.02 for pybullet without --steps; with --steps N, N is the "
-                   "first round)")
+                   "(default 0.02 for pybullet and mujoco without --steps; with --steps N, "
+                   "N is the first round)")
     p.add_argument("--max-steps", type=int, default=MAX_STEPS, metavar="N",
                    help="cap on the steps per angle with a floor target (default 1e6)")
     p.add_argument("--burn-in", type=int, default=None, metavar="N",
                    help="steps per robot run first and not counted (default 200 kinematic, "
-                   "50 pybullet)")
+                   "50 pybullet and mujoco)")
     p.add_argument("--alpha", default=None, metavar="A1,A2,...|design",
                    help="also validate the mix with these weights over --angles, or 'design' "
                    "for the model's best mix for the uniform target")
@@ -158,7 +160,7 @@ def register(sub) -> None:
                    help="with --robots: robot-robot contact is a bump (default) or the robots "
                    "pass through each other")
     p.add_argument("--speed", type=float, default=0.3, metavar="M/S",
-                   help="PyBullet drive speed [m/s] (default 0.3)")
+                   help="PyBullet and MuJoCo drive speed [m/s] (default 0.3)")
     add_contact_arg(p, auto=True, what=" of the event model and the twin")
     p.add_argument("--seed", type=int, default=0, help="root seed (default 0)")
     p.add_argument("--out", type=Path, default=None, metavar="DIR",
@@ -202,8 +204,11 @@ def simulate_trial(params: dict, rng: np.random.Generator) -> dict:
             mix, steps, epoch=epoch, burn_in=burn_in)
         counts, dropped, bumps = res.counts, res.dropped, res.bumps
     else:
-        from ..robots.pybullet.batch import PyBulletBatch
-        with PyBulletBatch(env, n, rng, cells=cs, speed=float(params["speed"])) as batch:
+        if params["backend"] == "mujoco":
+            from ..robots.mujoco.batch import MuJoCoBatch as Batch
+        else:
+            from ..robots.pybullet.batch import PyBulletBatch as Batch
+        with Batch(env, n, rng, cells=cs, speed=float(params["speed"])) as batch:
             res = batch.run(mix, steps, epoch=epoch, burn_in=burn_in)
         counts, dropped, bumps = res.pooled, int(res.dropped.sum()), int(res.bumps.sum())
     return {"counted": int(counts.sum()), "dropped": int(dropped), "bumps": int(bumps),
@@ -344,6 +349,9 @@ def run(args) -> int:
     if backend == "pybullet":
         from ..robots.pybullet.robot import import_pybullet
         import_pybullet()                      # one sentence when pybullet is missing
+    if backend == "mujoco":
+        from ..robots.mujoco.robot import import_mujoco
+        import_mujoco()                        # one sentence when mujoco is missing
     t0 = time.perf_counter()
     contact = contact_rule(args)
     contact_text = ("off" if contact is None else

@@ -1,7 +1,8 @@
 """Build a robot by name: :func:`make_robot` (re-exported as ``bouncesim.robots.make_robot``).
 
-The kinematic twin is always there; PyBullet (extra ``sim``) and the Create 2 adapter and its
-emulator (extra ``hardware``, pyserial) are imported only when asked for.
+The kinematic twin is always there; PyBullet (extra ``sim``), MuJoCo (extra ``mujoco``) and the
+Create 2 adapter and its emulator (extra ``hardware``, pyserial) are imported only when asked
+for.
 """
 
 from __future__ import annotations
@@ -21,10 +22,11 @@ from .noise import NoiseModel, noise_and_rng
 
 __all__ = ["KINDS", "make_robot"]
 
-KINDS = ("kinematic", "pybullet", "create2", "emulator", "create3", "create3-emulator")
+KINDS = ("kinematic", "pybullet", "mujoco", "create2", "emulator", "create3", "create3-emulator")
 """The robots :func:`make_robot` builds."""
 
-_EXTRAS = {"pybullet": ("pybullet", "sim"), "create2": ("serial", "hardware"),
+_EXTRAS = {"pybullet": ("pybullet", "sim"), "mujoco": ("mujoco", "mujoco"),
+           "create2": ("serial", "hardware"),
            "emulator": ("serial", "hardware"), "create3": ("irobot_edu_sdk", "create3")}
 _CREATE3_EMULATOR = ("start", "reflex", "slowdown", "reflex_distance", "slowdown_distance",
                      "glance_deg", "faults", "name")
@@ -39,9 +41,11 @@ def make_robot(kind: str, env: Environment, *, noise: NoiseModel | None = None,
 
     Parameters
     ----------
-    kind : {"kinematic", "pybullet", "create2", "emulator", "create3", "create3-emulator"}
+    kind : {"kinematic", "pybullet", "mujoco", "create2", "emulator", "create3", \
+"create3-emulator"}
         ``kinematic``: :class:`~bouncesim.robots.kinematic.KinematicRobot`; ``pybullet``:
-        :class:`~bouncesim.robots.pybullet.PyBulletRobot`; ``create2``: a real Create 2 through
+        :class:`~bouncesim.robots.pybullet.PyBulletRobot`; ``mujoco``:
+        :class:`~bouncesim.robots.mujoco.MuJoCoRobot`; ``create2``: a real Create 2 through
         :class:`~bouncesim.robots.create2.Create2Robot` (``port`` required; it brings its own
         noise, so ``noise`` must be exact); ``emulator``: an
         :class:`~bouncesim.robots.create2.OIEmulator` of ``env`` started in this process (on a
@@ -80,8 +84,8 @@ def make_robot(kind: str, env: Environment, *, noise: NoiseModel | None = None,
     >>> make_robot("roomba", envs.load("lab"))
     Traceback (most recent call last):
     ...
-    envs.errors.UserError: unknown robot 'roomba'; use kinematic, pybullet, create2, emulator,
-    create3 or create3-emulator.
+    envs.errors.UserError: unknown robot 'roomba'; use kinematic, pybullet, mujoco, create2,
+    emulator, create3 or create3-emulator.
     """
     if kind not in KINDS:
         raise UserError(f"unknown robot {kind!r}; use {', '.join(KINDS[:-1])} or {KINDS[-1]}.")
@@ -97,6 +101,10 @@ def make_robot(kind: str, env: Environment, *, noise: NoiseModel | None = None,
         from .pybullet import PyBulletRobot
         _check_options(kind, PyBulletRobot, options)
         return PyBulletRobot(env, noise, rng, **options)
+    if kind == "mujoco":
+        from .mujoco import MuJoCoRobot
+        _check_options(kind, MuJoCoRobot, options)
+        return MuJoCoRobot(env, noise, rng, **options)
     if kind in ("create3", "create3-emulator"):
         return _create3(kind, env, noise, rng, options)
     from .create2 import Create2Robot, OIEmulator, parse_fault
