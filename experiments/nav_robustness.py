@@ -68,7 +68,7 @@ __all__ = ["BODIES", "CONDITIONS", "Config", "build_trials", "draw", "draw_maps"
            "feedback_config", "main", "maps_of", "run", "sample_pairs", "summarise", "trial"]
 
 ANGLES = (45.0, 90.0, 135.0)
-BODIES = ("twin", "twin-rule", "nearest", "pybullet")
+BODIES = ("twin", "twin-rule", "nearest", "pybullet", "create3")
 CONDITIONS = {
     # name: (body's turn noise, the navigator's declared noise, p_side, p_miss, unknown start)
     "sigma0": ("gauss:0", "gauss:0", 0.0, 0.0, False),
@@ -126,6 +126,9 @@ def _body(kind: str, env, noise, rng, p_side: float, p_miss: float):
     elif kind == "pybullet":
         from bouncesim.robots import make_robot
         body = make_robot("pybullet", env, noise=noise, rng=rng)
+    elif kind == "create3":             # the Create 3 adapter on its emulator of the twin
+        from bouncesim.robots import make_robot
+        body = make_robot("create3-emulator", env, noise=noise, rng=rng, glance_deg=None)
     else:
         raise envs.UserError(f"unknown body {kind!r}; choose from {', '.join(BODIES)}.")
     if p_side or p_miss:
@@ -322,7 +325,8 @@ def draw(summary: pd.DataFrame, path: Path) -> Path:
     s["sigma"] = s.condition.str.removeprefix("sigma").astype(float)
     fig, ax = plt.subplots(figsize=(6.8, 4.4), layout="constrained")
     colours = {"exact": "C0", "reliable": "C1", "feedback": "C2"}
-    styles = {"twin": "-", "nearest": "--", "twin-rule": ":", "pybullet": "-."}
+    styles = {"twin": "-", "nearest": "--", "twin-rule": ":", "pybullet": "-.",
+              "create3": (0, (1, 1))}
     bodies = sorted(s.body.unique(), key=lambda b: list(styles).index(b) if b in styles else 9)
     for (planner, body), d in s.groupby(["planner", "body"], sort=True):
         d = d.sort_values("sigma")
