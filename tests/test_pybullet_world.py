@@ -21,10 +21,10 @@ import shapely
 from shapely.geometry import Polygon
 
 import envs
+from bouncesim.robots import wall_pieces as pbwalls
 from bouncesim.robots.base import RobotError
 from bouncesim.robots.pybullet import robot as pbw
-from bouncesim.robots.pybullet import walls as pbwalls
-from bouncesim.robots.pybullet.walls import convex_pieces, ear_clip, wall_pieces
+from bouncesim.robots.wall_pieces import convex_pieces, ear_clip, wall_pieces
 from envs import UserError
 
 from .conftest import room

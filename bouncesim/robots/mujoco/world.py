@@ -2,7 +2,7 @@
 
 :func:`world_xml` returns the MJCF text of a room (docs/model.md §1 frame: x east, y north,
 metres) with ``n_robots`` Create 2 bodies in it. The walls are the convex pieces the PyBullet
-world is built from (:mod:`bouncesim.robots.pybullet.walls`: one slab per boundary edge, the
+world is built from (:mod:`bouncesim.robots.wall_pieces`: one slab per boundary edge, the
 obstacles cut into convex parts), each extruded to a 0.2 m prism (a MuJoCo mesh, which MuJoCo
 collides as its convex hull, so a convex piece is exact).
 
@@ -38,7 +38,7 @@ from shapely.geometry.polygon import orient
 from envs import Environment
 
 from ..base import RobotSpec
-from ..pybullet.walls import WALL_THICKNESS, convex_pieces, wall_pieces
+from ..wall_pieces import WALL_THICKNESS, convex_pieces, wall_pieces
 
 __all__ = ["BodyParams", "robot_xml", "world_xml", "WALL_HEIGHT"]
 

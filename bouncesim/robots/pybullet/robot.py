@@ -13,7 +13,7 @@ deterministic; the only randomness is the rotation noise, drawn from the robot's
 
 Geometry (world frame of docs/model.md §1: x east, y north, headings CCW from east): the
 boundary and the obstacles are extruded from the convex pieces of
-:mod:`bouncesim.robots.pybullet.walls`; walls are 0.2 m high, the robot body 0.09 m.
+:mod:`bouncesim.robots.wall_pieces`; walls are 0.2 m high, the robot body 0.09 m.
 """
 
 from __future__ import annotations
@@ -36,9 +36,9 @@ from envs.motion import PYBULLET_CONTACT
 
 from ..base import CREATE2, Robot, RobotError, RobotSpec
 from ..noise import NoiseModel, noise_and_rng
+from ..wall_pieces import WALL_THICKNESS, convex_pieces, wall_pieces
 from .bumper import CONTACT_TOLERANCE, contact_bearing, read_bumper
 from .video import Recorder, check_record_format
-from .walls import WALL_THICKNESS, convex_pieces, wall_pieces
 
 __all__ = ["PyBulletRobot", "DEFAULT_SPEED", "DEFAULT_TURN_SPEED", "DEFAULT_TIME_STEP",
            "import_pybullet"]

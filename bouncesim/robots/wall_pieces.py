@@ -1,7 +1,8 @@
 """Walls for a physics engine: an environment's polygons cut into convex pieces.
 
 Physics engines collide convex shapes, so the PyBullet world
-(:mod:`bouncesim.robots.pybullet.robot`) is built from these pieces (world frame of
+(:mod:`bouncesim.robots.pybullet.robot`) and the MuJoCo world
+(:mod:`bouncesim.robots.mujoco.world`) are built from these pieces (world frame of
 docs/model.md §1, metres):
 
 - the outer boundary becomes one thin convex slab per boundary edge, lying outside the free
