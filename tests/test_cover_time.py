@@ -237,6 +237,16 @@ def test_cli_writes_metrics(tmp_path, capsys):
     assert "coverage-time metrics over 300 steps" in capsys.readouterr().out
 
 
+def test_cli_metrics_default_horizon_and_start(tmp_path):
+    out = tmp_path / "out"
+    assert main(["coverage", "lab", "--orientations", "8", "--angles", "90", "--metrics",
+                 "--start", "0", "--metrics-runs", "20", "--no-plots", "--out", str(out)]) == 0
+    data = json.loads((out / "metrics.json").read_text())
+    assert data["horizon"] == 20_000 and data["start"] == 0
+    assert [r["robots"] for r in data["records"]] == [1]
+    assert not (out / "cover_time.png").exists()
+
+
 @pytest.mark.parametrize("argv,msg", [(["--robots", "3"], "--robots needs --metrics"),
                                       (["--metrics", "--robots", "0"], "at least 1"),
                                       (["--metrics", "--metrics-runs", "1"], "at least 2")])

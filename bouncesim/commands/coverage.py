@@ -224,7 +224,7 @@ def run(args) -> int:
     metrics_cli.check_args(args)
     start = None
     if args.horizon is not None or args.metrics:
-        if args.horizon < 1:
+        if args.horizon is not None and args.horizon < 1:
             raise UserError(f"--horizon must be at least one step, got {args.horizon}.")
         if args.horizon is not None and args.target_space != "positions":
             raise UserError("--horizon predicts coverage over position cells only; use "

@@ -14,7 +14,7 @@ import numpy as np
 
 from envs import UserError
 from planners.coverage import MixDesign
-from planners.coverage.cover_time import LEVELS, RUNS, coverage_metrics
+from planners.coverage.cover_time import LEVELS, RUNS, coverage_metrics, return_times
 
 __all__ = ["add_args", "check_args", "run_metrics", "write_metrics", "format_metrics",
            "DEFAULT_HORIZON"]
@@ -81,7 +81,13 @@ def run_metrics(model, result: MixDesign, args, start, timeshared=None,
     records = coverage_metrics(model, list(result.angles), result.noise,
                                limits=list(result.per_angle), progress=progress, **kw)
     if len(result.angles) > 1:
-        lim = None if timeshared is None or args.epoch is None else [timeshared]
+        if timeshared is not None and args.epoch is not None:
+            lim = [timeshared]
+        else:                                  # long epochs: Σ α_a s_a of the angles' limits
+            s = sum(a / return_times(model, result.noise, ang, limit=cov)
+                    for a, ang, cov in zip(result.alpha, result.angles, result.per_angle)
+                    if a > 0)
+            lim = [(s, 1.0)]
         records += coverage_metrics(model, result.mix, result.noise, epoch=epoch, limits=lim,
                                     **kw)
     out = [r.to_json() for r in records]

@@ -19,7 +19,7 @@ import numba
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["SampleTables", "sample_runs"]
+__all__ = ["SampleTables", "sample_runs", "turn_tables"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -171,7 +171,8 @@ def sample_runs(tables: SampleTables, turns, alpha, epoch: int | None, start_sta
     Parameters
     ----------
     tables : SampleTables
-    turns : sequence of (n, n) sparse   each angle's turn matrix (row-stochastic)
+    turns : sequence of (n, n) sparse   each angle's turn matrix (row-stochastic), or their
+                                        :func:`turn_tables` (built once for several calls)
     alpha : (m,) array                  probabilities of the angles (one angle: [1])
     epoch : int or None                 steps per epoch: every robot draws its own angle at
                                         steps 0, τ, 2τ, … (None: one angle for the whole run)
@@ -189,7 +190,7 @@ def sample_runs(tables: SampleTables, turns, alpha, epoch: int | None, start_sta
     idle (runs,) int64         longest stretch of steps in [0, horizon) in which some cell is
                                not visited by any robot of the team
     """
-    tptr, tcol, tcum = turn_tables(turns)
+    tptr, tcol, tcum = turns if isinstance(turns, tuple) else turn_tables(turns)
     a = np.asarray(alpha, dtype=float)
     acum = np.cumsum(a / a.sum())
     acum[-1] = 1.0

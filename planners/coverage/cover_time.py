@@ -42,10 +42,9 @@ from envs import UserError
 from ..noise import TurnNoise
 from ..plan import PolicyMix
 from .cover_exact import EXACT_MAX, exact_distribution, exact_size, subset_union
-from .cover_sample import SampleTables, sample_runs
+from .cover_sample import SampleTables, sample_runs, turn_tables
 from .event_flights import started_chain
 from .horizon import start_distribution
-from .timeshare import timeshared
 
 __all__ = ["LEVELS", "CoverMetrics", "coverage_metrics", "metric_times", "return_times"]
 
@@ -155,14 +154,18 @@ def return_times(model, noise: TurnNoise, policy, epoch: int | None = None,
     """Mean return time [steps] of every position cell (Kac): 1 / s_p, s_p the share of all
     steps (dropped ones included) counted in cell p in the limit; inf where s_p = 0.
 
-    ``policy``: an angle, or a :class:`PolicyMix` (executed in epochs of ``epoch`` steps,
-    docs/model.md §19). ``limit``: the angle's :class:`~planners.coverage.base.AngleCoverage`
-    or (q, counted fraction), when already known.
+    ``policy``: an angle, or a :class:`PolicyMix`. ``limit``: the angle's
+    :class:`~planners.coverage.base.AngleCoverage`, or (q, counted fraction), when already
+    known; for a mix executed in epochs pass §19's time-shared (q, counted fraction) when it
+    is known (``epoch`` is then not used). Without it a mix's shares are Σ α_a s_a over its
+    angles (the limit of long epochs, docs/model.md §16): the time-shared recursion can take
+    minutes on maps whose rooms exchange the robot rarely.
     """
     if limit is None and isinstance(policy, PolicyMix):
-        turns = [model.turn_matrix(a, noise) for a in policy.angles]
-        ts = timeshared(model.delay_chain(), turns, policy.alpha, int(epoch or 1000))
-        limit = (ts.q, ts.counted_fraction)
+        al = np.asarray(policy.alpha, dtype=float) / sum(policy.alpha)
+        s = sum(a / return_times(model, noise, ang) for a, ang in zip(al, policy.angles)
+                if a > 0)
+        limit = (s, 1.0)
     elif limit is None or hasattr(limit, "pi"):
         cov = limit if limit is not None else model.analyse(float(policy), noise)
         ch = _prepared(model, noise).sc.chain
@@ -249,13 +252,17 @@ def coverage_metrics(model, policy, noise: TurnNoise | None = None, *, robots=1,
     if exact and cs.P > 20:
         raise UserError(f"the exact cover times need at most 20 cells; this map has {cs.P}.")
     jobs = [(i, k) for i in range(len(policies)) for k in ks]
-    out = []
+    out, kept = [], {}
     for i, k in (progress(jobs) if progress else jobs):
         t0 = time.perf_counter()
         angle, angs, alpha = policies[i]
-        turns = [model.turn_matrix(a, noise) for a in angs]
+        if i not in kept:                        # one policy's turns serve every team size
+            kept.clear()
+            turns = [model.turn_matrix(a, noise) for a in angs]
+            kept[i] = (turns, turn_tables(turns))
+        turns, tt = kept[i]
         seed = int(rng.integers(2 ** 31 - 1))
-        counts, reach, idle = sample_runs(prep.tables, turns, alpha, epoch, sstates, sweights,
+        counts, reach, idle = sample_runs(prep.tables, tt, alpha, epoch, sstates, sweights,
                                           cs.P, k, int(runs), T, times, kneed, seed)
         if exact:
             cov, Ts = _exact_stats(prep.tables, turns, alpha, epoch, sstates, sweights, cs.P,
