@@ -144,12 +144,13 @@ def draw_figure(out: Path) -> Path:
         d = df[df["map"] == name]
         for i, (key, g) in enumerate(d.groupby(["angle", "robots"])):
             c = f"C{i}"
-            ax.plot(g.t, g.model, color=c, label=f"{key[0]}°, K={key[1]}: model")
+            team = f"{key[1]} robot" + ("s" if key[1] > 1 else "")
+            ax.plot(g.t, g.model, color=c, label=f"{key[0]}°, {team}: model")
             ax.plot(g.t, g.twin, "o", color=c, mfc="none", ms=4, label="twin")
         ax.set_xscale("log")
         ax.set_xlabel("t [steps per robot]")
         ax.set_ylabel("mean covered fraction C(t)")
-        ax.set_title(name)
+        ax.set_title(f"{name}: model (lines) against the twin (circles)")
         ax.legend(fontsize=6, ncol=2)
     return save_figure(fig, Path(out) / "cover_time.png", dpi=110)
 
