@@ -205,7 +205,6 @@ def _twin_check(env, angle, noise, robots, T, times, runs):
         env.name, angle, robots, m.covered_mean, sim.covered_mean, se)
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("seed", [0, 1])
 def test_model_against_twin_on_random_rooms(seed):
     env = random_rectilinear_room(np.random.default_rng(seed), orientations=72)
@@ -214,7 +213,6 @@ def test_model_against_twin_on_random_rooms(seed):
         _twin_check(env, 30.0 if seed else 75.0, noise, robots, 2000, [100, 500, 2000], 150)
 
 
-@pytest.mark.slow
 def test_model_against_twin_on_two_rooms():
     env = two_room(0.5, 72)
     for robots in (1, 4):
@@ -253,3 +251,13 @@ def test_cli_metrics_default_horizon_and_start(tmp_path):
 def test_cli_refuses_bad_metrics_flags(argv, msg, capsys):
     assert main(["coverage", "lab", "--orientations", "8", "--angles", "90", *argv]) != 0
     assert msg in capsys.readouterr().err
+
+
+def test_experiment_quick(tmp_path):
+    from experiments import cover_time
+    assert cover_time.main(["--quick", "--out", str(tmp_path)]) == 0
+    rows = tmp_path.joinpath("cover_time.csv").read_text().splitlines()
+    assert rows[0].startswith("map,P,angle,robots,t,model") and len(rows) == 1 + 3 * 2 * 3
+    assert (tmp_path / "cover_time.png").stat().st_size > 0
+    cfg = json.loads((tmp_path / "config.json").read_text())
+    assert cfg["quick"] is True and cfg["orientations"] == 72
