@@ -246,6 +246,7 @@ def test_cli_metrics_default_horizon_and_start(tmp_path):
 
 
 @pytest.mark.parametrize("argv,msg", [(["--robots", "3"], "--robots needs --metrics"),
+                                      (["--seed", "3"], "--seed needs --metrics"),
                                       (["--metrics", "--robots", "0"], "at least 1"),
                                       (["--metrics", "--metrics-runs", "1"], "at least 2")])
 def test_cli_refuses_bad_metrics_flags(argv, msg, capsys):

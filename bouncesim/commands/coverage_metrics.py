@@ -43,8 +43,9 @@ def add_args(p) -> None:
     p.add_argument("--simulate", type=int, default=0, metavar="N",
                    help="with --metrics: also simulate N runs (teams) on the kinematic twin "
                    "and draw them against the model (default 0: none)")
-    p.add_argument("--seed", type=int, default=0,
-                   help="with --metrics: seed of the sampled runs and the simulation")
+    p.add_argument("--seed", type=int, default=None,
+                   help="with --metrics: seed of the sampled runs and the simulation "
+                   "(default 0)")
 
 
 def check_args(args) -> None:
@@ -52,10 +53,13 @@ def check_args(args) -> None:
     if not args.metrics:
         for flag, value, default in (("--robots", args.robots, 1),
                                      ("--metrics-runs", args.metrics_runs, RUNS),
-                                     ("--simulate", args.simulate, 0)):
+                                     ("--simulate", args.simulate, 0),
+                                     ("--seed", args.seed, None)):
             if value != default:
                 raise UserError(f"{flag} needs --metrics.")
         return
+    if args.seed is None:                  # the metrics are random: config.json records it
+        args.seed = 0
     if args.robots < 1:
         raise UserError(f"--robots must be at least 1, got {args.robots}.")
     if args.metrics_runs < 2:
