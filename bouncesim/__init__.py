@@ -11,7 +11,8 @@ pybullet or pyserial):
   protocol, one :class:`Route`), the planners :class:`Navigator` (the paper's step model)
   and :class:`ExactNavigator` (exact bump poses), :class:`Plan`;
 - coverage: :func:`design_mix`, :func:`model_for`, :data:`MODELS`, :class:`TurnNoise`
-  (``planners.coverage``), :class:`PolicyMix`, :func:`tv_distance`;
+  (``planners.coverage``), :class:`PolicyMix`, :func:`tv_distance`,
+  :func:`coverage_metrics` (``planners.coverage.cover_time``: cover times, docs/model.md §20a);
 - robots: :class:`Robot` (the interface a body implements), :func:`make_robot`,
   :func:`parse_noise` (a noise spec as a body's noise model), :func:`noise_for_mix`
   (``bouncesim.robots``);
@@ -39,8 +40,8 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 __all__ = ["MODELS", "PLANNERS", "CellSpace", "ExactNavigator", "Navigator", "Plan", "PolicyMix",
-           "Robot", "Route", "Trace", "TurnNoise", "design_mix", "draw_env", "draw_trace",
-           "env_names", "execute", "heatmap", "import_map", "load", "make_planner",
+           "Robot", "Route", "Trace", "TurnNoise", "coverage_metrics", "design_mix", "draw_env",
+           "draw_trace", "env_names", "execute", "heatmap", "import_map", "load", "make_planner",
            "make_robot", "model_for", "navigate_feedback", "noise_for_mix", "parse_noise",
            "save_figure", "tv_distance"]
 
@@ -73,6 +74,7 @@ _LAZY = {
     "draw_env": ("bouncesim.plots", "draw_env"),
     "save_figure": ("bouncesim.plots", "save_figure"),
     "heatmap": ("bouncesim.coverage_plots", "heatmap"),
+    "coverage_metrics": ("planners.coverage.cover_time", "coverage_metrics"),
 }
 
 if TYPE_CHECKING:  # for type checkers and IDEs only; at run time __getattr__ imports
@@ -81,6 +83,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs only; at run time __getattr__ im
     from envs.map_import import import_map
     from planners.cells import CellSpace
     from planners.coverage import MODELS, design_mix, model_for
+    from planners.coverage.cover_time import coverage_metrics
     from planners.metrics import tv_distance
     from planners.navigation import PLANNERS, ExactNavigator, Navigator, Route, make_planner
     from planners.noise import TurnNoise

@@ -11,6 +11,8 @@ configuration cells) plus the cell space, so figures can be drawn from CSV files
   the target is uniform: then its one value is marked on the mix's colour bar) and their
   difference.
 - :func:`save_group_slices`: persistent groups drawn on the map for a few orientations.
+- :func:`save_cover_curves`: the covered fraction C(t) per policy and team size
+  (docs/model.md §20a), the model's mean and 10–90 % band, the simulation's mean when given.
 """
 
 from __future__ import annotations
@@ -32,7 +34,7 @@ if TYPE_CHECKING:
     from planners.cells import CellSpace
 
 __all__ = ["draw_map", "heatmap", "diff_heatmap", "save_heatmap", "save_mix_vs_target",
-           "save_group_slices", "position_grid"]
+           "save_group_slices", "position_grid", "save_cover_curves"]
 
 
 def position_grid(cs, values) -> np.ndarray:
@@ -181,4 +183,34 @@ def save_group_slices(path, cs, labels, orientations, title: str | None = None) 
                      fontsize=9)
     if title:
         fig.suptitle(title)
+    return save_figure(fig, path, dpi=110)
+
+
+def save_cover_curves(path, records: list, title: str | None = None) -> Path:
+    """C(t) against t, one panel per team size: for every record of ``metrics.json``
+    (docs/model.md §20a) the model's mean and its 10–90 % band, and where the record has
+    ``twin_covered_mean`` the simulated mean (markers).
+    """
+    sizes = sorted({int(r["robots"]) for r in records})
+    fig, axes = plt.subplots(1, len(sizes), figsize=(6.4 * len(sizes), 4.4), squeeze=False)
+    for ax, k in zip(axes[0], sizes):
+        mine = [r for r in records if int(r["robots"]) == k]
+        for i, r in enumerate(mine):
+            c = f"C{i}"
+            name = "mix" if r["angle"] == "mix" else f"{r['angle']}°"
+            t = np.asarray(r["t"], dtype=float)
+            ax.plot(t, r["covered_mean"], color=c, label=f"{name}: model ({r['method']})")
+            ax.fill_between(t, r["covered_p10"], r["covered_p90"], color=c, alpha=0.15, lw=0)
+            if r.get("twin_covered_mean") is not None:
+                ax.plot(t, r["twin_covered_mean"], "o", color=c, mfc="none", ms=4,
+                        label=f"{name}: simulation ({r['twin_runs']} runs)")
+        ax.set_xscale("log")
+        ax.set_ylim(0, 1.02)
+        ax.set_xlabel("t [steps of each robot]")
+        ax.set_ylabel("covered fraction C(t)")
+        ax.set_title(f"{k} robot" + ("s" if k > 1 else "") + " (band: 10-90 % of runs)")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, loc="lower right")
+    if title:
+        fig.suptitle(title, fontsize=10)
     return save_figure(fig, path, dpi=110)

@@ -38,6 +38,7 @@ from planners.coverage.horizon import CAP, LIMIT_TV
 from planners.metrics import tv_distance
 
 from ..runs.options import with_options
+from . import coverage_metrics as metrics_cli
 from .common import (
     add_angle_noise_args,
     add_contact_arg,
@@ -96,6 +97,14 @@ first T steps in each cell (from the uniform start, or --start), alpha is fitted
 says when T is far below a policy's steps_to_limit. Once a run's per-step share is steady and
 within TV 1e-4 of its limit, its remaining steps count at the limit, so T may be far beyond
 what can be stepped; a T the run would not settle for within 10^6 steps is refused at once.
+
+With --metrics: how fast each angle and the mix (executed in epochs of --epoch steps, default
+1000) cover the map over --horizon steps per robot (default 20000), for one robot and for a
+team of --robots K robots that ignore each other (docs/model.md section 20a): the covered
+fraction C(t), T_X for X = 0.5, 0.8, 0.9, 1.0, each cell's mean return time and the worst
+idleness, from the model's own chain (exactly on tiny maps, else from --metrics-runs sampled
+runs, with standard errors). Writes metrics.json (one record per policy and team size) and
+cover_time.png (with --simulate N, against N runs of the kinematic twin).
 """
 
 EXAMPLES = """\
@@ -109,6 +118,8 @@ examples:
       --epoch 1000
   bouncesim coverage two_room.json --orientations 72 --angles 30,75,315 --eps 5 --r 0.8 \
       --model event --horizon 2000 --start 0.51,1.19,0
+  bouncesim coverage two_room.json --angles 30,75,315 --eps 5 --r 0.8 --model event \
+      --metrics --robots 4 --horizon 20000 --out out/
 
 """ + TARGET_FORMATS
 
@@ -149,8 +160,9 @@ def register(sub) -> None:
                    help="coverage of the first STEPS steps instead of the limit, and alpha "
                    "fitted to it (docs/model.md section 20)")
     p.add_argument("--start", default=None, metavar="S",
-                   help="with --horizon: start configuration z or pose X,Y,DEG (default: "
-                   "uniform over the configurations)")
+                   help="with --horizon or --metrics: start configuration z or pose X,Y,DEG "
+                   "(default: uniform over the configurations)")
+    metrics_cli.add_args(p)
     p.add_argument("--limit-cap", type=int, default=CAP, metavar="STEPS",
                    help=f"largest T steps_to_limit tries (default {CAP:.0e})")
     p.add_argument("--limit-seconds", type=float, default=5.0, metavar="S",
@@ -209,18 +221,20 @@ def run(args) -> int:
         if args.target_space != "positions":
             raise UserError("--epoch predicts coverage over position cells only; use "
                             "--target-space positions.")
+    metrics_cli.check_args(args)
     start = None
-    if args.horizon is not None:
-        if args.horizon < 1:
+    if args.horizon is not None or args.metrics:
+        if args.horizon is not None and args.horizon < 1:
             raise UserError(f"--horizon must be at least one step, got {args.horizon}.")
-        if args.target_space != "positions":
+        if args.horizon is not None and args.target_space != "positions":
             raise UserError("--horizon predicts coverage over position cells only; use "
                             "--target-space positions.")
         if args.start is not None:
             from .plan import parse_config
             start = parse_config(args.start, cs, "start")
     elif args.start is not None:
-        raise UserError("--start needs --horizon (the limit does not depend on the start).")
+        raise UserError("--start needs --horizon or --metrics (the limit does not depend on "
+                        "the start).")
     spread = float(noise.support(cs.K)[0].max()) * cs.delta_deg    # ε, or the Gaussian's ±M·Δ
     check_fits(args, cs, MODELS[args.model].memory_estimate(cs, angles, spread, settings),
                what="coverage")
@@ -230,7 +244,7 @@ def run(args) -> int:
     model = model_for(cs, args.model, settings)
     result = design_mix(model, angles, noise, target=target, space=args.target_space,
                         progress=_progress(len(angles)), horizon=args.horizon,
-                        epoch=args.epoch, start=start)
+                        epoch=args.epoch, start=None if args.horizon is None else start)
     summary = summarise(result, cs, env.name, target_desc)
     summary["model"] = args.model
     summary["states"] = {"kind": MODELS[args.model].state_kind,
@@ -242,11 +256,11 @@ def run(args) -> int:
         summary["model_settings"] = {
             k: asdict(v) if is_dataclass(v) else v
             for k, v in ((f.name, getattr(settings, f.name)) for f in fields(settings))}
-    timeshared = None
+    timeshared = ts_limit = None
     if args.epoch is not None:
         ts = timeshared_coverage(model, result.mix, epoch=args.epoch,
                                  progress=_progress(None, "epochs", "epoch"))
-        timeshared = ts.q
+        timeshared, ts_limit = ts.q, (ts.q, ts.counted_fraction)
         summary["timeshared"] = {
             "epoch": ts.epoch, "tv": tv_distance(ts.q, result.target),
             "tv_to_A_alpha": tv_distance(ts.q, result.mixed_q()),
@@ -256,14 +270,23 @@ def run(args) -> int:
     if args.horizon is not None:
         summary["horizon"] = horizon_report(result, args, start, summary["steps_to_limit"],
                                             mix_limit)
+    metrics = None
+    if args.metrics:
+        metrics = metrics_cli.run_metrics(model, result, args, start, ts_limit,
+                                          progress=_progress(None, "metrics", "record"))
     if args.out is not None:
         written = write_outputs(result, cs, args.out, summary, plots=not args.no_plots,
                                 timeshared=timeshared, figures=args.figures)
+        if metrics is not None:
+            written += metrics_cli.write_metrics(args.out, metrics, not args.no_plots,
+                                                 args.figures)
         written.append(write_config(Path(args.out), args, cs.env))
     if args.json:
-        print(json.dumps(summary))
+        print(json.dumps(summary if metrics is None else {**summary, "metrics": metrics}))
     else:
         print(format_table(summary))
+        if metrics is not None:
+            print(metrics_cli.format_metrics(metrics))
     if args.out is not None:
         report_written(written, args)
     return 0

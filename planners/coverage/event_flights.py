@@ -30,7 +30,10 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["StepTable", "FlightCells", "StraightFlights", "step_table"]
+from .timeshare import DelayChain
+
+__all__ = ["StepTable", "FlightCells", "StartedChain", "StraightFlights", "started_chain",
+           "step_table"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -116,3 +119,70 @@ def step_table(cs, n_fwd, paths) -> StepTable:
     ok = cells >= 0                          # int32: the model keeps its tables (~10⁷ steps)
     return StepTable(flight=flight[ok].astype(np.int32), offset=offset[ok].astype(np.int32),
                      cell=cells[ok].astype(np.int32))
+
+
+@dataclass(frozen=True, eq=False)
+class StartedChain:
+    """A model's delay chain as a run from the start steps through it (docs/model.md §20),
+    every counted step of every flight listed.
+
+    Attributes
+    ----------
+    chain : DelayChain   the model's flights; for a model with flights (the event model) also
+                         the first flights from the cell centres, one on each of N extra
+                         states (``offset + z``: configuration z's first flight, weight 1);
+                         ``start`` is zero (a run's start is given separately)
+    steps : StepTable    counted steps of every flight of ``chain`` (``flight`` indexes its
+                         src/dst/delay/weight arrays)
+    offset : int         index of configuration 0's start state: a run from configuration z
+                         departs from state offset + z at step −1 (0 for the one-step models,
+                         whose states are the N configurations)
+    """
+
+    chain: DelayChain
+    steps: StepTable
+    offset: int
+
+
+def started_chain(model, noise) -> StartedChain:
+    """The delay chain of ``model`` (turn noise ``noise``; the event model's flights depend on
+    it only for Gaussian noise, §11a) with the first flights of a run and each flight's counted
+    steps: what the horizon coverage (docs/model.md §20) and the cover times (§20a) step
+    through.
+
+    For the one-step models (step, sampled) a state's flight is split into one flight per cell
+    its reward counts a step in (weight: that reward), and one flight that counts nothing for
+    the rest of the weight (a dropped step): the same expected counts, and each flight's step
+    in one cell, as the cover times need it.
+    """
+    cs = model.cs
+    if not model.steps_in_flights:
+        base = model.delay_chain()
+        R = sp.coo_matrix(base.reward)
+        n = base.n
+        rest = np.clip(1.0 - np.bincount(R.row, weights=R.data, minlength=n), 0.0, None)
+        drop = np.flatnonzero(rest > 1e-12)
+        keep = R.data > 0
+        src = np.concatenate([R.row[keep], drop]).astype(np.int64)
+        weight = np.concatenate([R.data[keep], rest[drop]])
+        weight = weight / np.bincount(src, weights=weight, minlength=n)[src]
+        F = int(keep.sum())
+        steps = StepTable(flight=np.arange(F, dtype=np.int32),
+                          offset=np.zeros(F, dtype=np.int32),
+                          cell=R.col[keep].astype(np.int32))
+        chain = DelayChain(src=src, dst=src.copy(), delay=np.ones(src.size, dtype=np.int64),
+                           weight=weight, reward=steps.reward(src, weight, n, cs.P),
+                           start=np.zeros(n))
+        return StartedChain(chain=chain, steps=steps, offset=0)
+    base, fc = model.delay_chain(noise), model.flight_cells(noise)
+    n, F = base.n, base.src.size
+    nt = n + cs.N
+    src = np.concatenate([base.src, n + np.arange(cs.N)])
+    weight = np.concatenate([base.weight, np.ones(cs.N)])
+    steps = StepTable(flight=np.concatenate([fc.steps.flight, F + fc.start_steps.flight]),
+                      offset=np.concatenate([fc.steps.offset, fc.start_steps.offset]),
+                      cell=np.concatenate([fc.steps.cell, fc.start_steps.cell]))
+    chain = DelayChain(src=src, dst=np.concatenate([base.dst, fc.start_land]),
+                       delay=np.concatenate([base.delay, fc.start_delay]), weight=weight,
+                       reward=steps.reward(src, weight, nt, cs.P), start=np.zeros(nt))
+    return StartedChain(chain=chain, steps=steps, offset=n)

@@ -44,7 +44,7 @@ from envs import UserError
 
 from ..metrics import tv_distance
 from ..noise import TurnNoise
-from .event_flights import StepTable
+from .event_flights import started_chain
 from .mix import MixDesign, solve_mix
 from .slow_mode import slow_mode
 from .timeshare import DelayChain, TimeShared
@@ -161,17 +161,9 @@ class _Recursion:
             base = model.delay_chain()
             ts = TimeShared(base)
             return cls(chain=base, ts=ts, offset=0, tailsT=sp.csr_matrix(ts.RT))
-        base, fc = model.delay_chain(noise), model.flight_cells(noise)
-        n, F = base.n, base.src.size
-        nt = n + cs.N
-        src = np.concatenate([base.src, n + np.arange(cs.N)])
-        weight = np.concatenate([base.weight, np.ones(cs.N)])
-        steps = StepTable(flight=np.concatenate([fc.steps.flight, F + fc.start_steps.flight]),
-                          offset=np.concatenate([fc.steps.offset, fc.start_steps.offset]),
-                          cell=np.concatenate([fc.steps.cell, fc.start_steps.cell]))
-        chain = DelayChain(src=src, dst=np.concatenate([base.dst, fc.start_land]),
-                           delay=np.concatenate([base.delay, fc.start_delay]), weight=weight,
-                           reward=steps.reward(src, weight, nt, cs.P), start=np.zeros(nt))
+        sc = started_chain(model, noise)
+        chain, steps, src, weight = sc.chain, sc.steps, sc.chain.src, sc.chain.weight
+        nt = chain.n
         ts = TimeShared(chain)
         # Q_j: rows j·nt + src of every step at offset m ≥ j (j < D)
         rep = steps.offset + 1
@@ -180,7 +172,7 @@ class _Recursion:
         tails = sp.csr_matrix((np.repeat(weight[steps.flight], rep),
                                (rows, np.repeat(steps.cell, rep))), shape=(ts.D * nt, cs.P))
         tails.sum_duplicates()
-        return cls(chain=chain, ts=ts, offset=n, tailsT=sp.csr_matrix(tails.T))
+        return cls(chain=chain, ts=ts, offset=sc.offset, tailsT=sp.csr_matrix(tails.T))
 
 
 class _Trajectory:

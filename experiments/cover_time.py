@@ -1,0 +1,173 @@
+"""Coverage-time metrics (docs/model.md §20a): the event model's prediction against the
+kinematic twin, for one robot and teams of four.
+
+On maps nobody tuned for (a two-room map of about 200 cells drawn here, and random
+rectilinear rooms from :mod:`envs.generated`) at K = 360, ε = 5°, r = 0.8 and the angles
+30°, 75° and 315°: the predicted mean covered fraction C(t) (sampled from the model's chain)
+against the twin's, at t = 1000, 5000 and 20000 steps, and T_90. Writes cover_time.csv (one
+row per map, angle, team size and t), config.json and cover_time.png (C(t), model against
+twin).
+
+    python -m experiments.cover_time            # the full run (about ten minutes)
+    python -m experiments.cover_time --quick    # a small map, K = 72, short horizon
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from bouncesim.runs.cover import twin_cover
+from envs import Environment
+from envs.generated import random_rectilinear_room
+from planners.cells import CellSpace
+from planners.coverage import TurnNoise, model_for
+from planners.coverage.cover_time import coverage_metrics, metric_times
+
+from .common import experiment_parser, output_dir, recorded, write_config
+
+NAME = "cover_time"
+ANGLES = (30.0, 75.0, 315.0)
+EPS, R = 5.0, 0.8
+
+
+def big_two_room(orientations: int = 360) -> Environment:
+    """Two rooms of 10 × 11 cells (h = 0.34 m) joined by a 0.51 m door, a pillar in each:
+    203 free cells.
+    """
+    h = 0.34
+    W, H = 20 * h, 11 * h
+    x0, x1 = 9.5 * h, 10.5 * h
+    d0, d1 = 5.5 * h - 0.255, 5.5 * h + 0.255
+    return Environment.from_dict({
+        "name": "big_two_room", "boundary": [[0, 0], [W, 0], [W, H], [0, H]],
+        "obstacles": [[[x0, 0], [x1, 0], [x1, d0], [x0, d0]],
+                      [[x0, d1], [x1, d1], [x1, H], [x0, H]],
+                      [[3 * h, 7 * h], [4 * h, 7 * h], [4 * h, 8 * h], [3 * h, 8 * h]],
+                      [[15 * h, 3 * h], [16 * h, 3 * h], [16 * h, 4 * h], [15 * h, 4 * h]]],
+        "robot_radius": 0.17,
+        "discretization": {"cell_size": h, "orientations": int(orientations)}})
+
+
+@dataclass(frozen=True)
+class Config:
+    """Parameters of one cover_time run.
+
+    Attributes
+    ----------
+    orientations : int     K
+    horizon : int          steps per robot
+    times : tuple          the t compared
+    rooms : int            random rectilinear rooms besides the two-room map
+    model_runs : int       sampled runs (teams) of the model per record
+    twin_runs : int        simulated teams per angle and team size
+    quick, seed, out
+    """
+
+    orientations: int = 360
+    horizon: int = 20_000
+    times: tuple = (1000, 5000, 20_000)
+    rooms: int = 1
+    model_runs: int = 2000
+    twin_runs: int = 200
+    quick: bool = False
+    seed: int = 0
+    out: Path = Path("results") / NAME
+
+
+def run(config: Config) -> Path:
+    """Model against twin on every map, angle and team size; writes CSV, figure, config."""
+    out = output_dir(config.out)
+    rng = np.random.default_rng(config.seed)
+    maps = [big_two_room(config.orientations)] + [
+        random_rectilinear_room(rng, config.orientations, name=f"rect{i}")
+        for i in range(config.rooms)]
+    noise = TurnNoise(EPS, R)
+    rows, curves = [], []
+    t0 = time.perf_counter()
+    for env in maps:
+        cs = CellSpace(env)
+        model = model_for(cs, "event")
+        t1 = time.perf_counter()
+        times = sorted(set(metric_times(config.horizon)) | set(config.times))
+        pred = coverage_metrics(model, ANGLES, noise, robots=[1, 4], horizon=config.horizon,
+                                runs=config.model_runs, rng=rng, exact=False,
+                                times=times)
+        model_s = time.perf_counter() - t1
+        for m in pred:
+            sim = twin_cover(env, m.angle, noise, robots=m.robots, runs=config.twin_runs,
+                             horizon=config.horizon, times=m.t, rng=rng, cells=cs)
+            for t in config.times:
+                i = list(m.t).index(t) if t in m.t else None
+                if i is None:
+                    continue
+                tw_T, tw_nr = sim.T_mean(0.9)
+                rows.append({"map": env.name, "P": cs.P, "angle": int(m.angle),
+                             "robots": m.robots, "t": t, "model": m.covered_mean[i],
+                             "model_se": m.covered_se[i], "twin": sim.covered_mean[i],
+                             "twin_se": sim.covered_se[i],
+                             "diff": m.covered_mean[i] - sim.covered_mean[i],
+                             "T90_model": m.T["0.9"]["mean"],
+                             "T90_model_not_reached": m.T["0.9"]["not_reached"],
+                             "T90_twin": tw_T, "T90_twin_not_reached": tw_nr,
+                             "model_seconds_all": model_s, "twin_seconds": sim.seconds})
+            for ti, cm, ct in zip(m.t, m.covered_mean, sim.covered_mean):
+                curves.append({"map": env.name, "angle": int(m.angle), "robots": m.robots,
+                               "t": int(ti), "model": cm, "twin": ct})
+        print(pd.DataFrame([r for r in rows if r["map"] == env.name]).to_string(index=False))
+    pd.DataFrame(rows).to_csv(out / "cover_time.csv", index=False, float_format="%.6g")
+    pd.DataFrame(curves).to_csv(out / "cover_curves.csv", index=False, float_format="%.6g")
+    write_config(out, {"experiment": NAME, **recorded(config), "angles": list(ANGLES),
+                       "eps": EPS, "r": R, "model": "event",
+                       "seconds": time.perf_counter() - t0})
+    draw_figure(out)
+    print(f"wrote {out}")
+    return out
+
+
+def draw_figure(out: Path) -> Path:
+    """cover_time.png from cover_curves.csv: C(t) per map, angle and team, model and twin."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from bouncesim.plots import save_figure
+
+    df = pd.read_csv(Path(out) / "cover_curves.csv")
+    maps = list(dict.fromkeys(df["map"]))
+    fig, axes = plt.subplots(1, len(maps), figsize=(6 * len(maps), 4.2), squeeze=False)
+    for ax, name in zip(axes[0], maps):
+        d = df[df["map"] == name]
+        for i, (key, g) in enumerate(d.groupby(["angle", "robots"])):
+            c = f"C{i}"
+            team = f"{key[1]} robot" + ("s" if key[1] > 1 else "")
+            ax.plot(g.t, g.model, color=c, label=f"{key[0]}°, {team}: model")
+            ax.plot(g.t, g.twin, "o", color=c, mfc="none", ms=4, label="twin")
+        ax.set_xscale("log")
+        ax.set_xlabel("t [steps per robot]")
+        ax.set_ylabel("mean covered fraction C(t)")
+        ax.set_title(f"{name}: model (lines) against the twin (circles)")
+        ax.legend(fontsize=6, ncol=2)
+    return save_figure(fig, Path(out) / "cover_time.png", dpi=110)
+
+
+def main(argv=None) -> int:
+    """Parse the command line into a :class:`Config` and :func:`run` it (exit status)."""
+    p = experiment_parser(NAME, __doc__.split("\n\n")[0])
+    args = p.parse_args(argv)
+    if args.quick:
+        config = Config(orientations=72, horizon=2000, times=(100, 1000, 2000), rooms=0,
+                        model_runs=300, twin_runs=30, quick=True, seed=args.seed,
+                        out=args.out)
+    else:
+        config = Config(seed=args.seed, out=args.out)
+    run(config)
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())

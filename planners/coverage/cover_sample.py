@@ -1,0 +1,205 @@
+"""Cover times by sampling a model's own chain (docs/model.md §20a): the hot loop.
+
+A run is a path of the model's delay chain (:class:`~planners.coverage.event_flights.StartedChain`)
+stepped one step at a time: each robot of a team is inside one flight (the flight's index
+and the offset of its next step); the step is counted in the flight's cell at that offset
+(or in none: a dropped step); after a flight's last step (the bump step) the robot lands,
+turns by its current angle (a row of the angle's turn matrix) and picks its next flight
+(by weight). The team's visited cells are one set; what a run reports is read off it at
+given steps. Compiled with numba: a step of one robot costs a few nanoseconds.
+
+The tables are flat arrays (CSR-like) built once per chain by :class:`SampleTables`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+import scipy.sparse as sp
+
+__all__ = ["SampleTables", "sample_runs", "turn_tables"]
+
+
+@dataclass(frozen=True, eq=False)
+class SampleTables:
+    """A :class:`~planners.coverage.event_flights.StartedChain` as flat arrays for
+    :func:`sample_runs`.
+
+    Attributes
+    ----------
+    fptr : (n+1,) int64      flights of state s are ``fidx[fptr[s]:fptr[s+1]]``
+    fidx : (F,) int64
+    fcum : (F,) float64      cumulative weights within each state's block (last = 1)
+    dst, delay : (F,) int64  landing state and steps of each flight
+    cptr : (F,) int64        flight f's steps are ``cells[cptr[f]:cptr[f] + delay[f]]``
+    cells : int32            cell of each step of each flight, −1 for a dropped step
+    """
+
+    fptr: np.ndarray
+    fidx: np.ndarray
+    fcum: np.ndarray
+    dst: np.ndarray
+    delay: np.ndarray
+    cptr: np.ndarray
+    cells: np.ndarray
+
+    @classmethod
+    def of(cls, started) -> "SampleTables":
+        """The tables of a :class:`~planners.coverage.event_flights.StartedChain`."""
+        ch, st = started.chain, started.steps
+        n = ch.n
+        order = np.argsort(ch.src, kind="stable")
+        fptr = np.zeros(n + 1, dtype=np.int64)
+        fptr[1:] = np.cumsum(np.bincount(ch.src, minlength=n))
+        fcum = _block_cumsum(np.asarray(ch.weight, dtype=float)[order], fptr)
+        delay = np.asarray(ch.delay, dtype=np.int64)
+        cptr = np.zeros(delay.size, dtype=np.int64)
+        cptr[1:] = np.cumsum(delay)[:-1]
+        cells = np.full(int(delay.sum()), -1, dtype=np.int32)
+        cells[cptr[st.flight] + st.offset] = st.cell
+        return cls(fptr=fptr, fidx=order.astype(np.int64), fcum=fcum,
+                   dst=np.asarray(ch.dst, dtype=np.int64), delay=delay, cptr=cptr,
+                   cells=cells)
+
+
+def _block_cumsum(w: np.ndarray, ptr: np.ndarray) -> np.ndarray:
+    """Cumulative sums of ``w`` restarted at every block of ``ptr``, each block's last
+    entry set to 1 exactly (so a uniform draw below 1 always finds an entry).
+    """
+    c = np.cumsum(w)
+    starts = np.repeat(np.concatenate([[0.0], c])[ptr[:-1]], np.diff(ptr))
+    c = c - starts
+    tot = np.repeat(np.where(np.diff(ptr) > 0, c[np.maximum(ptr[1:] - 1, 0)], 1.0),
+                    np.diff(ptr))
+    c = c / np.where(tot > 0, tot, 1.0)
+    c[ptr[1:][np.diff(ptr) > 0] - 1] = 1.0
+    return c
+
+
+def turn_tables(turns) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The angles' turn matrices (each n × n, row-stochastic) stacked for :func:`sample_runs`:
+    (tptr (m, n+1), tcol, tcum), row s of angle a at ``tptr[a, s]:tptr[a, s+1]``.
+    """
+    ptrs, cols, cums, base = [], [], [], 0
+    for W in turns:
+        W = sp.csr_matrix(W)
+        W.sum_duplicates()
+        ptr = W.indptr.astype(np.int64)
+        ptrs.append(ptr + base)
+        cols.append(W.indices.astype(np.int64))
+        cums.append(_block_cumsum(W.data.astype(float), ptr))
+        base += int(W.nnz)
+    return np.stack(ptrs), np.concatenate(cols), np.concatenate(cums)
+
+
+@numba.njit(cache=True)
+def _pick(cum, lo, hi, u):
+    """Index in [lo, hi) of the first cumulative weight above ``u`` (hi − 1 at the end)."""
+    i = lo + np.searchsorted(cum[lo:hi], u, side="right")
+    return min(i, hi - 1)
+
+
+@numba.njit(cache=True)
+def _kernel(fptr, fidx, fcum, dst, delay, cptr, cells, tptr, tcol, tcum, acum, epoch,
+            sstate, scum, P, robots, runs, horizon, times, kneed, seed):
+    np.random.seed(seed)
+    G, nk = times.size, kneed.size
+    counts = np.zeros((runs, G), dtype=np.int32)
+    reach = np.full((runs, nk), -1, dtype=np.int64)
+    idle = np.zeros(runs, dtype=np.int64)
+    first = np.empty(P, dtype=np.int64)
+    last = np.empty(P, dtype=np.int64)
+    fl = np.empty(robots, dtype=np.int64)
+    pos = np.empty(robots, dtype=np.int64)
+    cur = np.zeros(robots, dtype=np.int64)
+    m = acum.size
+    for run in range(runs):
+        first[:] = -1
+        last[:] = -1
+        covered, gi, ki, worst = 0, 0, 0, 0
+        for r in range(robots):
+            s = sstate[_pick(scum, 0, scum.size, np.random.random())]
+            fl[r] = fidx[_pick(fcum, fptr[s], fptr[s + 1], np.random.random())]
+            pos[r] = 0
+        for t in range(horizon):
+            while gi < G and times[gi] == t:
+                counts[run, gi] = covered
+                gi += 1
+            if m > 1 and t % epoch == 0:
+                for r in range(robots):
+                    cur[r] = _pick(acum, 0, m, np.random.random())
+            for r in range(robots):
+                f, j = fl[r], pos[r]
+                c = cells[cptr[f] + j]
+                if c >= 0:
+                    if first[c] < 0:
+                        first[c] = t
+                        covered += 1
+                        while ki < nk and covered >= kneed[ki]:
+                            reach[run, ki] = t + 1
+                            ki += 1
+                    gap = t - last[c] - 1
+                    if gap > worst:
+                        worst = gap
+                    last[c] = t
+                j += 1
+                if j == delay[f]:                      # the bump step: land, turn, fly on
+                    s = dst[f]
+                    a = cur[r]
+                    s = tcol[_pick(tcum, tptr[a, s], tptr[a, s + 1], np.random.random())]
+                    f = fidx[_pick(fcum, fptr[s], fptr[s + 1], np.random.random())]
+                    j = 0
+                fl[r], pos[r] = f, j
+        while gi < G:
+            counts[run, gi] = covered
+            gi += 1
+        for c in range(P):
+            gap = horizon - 1 - last[c]
+            if gap > worst:
+                worst = gap
+        idle[run] = worst
+    return counts, reach, idle
+
+
+def sample_runs(tables: SampleTables, turns, alpha, epoch: int | None, start_states,
+                start_weights, P: int, robots: int, runs: int, horizon: int, times, kneed,
+                seed: int):
+    """``runs`` independent runs of a team of ``robots`` robots over ``horizon`` steps.
+
+    Parameters
+    ----------
+    tables : SampleTables
+    turns : sequence of (n, n) sparse   each angle's turn matrix (row-stochastic), or their
+                                        :func:`turn_tables` (built once for several calls)
+    alpha : (m,) array                  probabilities of the angles (one angle: [1])
+    epoch : int or None                 steps per epoch: every robot draws its own angle at
+                                        steps 0, τ, 2τ, … (None: one angle for the whole run)
+    start_states, start_weights        states that depart at step −1, and their probabilities
+    P : int                             position cells
+    times : (G,) int, sorted            steps t ≥ 1 at which to read the visited cells
+    kneed : (k,) int, non-decreasing    cell counts whose first step to record
+    seed : int                          seeds the compiled sampler's generator
+
+    Returns
+    -------
+    counts (runs, G) int32     cells visited in steps 0 … t−1 for every t of ``times``
+    reach (runs, k) int64      the first t with at least ``kneed[i]`` cells visited in steps
+                               0 … t−1, −1 when not within the horizon
+    idle (runs,) int64         longest stretch of steps in [0, horizon) in which some cell is
+                               not visited by any robot of the team
+    """
+    tptr, tcol, tcum = turns if isinstance(turns, tuple) else turn_tables(turns)
+    a = np.asarray(alpha, dtype=float)
+    acum = np.cumsum(a / a.sum())
+    acum[-1] = 1.0
+    w = np.asarray(start_weights, dtype=float)
+    scum = np.cumsum(w / w.sum())
+    scum[-1] = 1.0
+    ep = int(epoch) if epoch is not None and a.size > 1 else int(horizon) + 1
+    return _kernel(tables.fptr, tables.fidx, tables.fcum, tables.dst, tables.delay,
+                   tables.cptr, tables.cells, tptr, tcol, tcum, acum, ep,
+                   np.asarray(start_states, dtype=np.int64), scum, int(P), int(robots),
+                   int(runs), int(horizon), np.asarray(times, dtype=np.int64),
+                   np.asarray(kneed, dtype=np.int64), int(seed))
