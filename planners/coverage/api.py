@@ -145,8 +145,10 @@ def design_mix(model: CoverageModel, angles: Iterable[float], noise: TurnNoise =
                target: ArrayLike | None = None, space: str = "positions",
                progress: Callable[[Iterable], Iterable] | None = None,
                horizon: int | None = None, epoch: int | None = None,
-               start=None) -> MixDesign:
-    """Algorithm 3 on any model: every angle's coverage, and the mix that best meets a target.
+               start=None, objective: str = "tv", **time_options):
+    """Algorithm 3 on any model: every angle's coverage, and the mix that best meets a target
+    (``objective="tv"``), or that covers the room fastest (``"cover90"``) or keeps the worst
+    idleness lowest (``"idleness"``).
 
     Parameters
     ----------
@@ -171,12 +173,33 @@ def design_mix(model: CoverageModel, angles: Iterable[float], noise: TurnNoise =
         ``convergence``. Without it (or with epoch ≥ horizon) each run keeps one angle and
         the fit is the exact linear one.
     start : optional   start of the horizon (:func:`~planners.coverage.horizon.start_distribution`)
+    objective : {"tv", "cover90", "idleness"}
+        ``"tv"``: the fit above. ``"cover90"``, ``"idleness"``: the α of the simplex grid that
+        minimises the mean time to cover 90 % of the room (runs that do not, counted at the
+        horizon) or the mean worst idleness over ``horizon`` steps (default 20 000) of the mix
+        in epochs of ``epoch`` steps (default 1000), sampled from the model's chain
+        (:func:`planners.coverage.time_design.design_for_time`, docs/model.md §20b; the
+        target, space and start do not apply).
+    **time_options : robots, runs, grid, rng, progress of :func:`design_for_time`
 
     Returns
     -------
     MixDesign   (``.alpha``, ``.residual``, ``.tv``, ``.per_angle`` and ``.mix``, the
-                :class:`PolicyMix` for :func:`bouncesim.runs.execute.execute`)
+                :class:`PolicyMix` for :func:`bouncesim.runs.execute.execute`); a
+                :class:`~planners.coverage.time_design.TimeDesign` (``.alpha``, ``.value``,
+                ``.mix``, every candidate's value) for a time objective
     """
+    if objective != "tv":
+        from .time_design import design_for_time
+        if target is not None or space != "positions" or start is not None:
+            raise UserError("a time objective covers the whole room from the uniform start: "
+                            "drop the target, space and start.")
+        return design_for_time(model, check_angles(model.cs.K, angles, noise), noise,
+                               objective, horizon=horizon or 20_000, epoch=epoch or 1000,
+                               **time_options)
+    if time_options:
+        raise UserError(f"design_mix takes {', '.join(sorted(time_options))} with a time "
+                        "objective only (objective='cover90' or 'idleness').")
     cs = model.cs
     space_size(cs, space)
     if space not in model.spaces:
