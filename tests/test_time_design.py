@@ -65,3 +65,18 @@ def test_design_mix_refuses_what_a_time_objective_does_not_use():
         design_mix(model, (90,), objective="cover90", target=np.ones(cs.P))
     with pytest.raises(UserError, match="with a time objective only"):
         design_mix(model, (90,), runs=5)
+
+
+@pytest.mark.slow
+def test_cover_design_quick(tmp_path):
+    import pandas as pd
+
+    from experiments import cover_design
+    assert cover_design.main(["--quick", "--out", str(tmp_path)]) == 0
+    t = pd.read_csv(tmp_path / "designs.csv")
+    assert t.objective.tolist() == ["tv", "cover90", "idleness"]
+    alphas = t[[c for c in t.columns if c.startswith("alpha_")]].to_numpy()
+    assert np.allclose(alphas.sum(1), 1.0)
+    # the shape design promises the lowest long-run TV of the three, by construction
+    assert t.limit_tv_to_uniform[0] <= t.limit_tv_to_uniform.min() + 1e-9
+    assert (t.twin_C_T > 0).all() and (t.model_C_T > 0).all()
