@@ -100,7 +100,7 @@ def test_batch_bumps_at_the_wall_and_turns_accurately(lab72):
 
 def test_halves_are_independent_robots(lab72):
     """BatchRun.halves splits the robots (even / odd), and the floor is their TV."""
-    from bouncesim.robots.pybullet.batch import BatchRun
+    from bouncesim.robots.batch_run import BatchRun
     counts = np.array([[2, 0], [0, 1], [1, 1]])
     run = BatchRun(counts=counts, dropped=np.zeros(3, int), bumps=np.zeros(3, int), steps=2,
                    physics_steps=0, sim_time=0.0, wall_s=0.0, cpu_s=0.0)

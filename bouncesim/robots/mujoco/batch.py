@@ -22,7 +22,6 @@ Examples
 
 from __future__ import annotations
 
-import heapq
 import math
 import time
 
@@ -31,17 +30,16 @@ import numpy as np
 from envs import Environment, UserError
 from envs.motion import step as step_rule
 from planners.cells import CellSpace
-from planners.plan import PolicyMix
 
-from ..noise import NoiseModel, NoNoise, noise_for_mix
-from ..pybullet.batch import BatchRun
+from ..batch_run import BatchRun, ProgramBatch
+from ..noise import NoiseModel
 from .robot import SETTLE_STEPS, Bodies, MuJoCoRobot, bumper_of, place_body, pose_of, wall_bearings
 from .world import world_xml
 
 __all__ = ["MuJoCoBatch"]
 
 
-class MuJoCoBatch:
+class MuJoCoBatch(ProgramBatch):
     """``n_robots`` MuJoCo Create 2 bodies in one world, running a policy mix in lockstep.
 
     Parameters
@@ -187,65 +185,21 @@ class MuJoCoBatch:
         physics step is simulated). A robot whose run has ended stands still, stopped, until
         the others finish.
         """
-        if not isinstance(policy, PolicyMix):
-            policy = PolicyMix((float(policy),), (1.0,))
-        angles = np.asarray(policy.angles, dtype=float)
-        alpha = np.asarray(policy.alpha, dtype=float)
-        alpha = alpha / alpha.sum()
-        for a in angles:
-            self.cells.angle_steps(a)
-        noise = self.noise if self.noise is not None else noise_for_mix(policy,
-                                                                         self.cells.delta_deg)
-        noise = noise if noise is not None else NoNoise()
-        if int(epoch) < 1 or int(steps) < 0 or int(burn_in) < 0:
-            raise UserError("epoch must be >= 1 and steps, burn_in >= 0.")
-        P = self.cells.P
-        out = {"counts": np.zeros((self.n, P), dtype=np.int64),
-               "dropped": np.zeros(self.n, dtype=np.int64),
-               "bumps": np.zeros(self.n, dtype=np.int64),
-               "turns": [[] for _ in range(self.n)] if record else None,
-               "poses": np.zeros((self.n, 3)),
-               "points": [[] for _ in range(self.n)]}
+        angles, alpha, noise, out = self._start(policy, steps, epoch, burn_in, record)
         mj, model, data = self._mj, self.model, self.data
         t_wall, t_cpu = time.perf_counter(), time.process_time()
         start_steps = self._steps
         programs = [self._program(i, angles, alpha, int(steps), int(epoch), int(burn_in),
                                   noise, out) for i in range(self.n)]
-        heap: list[tuple[int, int]] = []
 
-        def resume(i: int) -> None:
-            for n in programs[i]:
-                heapq.heappush(heap, (self._steps + n, i))
-                return
+        def done(i: int) -> None:
             out["poses"][i] = self._pose(i)
 
-        for i in range(self.n):
-            resume(i)
-        last = time.perf_counter()
-        total = max(1, self.n * (int(steps) + int(burn_in)))
-        while heap:
-            wake = heap[0][0]
-            if wake > self._steps:
-                mj.mj_step(model, data, nstep=wake - self._steps)
-            self._steps = wake
-            while heap and heap[0][0] == wake:
-                resume(heapq.heappop(heap)[1])
-            if progress is not None and time.perf_counter() - last > 2.0:
-                last = time.perf_counter()
-                done = sum(len(pts) for pts in out["points"])
-                progress(done / total)
-        n_phys = self._steps - start_steps
-        for i, pts in enumerate(out["points"]):
-            if pts:
-                c = self.cells.cell_of_point(np.asarray(pts))
-                out["counts"][i] = np.bincount(c[c >= 0], minlength=P)
-                out["dropped"][i] = int(np.count_nonzero(c < 0))
-        return BatchRun(counts=out["counts"], dropped=out["dropped"], bumps=out["bumps"],
-                        steps=int(steps), physics_steps=n_phys,
-                        sim_time=n_phys * self.host.time_step,
-                        wall_s=time.perf_counter() - t_wall,
-                        cpu_s=time.process_time() - t_cpu, turns=out["turns"],
-                        skipped=np.zeros(self.n, dtype=np.int64), poses=out["poses"])
+        self._schedule(programs, lambda n: mj.mj_step(model, data, nstep=n), done,
+                       progress=progress, points=out["points"],
+                       total=self.n * (int(steps) + int(burn_in)))
+        return self._result(out, steps, self._steps - start_steps, self.host.time_step,
+                            t_wall, t_cpu)
 
     def close(self) -> None:
         """Release the world (idempotent)."""

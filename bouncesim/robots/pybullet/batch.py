@@ -35,20 +35,17 @@ Examples
 
 from __future__ import annotations
 
-import heapq
 import math
 import time
-from dataclasses import dataclass
 
 import numpy as np
 
 from envs import Environment, UserError
 from envs.motion import step as step_rule
 from planners.cells import CellSpace
-from planners.metrics import tv_distance
-from planners.plan import PolicyMix
 
-from ..noise import NoiseModel, NoNoise, noise_for_mix
+from ..batch_run import BatchRun, ProgramBatch
+from ..noise import NoiseModel
 from .bumper import read_bumper
 from .fastforward import DEFAULT_FAST_FORWARD, Coaster, FastForward
 from .robot import SETTLE_STEPS, PyBulletRobot
@@ -68,61 +65,7 @@ ROBOT_MASK = 1 | 2
 another robot."""
 
 
-@dataclass(frozen=True)
-class BatchRun:
-    """Per-robot step-sampled visit histograms of a :class:`PyBulletBatch` run (§22).
-
-    Attributes
-    ----------
-    counts : (n, P) int array   steps counted per robot and free position cell
-    dropped : (n,) int array    steps counted in no free cell, per robot
-    bumps : (n,) int array      bump steps per robot
-    steps : int                 counted steps per robot (after the burn-in)
-    physics_steps : int         world steps taken (5 ms each by default)
-    sim_time : float            simulated time of the world steps [s] (each robot's own
-                                clock ran on by its ``skipped`` steps besides)
-    wall_s, cpu_s : float       wall-clock and process CPU time of the run [s]
-    skipped : (n,) int array    physics steps each robot fast-forwarded (Appendix C; 0 without)
-    poses : (n, 3) array        each robot's (x [m], y [m], heading [deg]) at its end
-    turns : list, optional      with ``record=True``, per robot, one
-                                (x [m], y [m], heading [deg], turn [deg], heading after
-                                [deg]) per bump: the contact pose, the executed turn (noise
-                                included) and the heading once the turn has settled
-    """
-
-    counts: np.ndarray
-    dropped: np.ndarray
-    bumps: np.ndarray
-    steps: int
-    physics_steps: int
-    sim_time: float
-    wall_s: float
-    cpu_s: float
-    turns: list | None = None
-    skipped: np.ndarray | None = None
-    poses: np.ndarray | None = None
-
-    @property
-    def total(self) -> int:
-        """All counted robot-steps, dropped ones included."""
-        return int(self.counts.sum() + self.dropped.sum())
-
-    @property
-    def pooled(self) -> np.ndarray:
-        """(P,) counts summed over the robots."""
-        return self.counts.sum(axis=0)
-
-    def halves(self) -> tuple[np.ndarray, np.ndarray]:
-        """(P,) counts of the even- and of the odd-numbered robots: two independent halves."""
-        return self.counts[0::2].sum(axis=0), self.counts[1::2].sum(axis=0)
-
-    def floor(self) -> float:
-        """TV between the two halves (docs/model.md §22's noise floor at half the budget)."""
-        a, b = self.halves()
-        return tv_distance(a, b) if a.sum() > 0 and b.sum() > 0 else math.nan
-
-
-class PyBulletBatch:
+class PyBulletBatch(ProgramBatch):
     """``n_robots`` Create 2 bodies in one PyBullet world, running a policy mix in lockstep.
 
     Parameters
@@ -392,26 +335,7 @@ class PyBulletBatch:
         -------
         BatchRun
         """
-        if not isinstance(policy, PolicyMix):
-            policy = PolicyMix((float(policy),), (1.0,))
-        angles = np.asarray(policy.angles, dtype=float)
-        alpha = np.asarray(policy.alpha, dtype=float)
-        alpha = alpha / alpha.sum()
-        for a in angles:
-            self.cells.angle_steps(a)
-        noise = self.noise if self.noise is not None else noise_for_mix(policy,
-                                                                         self.cells.delta_deg)
-        noise = noise if noise is not None else NoNoise()
-        if int(epoch) < 1 or int(steps) < 0 or int(burn_in) < 0:
-            raise UserError("epoch must be >= 1 and steps, burn_in >= 0.")
-        P = self.cells.P
-        out = {"counts": np.zeros((self.n, P), dtype=np.int64),
-               "dropped": np.zeros(self.n, dtype=np.int64),
-               "bumps": np.zeros(self.n, dtype=np.int64),
-               "turns": [[] for _ in range(self.n)] if record else None,
-               "skipped": np.zeros(self.n, dtype=np.int64),
-               "poses": np.zeros((self.n, 3)),
-               "points": [[] for _ in range(self.n)]}
+        angles, alpha, noise, out = self._start(policy, steps, epoch, burn_in, record)
         p, kw = self.host._p, self.host._kw
         stepsim = p.stepSimulation
         t_wall, t_cpu = time.perf_counter(), time.process_time()
@@ -420,42 +344,17 @@ class PyBulletBatch:
         self.host._robot = self.bodies[0]
         programs = [self._program(i, angles, alpha, int(steps), int(epoch), int(burn_in),
                                   noise, out) for i in range(self.n)]
-        heap: list[tuple[int, int]] = []
 
-        def resume(i: int) -> None:
-            for n in programs[i]:
-                heapq.heappush(heap, (self._steps + n, i))
-                return
-            self._retire(i, out)                  # done: it stops costing world steps
-
-        for i in range(self.n):
-            resume(i)
-        p.performCollisionDetection(**kw)
-        last = time.perf_counter()
-        total = max(1, self.n * (int(steps) + int(burn_in)))
-        while heap:
-            wake = heap[0][0]
-            for _ in range(wake - self._steps):
+        def advance(n: int) -> None:
+            for _ in range(n):
                 stepsim(**kw)
-            self._steps = wake
-            while heap and heap[0][0] == wake:
-                resume(heapq.heappop(heap)[1])
-            if progress is not None and time.perf_counter() - last > 2.0:
-                last = time.perf_counter()
-                done = sum(len(pts) for pts in out["points"])
-                progress(done / total)
-        n_phys = self._steps - start_steps
-        for i, pts in enumerate(out["points"]):
-            if pts:
-                c = self.cells.cell_of_point(np.asarray(pts))
-                out["counts"][i] = np.bincount(c[c >= 0], minlength=P)
-                out["dropped"][i] = int(np.count_nonzero(c < 0))
-        return BatchRun(counts=out["counts"], dropped=out["dropped"], bumps=out["bumps"],
-                        steps=int(steps), physics_steps=n_phys,
-                        sim_time=n_phys * self.host.time_step,
-                        wall_s=time.perf_counter() - t_wall,
-                        cpu_s=time.process_time() - t_cpu, turns=out["turns"],
-                        skipped=out["skipped"], poses=out["poses"])
+
+        self._schedule(programs, advance,
+                       lambda i: self._retire(i, out),   # done: it stops costing world steps
+                       before=lambda: p.performCollisionDetection(**kw), progress=progress,
+                       points=out["points"], total=self.n * (int(steps) + int(burn_in)))
+        return self._result(out, steps, self._steps - start_steps, self.host.time_step,
+                            t_wall, t_cpu)
 
     def close(self) -> None:
         """Disconnect the world (idempotent)."""
