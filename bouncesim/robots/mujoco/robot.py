@@ -31,8 +31,9 @@ from envs import Environment, UserError
 from envs.contact import switches
 from planners.measures import wrap180
 
-from ..base import CREATE2, Robot, RobotError, RobotSpec
+from ..base import CREATE2, Robot, RobotSpec
 from ..noise import NoiseModel, noise_and_rng
+from ..stepped import SETTLE_STEPS, SteppedWheels
 from .world import CONTACT_MARGIN, BodyParams, world_xml
 
 __all__ = ["MuJoCoRobot", "DEFAULT_TIME_STEP", "DEFAULT_TURN_SPEED", "import_mujoco",
@@ -42,7 +43,6 @@ DEFAULT_TIME_STEP = 1 / 200
 """Physics step [s]: 5 ms, as in PyBullet (the 15 ms sensor period is 3 steps)."""
 DEFAULT_TURN_SPEED = 0.1
 """Wheel speed while turning in place [m/s], as in PyBullet."""
-SETTLE_STEPS = 2
 
 
 def import_mujoco():
@@ -128,7 +128,7 @@ def bumper_of(bearings, arc_deg: float) -> tuple[bool, bool]:
     return switches([b for b in bearings if abs(b) <= arc_deg])
 
 
-class MuJoCoRobot(Robot):
+class MuJoCoRobot(SteppedWheels, Robot):
     """An iRobot Create 2 in a MuJoCo world built from an environment.
 
     Parameters
@@ -232,10 +232,6 @@ class MuJoCoRobot(Robot):
         self.place(*start)
 
     # ------------------------------------------------------------------ internals
-    def _check_open(self) -> None:
-        if self._closed:
-            raise RobotError("this MuJoCoRobot is closed.")
-
     def _set_wheels(self, v_left: float, v_right: float) -> None:
         R = self._wheel_r
         self.data.ctrl[self.bodies.act[0]] = (v_left / R, v_right / R)
@@ -245,20 +241,6 @@ class MuJoCoRobot(Robot):
         self._steps += int(n)
 
     # ------------------------------------------------------------------ Robot interface
-    def drive(self, speed: float) -> None:
-        """Drive straight at ``speed`` [m/s] (|speed| ≤ 0.5 m/s, the Create 2's limit)."""
-        self._check_open()
-        speed = float(speed)
-        if not math.isfinite(speed) or abs(speed) > self.spec.max_wheel_speed + 1e-12:
-            raise UserError(f"speed {speed} m/s exceeds the wheel speed limit "
-                            f"{self.spec.max_wheel_speed} m/s.")
-        self._set_wheels(speed, speed)
-
-    def stop(self) -> None:
-        """Stop both wheels (the velocity actuators brake at their torque limit)."""
-        if not self._closed:
-            self._set_wheels(0.0, 0.0)
-
     def bumper(self) -> tuple[bool, bool]:
         """(left, right) bumper switches from the engine's body–wall contacts.
 
@@ -292,21 +274,6 @@ class MuJoCoRobot(Robot):
             out.append((b, float(c.dist)))
         return out
 
-    def clock(self) -> float:
-        """Simulated time [s]: whole physics steps × time_step."""
-        return self._steps * self.time_step
-
-    def wait(self, duration: float) -> None:
-        """Step the physics for ``duration`` [s], rounded to whole steps without drift."""
-        self._check_open()
-        duration = float(duration)
-        if not duration >= 0:
-            raise UserError(f"cannot wait a negative or undefined time ({duration} s).")
-        self._t_goal += duration
-        n = int(round(self._t_goal / self.time_step)) - self._steps
-        if n > 0:
-            self._step(n)
-
     def encoders(self) -> tuple[int, int]:
         """(left, right) cumulative encoder counts from the wheel joint angles."""
         self._check_open()
@@ -320,14 +287,8 @@ class MuJoCoRobot(Robot):
         """
         self._check_open()
         actual = float(self.noise.sample(self.rng, float(angle_deg)))
-        if actual == 0:
-            return
-        v = math.copysign(self.turn_speed, actual)
-        n = round(self.spec.turn_time(actual, self.turn_speed) / self.time_step)
-        self._set_wheels(-v, v)
-        self.wait(n * self.time_step)
-        self.stop()
-        self.wait(SETTLE_STEPS * self.time_step)
+        if actual != 0:
+            self._turn_by_clock(actual)
 
     # ------------------------------------------------------------------ simulation only
     def place(self, x: float, y: float, heading_deg: float) -> None:

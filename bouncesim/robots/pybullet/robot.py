@@ -34,8 +34,9 @@ from shapely.geometry.polygon import orient
 from envs import Environment, UserError
 from envs.motion import PYBULLET_CONTACT
 
-from ..base import CREATE2, Robot, RobotError, RobotSpec
+from ..base import CREATE2, Robot, RobotSpec
 from ..noise import NoiseModel, noise_and_rng
+from ..stepped import SETTLE_STEPS, SteppedWheels
 from ..wall_pieces import WALL_THICKNESS, convex_pieces, wall_pieces
 from .bumper import CONTACT_TOLERANCE, contact_bearing, read_bumper
 from .video import Recorder, check_record_format
@@ -61,7 +62,6 @@ _CASTER_RADIUS = 0.01       # [m]
 _CASTER_OFFSET = 0.13       # caster/skid distance ahead of / behind the axle [m]
 _CASTER_GAP = 0.001         # casters hang this far above the floor at rest [m]
 _MESH_MARGIN = 1e-4         # collision margin of the wall prisms [m]
-SETTLE_STEPS = 2
 
 
 # ---------------------------------------------------------------------------- the robot
@@ -93,7 +93,7 @@ def import_pybullet():
     return pybullet
 
 
-class PyBulletRobot(Robot):
+class PyBulletRobot(SteppedWheels, Robot):
     """An iRobot Create 2 in a PyBullet world built from an environment.
 
     Parameters
@@ -384,10 +384,6 @@ class PyBulletRobot(Robot):
         return robot
 
     # ------------------------------------------------------------------ internals
-    def _check_open(self) -> None:
-        if self._closed:
-            raise RobotError("this PyBulletRobot is closed.")
-
     def _set_wheels(self, v_left: float, v_right: float) -> None:
         R = self._wheel_r
         self._p.setJointMotorControlArray(
@@ -424,20 +420,6 @@ class PyBulletRobot(Robot):
         return (enc[1] - enc[0]) * mpc / self.spec.wheel_base
 
     # ------------------------------------------------------------------ Robot interface
-    def drive(self, speed: float) -> None:
-        """Drive straight at ``speed`` [m/s] (|speed| ≤ 0.5 m/s, the Create 2's limit)."""
-        self._check_open()
-        speed = float(speed)
-        if not math.isfinite(speed) or abs(speed) > self.spec.max_wheel_speed + 1e-12:
-            raise UserError(f"speed {speed} m/s exceeds the wheel speed limit "
-                            f"{self.spec.max_wheel_speed} m/s.")
-        self._set_wheels(speed, speed)
-
-    def stop(self) -> None:
-        """Stop both wheels (the velocity motors brake at full torque)."""
-        if not self._closed:
-            self._set_wheels(0.0, 0.0)
-
     def bumper(self) -> tuple[bool, bool]:
         """(left, right) bumper switches from the body's contacts with walls.
 
@@ -446,21 +428,6 @@ class PyBulletRobot(Robot):
         """
         self._check_open()
         return read_bumper(self._p, self._robot, self._wall_set, self.bumper_arc_deg, self._kw)
-
-    def clock(self) -> float:
-        """Simulated time [s]: whole physics steps × time_step."""
-        return self._steps * self.time_step
-
-    def wait(self, duration: float) -> None:
-        """Step the physics for ``duration`` [s], rounded to whole steps without drift."""
-        self._check_open()
-        duration = float(duration)
-        if not duration >= 0:
-            raise UserError(f"cannot wait a negative or undefined time ({duration} s).")
-        self._t_goal += duration
-        n = int(round(self._t_goal / self.time_step)) - self._steps
-        if n > 0:
-            self._step(n)
 
     def encoders(self) -> tuple[int, int]:
         """(left, right) cumulative encoder counts (no 16-bit wrap in simulation)."""
@@ -489,14 +456,6 @@ class PyBulletRobot(Robot):
             self._turn_by_clock(actual)
         else:
             self._turn_by_encoders(actual)
-
-    def _turn_by_clock(self, angle_deg: float) -> None:
-        v = math.copysign(self.turn_speed, angle_deg)
-        n = round(self.spec.turn_time(angle_deg, self.turn_speed) / self.time_step)
-        self._set_wheels(-v, v)
-        self.wait(n * self.time_step)
-        self.stop()
-        self.wait(SETTLE_STEPS * self.time_step)
 
     def _turn_by_encoders(self, angle_deg: float) -> None:
         """Turn until the encoder heading change reaches the target, polling every sensor
