@@ -66,10 +66,9 @@ from envs import Environment, UserError
 from planners.cells import CellSpace
 from planners.metrics import tv_distance
 
-from .robots.base import CREATE2
 from .robots.factory import make_robot
-from .robots.noise import NoiseModel, parse_noise
-from .tasks import check_goal, cover_target, flight_cells, flight_reaches, goal_stop
+from .robots.noise import NoiseModel
+from .tasks import check_goal, check_task, cover_target, flight_cells, flight_reaches, goal_stop
 
 __all__ = ["ENV_ID", "TASKS", "BounceEnv", "flight_reaches", "goal_stop"]
 
@@ -116,24 +115,10 @@ class BounceEnv(gymnasium.Env):
         if task not in TASKS:
             raise UserError(f"unknown task {task!r}; use navigate or cover.")
         self.task = task
-        self.angles = tuple(float(a) for a in angles)
-        if not self.angles or len(set(self.angles)) != len(self.angles):
-            raise UserError("the bouncing angles must be one or more distinct angles.")
-        for a in self.angles:
-            cells.angle_steps(a)
-        self.noise = parse_noise(noise, cells.delta_deg) if isinstance(noise, str) else noise
+        self.angles, self.noise, self.max_steps, self.step_cost, self.speed = check_task(
+            cells, angles, noise, max_steps, step_cost, speed)
         self.goal = check_goal(self.cells, goal)
         self.target = cover_target(self.cells, target)
-        self.max_steps = int(max_steps)
-        if self.max_steps < 1:
-            raise UserError(f"max_steps must be at least 1, got {max_steps}.")
-        self.step_cost = float(step_cost)
-        if not math.isfinite(self.step_cost):
-            raise UserError(f"the step cost must be a finite number, got {step_cost}.")
-        self.speed = float(speed)
-        if not (math.isfinite(self.speed) and 0 < self.speed <= CREATE2.max_wheel_speed):
-            raise UserError(f"speed must lie in (0, {CREATE2.max_wheel_speed:g}] m/s, got "
-                            f"{speed}.")
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise UserError(f"unknown render mode {render_mode!r}; use None, human or "
                             "rgb_array.")

@@ -18,7 +18,8 @@ from planners.cells import CellSpace
 from planners.coverage.targets import load_target, uniform_target
 from planners.measures import heading_ok
 
-__all__ = ["check_goal", "cover_target", "flight_reaches", "goal_stop", "flight_cells"]
+__all__ = ["check_goal", "check_task", "cover_target", "flight_reaches", "goal_stop",
+           "flight_cells"]
 
 
 def check_goal(cells: CellSpace, goal) -> int:
@@ -37,6 +38,31 @@ def check_goal(cells: CellSpace, goal) -> int:
     if not 0 <= z < cells.N:
         raise UserError(f"goal {z} is out of range: configurations are 0 to {cells.N - 1}.")
     return z
+
+
+def check_task(cells: CellSpace, angles, noise, max_steps, step_cost, speed) -> tuple:
+    """A learning environment's common settings, checked (one sentence otherwise):
+    (angles [deg] as floats, the noise model, max_steps, step_cost, speed [m/s]).
+    """
+    from .robots.base import CREATE2
+    from .robots.noise import parse_noise
+    angles = tuple(float(a) for a in angles)
+    if not angles or len(set(angles)) != len(angles):
+        raise UserError("the bouncing angles must be one or more distinct angles.")
+    for a in angles:
+        cells.angle_steps(a)
+    noise = parse_noise(noise, cells.delta_deg) if isinstance(noise, str) else noise
+    steps = int(max_steps)
+    if steps < 1:
+        raise UserError(f"max_steps must be at least 1, got {max_steps}.")
+    cost = float(step_cost)
+    if not math.isfinite(cost):
+        raise UserError(f"the step cost must be a finite number, got {step_cost}.")
+    v = float(speed)
+    if not (math.isfinite(v) and 0 < v <= CREATE2.max_wheel_speed):
+        raise UserError(f"speed must lie in (0, {CREATE2.max_wheel_speed:g}] m/s, got "
+                        f"{speed}.")
+    return angles, noise, steps, cost, v
 
 
 def cover_target(cells: CellSpace, target) -> np.ndarray:

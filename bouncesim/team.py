@@ -54,10 +54,9 @@ from envs import Environment, UserError
 from planners.cells import CellSpace
 from planners.metrics import tv_distance
 
-from .robots.base import CREATE2
 from .robots.kinematic_team import INTERACT, FlightEnd, KinematicTeam
-from .robots.noise import NoiseModel, parse_noise
-from .tasks import check_goal, cover_target, flight_cells, goal_stop
+from .robots.noise import NoiseModel
+from .tasks import check_goal, check_task, cover_target, flight_cells, goal_stop
 
 __all__ = ["TASKS", "TeamAECEnv", "TeamParallelEnv", "env", "raw_env", "parallel_env"]
 
@@ -83,24 +82,10 @@ class _Team:
         if interact not in INTERACT:
             raise UserError(f"interact must be off or bump, got {interact!r}.")
         self.task, self.interact = task, interact
-        self.angles = tuple(float(a) for a in angles)
-        if not self.angles or len(set(self.angles)) != len(self.angles):
-            raise UserError("the bouncing angles must be one or more distinct angles.")
-        for a in self.angles:
-            cells.angle_steps(a)
-        self.noise = parse_noise(noise, cells.delta_deg) if isinstance(noise, str) else noise
+        self.angles, self.noise, self.max_steps, self.step_cost, self.speed = check_task(
+            cells, angles, noise, max_steps, step_cost, speed)
         self.goals = None if goals is None else self._check_goals(goals)
         self.target = cover_target(self.cells, target)
-        self.max_steps = int(max_steps)
-        if self.max_steps < 1:
-            raise UserError(f"max_steps must be at least 1, got {max_steps}.")
-        self.step_cost = float(step_cost)
-        if not math.isfinite(self.step_cost):
-            raise UserError(f"the step cost must be a finite number, got {step_cost}.")
-        self.speed = float(speed)
-        if not (math.isfinite(self.speed) and 0 < self.speed <= CREATE2.max_wheel_speed):
-            raise UserError(f"speed must lie in (0, {CREATE2.max_wheel_speed:g}] m/s, got "
-                            f"{speed}.")
         x0, y0, x1, y1 = self.room.bounds
         self.max_flight = math.hypot(x1 - x0, y1 - y0) + cells.h   # Bounce-v0's cap [m]
         self.names = [f"robot_{i}" for i in range(self.k)]
