@@ -63,3 +63,29 @@ def test_validate_teams(capsys):
                            (["--robots", "0"], "at least 1")):
         assert main(common + extra) == 2
         assert message in capsys.readouterr().err
+
+
+def test_first_visits_and_the_covered_fraction_by_hand():
+    cs = CellSpace(CORRIDOR)
+    res = team_coverage(CORRIDOR, 180.0, NoNoise(), robots=2, steps=6, burn_in=0,
+                        interact="bump", rng=np.random.default_rng(0), cells=cs,
+                        starts=[cs.z(0, 0), cs.z(3, 2)])
+    # robot 0: step 0 in cell 0, step 1 (its bump step) in cell 1; robot 1 mirrored
+    assert res.first_visit.tolist() == [0, 1, 1, 0]
+    assert res.covered([1, 2, 10]).tolist() == [0.5, 1.0, 1.0]
+    alone = team_coverage(CORRIDOR, 180.0, NoNoise(), robots=1, steps=6, burn_in=0,
+                          interact="bump", rng=np.random.default_rng(0), cells=cs,
+                          starts=[cs.z(0, 0)])
+    assert alone.first_visit.tolist() == [0, 1, 2, 3]      # a lone robot sweeps the corridor
+
+
+def test_team_cover_quick(tmp_path):
+    import pandas as pd
+
+    from experiments import team_cover
+    assert team_cover.main(["--quick", "--out", str(tmp_path)]) == 0
+    t = pd.read_csv(tmp_path / "team_cover.csv")
+    assert t["mode"].tolist() == ["model (independent)", "twin team, off", "twin team, bump"]
+    assert t.meetings_per_1000.tolist()[:2] == [0.0, 0.0] and t.meetings_per_1000[2] > 0
+    c = t[[col for col in t.columns if col.startswith("C(")]].to_numpy()
+    assert (np.diff(c, axis=1) >= 0).all() and (c <= 1).all()     # C(t) grows to at most 1

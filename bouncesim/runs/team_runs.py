@@ -50,6 +50,8 @@ class TeamCoverage:
     flights : int               counted flights (a flight counts when its steps do)
     meetings : int              counted flights that another robot ended
     seconds : float             the team's clock at the end [s]
+    first_visit : (P,) int array   for each cell, the smallest own-step index (burn-in
+                                included) at which any robot counted a step in it; −1 never
     """
 
     counts: np.ndarray
@@ -58,6 +60,15 @@ class TeamCoverage:
     flights: int
     meetings: int
     seconds: float
+    first_visit: np.ndarray | None = None
+
+    def covered(self, t) -> np.ndarray:
+        """The team's covered fraction after each robot's first ``t`` own steps (§20a, burn-in
+        included): the share of the cells with a first visit before t.
+        """
+        fv = self.first_visit
+        seen = np.where(fv >= 0, fv, np.iinfo(np.int64).max)
+        return (seen[None, :] < np.asarray(t, dtype=np.int64)[:, None]).mean(axis=1)
 
     @property
     def meetings_per_1000_steps(self) -> float:
@@ -95,6 +106,7 @@ def team_coverage(env: Environment, angle_deg: float, noise: NoiseModel | None, 
         x, y = cells.centres[p]
         team.place(i, float(x), float(y), float(h))
     per_robot = np.zeros((k, cells.P), dtype=np.int64)
+    first = np.full(cells.P, np.iinfo(np.int64).max, dtype=np.int64)
     made = np.zeros(k, dtype=np.int64)             # steps made, burn-in included
     dropped = flights = meetings = 0
     for i in range(k):
@@ -106,6 +118,8 @@ def team_coverage(env: Environment, angle_deg: float, noise: NoiseModel | None, 
         for e in ends:
             i = e.robot
             z = flight_cells(cells, e.start, e.end)
+            seen = z >= 0
+            np.minimum.at(first, z[seen], int(made[i]) + np.flatnonzero(seen))
             lo = max(0, burn_in - int(made[i]))
             hi = max(0, min(len(z), burn_in + steps - int(made[i])))
             made[i] += len(z)
@@ -117,4 +131,6 @@ def team_coverage(env: Environment, angle_deg: float, noise: NoiseModel | None, 
                 flights += 1
                 meetings += e.by == "robot"
             team.launch(i, angle_deg)
-    return TeamCoverage(per_robot.sum(0), per_robot, dropped, flights, meetings, team.time)
+    first[first == np.iinfo(np.int64).max] = -1
+    return TeamCoverage(per_robot.sum(0), per_robot, dropped, flights, meetings, team.time,
+                        first)
