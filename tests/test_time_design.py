@@ -41,9 +41,16 @@ def test_design_for_time_evaluates_every_candidate_with_one_seed():
     cs = CellSpace(envs.load("lab"))
     model, noise = model_for(cs, "event"), TurnNoise(45, 0.9)
     d = design_mix(model, (90, 135), noise, objective="cover90", horizon=400, epoch=100,
-                   runs=40, grid=4, rng=3)
+                   runs=40, grid=4, rng=3, refine=0)
     assert d.candidates.shape == (5, 2) and d.value == d.values.min()
     assert tuple(d.alpha) == tuple(d.candidates[int(np.argmin(d.values))])
+    # a second stage re-samples the best two with 3 × the runs and picks among them
+    r = design_mix(model, (90, 135), noise, objective="cover90", horizon=400, epoch=100,
+                   runs=40, grid=4, rng=3, refine=2, refine_factor=3)
+    assert np.array_equal(r.values, d.values) and len(r.refined) == 2
+    assert set(r.refined) == set(np.argsort(d.values, kind="stable")[:2].tolist())
+    best = min(r.refined, key=lambda i: r.refined[i][0])
+    assert tuple(r.alpha) == tuple(r.candidates[best]) and r.value == r.refined[best][0]
     # the plumbing, independently: candidate i's value is coverage_metrics' with that seed
     for i in (0, 2):
         mix = PolicyMix((90.0, 135.0), tuple(d.candidates[i]), 45, 0.9)

@@ -14,9 +14,10 @@ How it is optimised: both objectives come from sampled runs of the chain, so the
 and not smooth in α. The search is exhaustive over the simplex grid of step 1/n
 (:func:`simplex_grid`: every α with Σα = 1 and α_i a multiple of 1/n, the pure angles among
 them), each candidate evaluated with the same sampler seed (common random numbers: the
-differences between candidates are far less noisy than each value), and the best is
-returned with its standard error and every candidate's value. For three angles and n = 10
-that is 66 candidates.
+differences between candidates are far less noisy than each value). The ``refine`` best
+are then sampled again with ``refine_factor`` times the runs and a fresh seed, and the best
+of those is returned with its standard error and every candidate's value. For three angles
+and n = 10 that is 66 candidates.
 
 (:func:`planners.coverage.design_mix` with ``objective="cover90"`` or ``"idleness"`` calls
 :func:`design_for_time`; its default ``"tv"`` is §16's fit of the shape.)
@@ -80,7 +81,8 @@ class TimeDesign:
     alpha : ndarray (m,)      the best candidate
     value, value_se : float   its objective [steps] and standard error
     candidates : ndarray (c, m)   every α tried
-    values, values_se : ndarray (c,)
+    values, values_se : ndarray (c,)   the screening values (``runs`` runs, ``seed``)
+    refined : dict            candidate index -> (value, se) of the second stage
     horizon, epoch, robots, runs, seed : int   how the objective was sampled
     """
 
@@ -93,6 +95,7 @@ class TimeDesign:
     candidates: np.ndarray
     values: np.ndarray
     values_se: np.ndarray
+    refined: dict
     horizon: int
     epoch: int
     robots: int
@@ -108,8 +111,8 @@ class TimeDesign:
 
 def design_for_time(model, angles, noise: TurnNoise, objective: str = "cover90", *,
                     horizon: int = 20_000, epoch: int = 1000, robots: int = 1,
-                    runs: int = 300, grid: int = 10, rng=None,
-                    progress=None) -> TimeDesign:
+                    runs: int = 300, grid: int = 10, refine: int = 5,
+                    refine_factor: int = 5, rng=None, progress=None) -> TimeDesign:
     """The α over ``angles`` that minimises ``objective`` (module docstring).
 
     Parameters
@@ -123,6 +126,9 @@ def design_for_time(model, angles, noise: TurnNoise, objective: str = "cover90",
     robots : int                   team size K the objective is for
     runs : int                     sampled runs per candidate
     grid : int                     n of the simplex grid (step 1/n)
+    refine, refine_factor : int    the best ``refine`` candidates are sampled again with
+                                   ``refine_factor`` × ``runs`` runs and a new seed (0: no
+                                   second stage)
     rng : numpy.random.Generator or int   draws the one sampler seed all candidates share
     progress : callable, optional  wraps the iterable of candidates (tqdm)
     """
@@ -132,17 +138,27 @@ def design_for_time(model, angles, noise: TurnNoise, objective: str = "cover90",
     if int(grid) < 1:
         raise UserError(f"the simplex grid needs n >= 1, got {grid}.")
     rng = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
-    seed = int(rng.integers(2 ** 31 - 1))
+    seed, seed2 = (int(v) for v in rng.integers(2 ** 31 - 1, size=2))
     cands = simplex_grid(len(angles), int(grid))
-    values, ses = np.empty(len(cands)), np.empty(len(cands))
-    for i in (progress(range(len(cands))) if progress else range(len(cands))):
-        alpha = cands[i]
+
+    def evaluate(alpha, n, s):
         mix = PolicyMix(angles, tuple(alpha), noise.eps_deg, noise.r, noise.sigma_deg)
         rec, = coverage_metrics(model, mix, noise, robots=int(robots), horizon=int(horizon),
-                                epoch=int(epoch), runs=int(runs), rng=seed, exact=False,
+                                epoch=int(epoch), runs=int(n), rng=s, exact=False,
                                 times=[int(horizon)])
-        values[i], ses[i] = objective_value(rec, objective)
-    best = int(np.argmin(values))
-    return TimeDesign(objective, angles, noise, cands[best], float(values[best]),
-                      float(ses[best]), cands, values, ses, int(horizon), int(epoch),
-                      int(robots), int(runs), seed)
+        return objective_value(rec, objective)
+
+    values, ses = np.empty(len(cands)), np.empty(len(cands))
+    for i in (progress(range(len(cands))) if progress else range(len(cands))):
+        values[i], ses[i] = evaluate(cands[i], runs, seed)
+    refined = {int(i): evaluate(cands[i], int(runs) * int(refine_factor), seed2)
+               for i in np.argsort(values, kind="stable")[:max(int(refine), 0)]}
+    if refined:
+        best = min(refined, key=lambda i: refined[i][0])
+        value, se = refined[best]
+    else:
+        best = int(np.argmin(values))
+        value, se = values[best], ses[best]
+    return TimeDesign(objective, angles, noise, cands[best], float(value), float(se), cands,
+                      values, ses, refined, int(horizon), int(epoch), int(robots), int(runs),
+                      seed)
