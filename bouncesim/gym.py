@@ -68,7 +68,15 @@ from planners.metrics import tv_distance
 
 from .robots.factory import make_robot
 from .robots.noise import NoiseModel
-from .tasks import check_goal, check_task, cover_target, flight_cells, flight_reaches, goal_stop
+from .tasks import (
+    check_goal,
+    check_task,
+    cover_target,
+    flight_cells,
+    flight_reaches,
+    goal_stop,
+    start_pose,
+)
 
 __all__ = ["ENV_ID", "TASKS", "BounceEnv", "flight_reaches", "goal_stop"]
 
@@ -183,22 +191,6 @@ class BounceEnv(gymnasium.Env):
             info["dropped"] = self._dropped
         return info
 
-    def _start_pose(self, start) -> tuple[float, float, float]:
-        cells = self.cells
-        if isinstance(start, (int, np.integer)):
-            if not 0 <= int(start) < cells.N:
-                raise UserError(f"start {int(start)} is out of range: configurations are 0 "
-                                f"to {cells.N - 1}.")
-            return cells.pose(int(start))
-        try:
-            x, y, h = (float(v) for v in start)
-        except (TypeError, ValueError):
-            raise UserError("start must be a configuration index or a pose (x, y, heading)."
-                            ) from None
-        if not self.room.points_free([[x, y]])[0]:
-            raise UserError(f"the robot does not fit at the start ({x:g}, {y:g}).")
-        return x, y, h
-
     # ------------------------------------------------------------------ Gymnasium API
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         """Start an episode: place the robot and drive it to its first bump.
@@ -219,8 +211,8 @@ class BounceEnv(gymnasium.Env):
         self._steps, self._reached, self._tv, self._dropped = 0, False, 1.0, 0
         self._visits = np.zeros(self.cells.P, dtype=np.int64)
         for _ in range(_MAX_STARTS):
-            pose = self._start_pose(start if start is not None
-                                    else int(self.np_random.integers(self.cells.N)))
+            pose = start_pose(self.cells, start if start is not None
+                              else int(self.np_random.integers(self.cells.N)))
             self._robot.place(*pose)
             self._trail = [pose[:2]]
             obs, before, after = self._fly()

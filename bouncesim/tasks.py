@@ -19,7 +19,7 @@ from planners.coverage.targets import load_target, uniform_target
 from planners.measures import heading_ok
 
 __all__ = ["check_goal", "check_task", "cover_target", "flight_reaches", "goal_stop",
-           "flight_cells"]
+           "flight_cells", "start_pose"]
 
 
 def check_goal(cells: CellSpace, goal) -> int:
@@ -63,6 +63,25 @@ def check_task(cells: CellSpace, angles, noise, max_steps, step_cost, speed) -> 
         raise UserError(f"speed must lie in (0, {CREATE2.max_wheel_speed:g}] m/s, got "
                         f"{speed}.")
     return angles, noise, steps, cost, v
+
+
+def start_pose(cells: CellSpace, start) -> tuple[float, float, float]:
+    """A robot's start, a configuration z or a pose (x [m], y [m], heading [deg]), as a pose
+    (one sentence when it is out of range or the robot does not fit there).
+    """
+    if isinstance(start, (int, np.integer)):
+        if not 0 <= int(start) < cells.N:
+            raise UserError(f"start {int(start)} is out of range: configurations are 0 to "
+                            f"{cells.N - 1}.")
+        return cells.pose(int(start))
+    try:
+        x, y, h = (float(v) for v in start)
+    except (TypeError, ValueError):
+        raise UserError("a start must be a configuration index or a pose "
+                        "(x, y, heading).") from None
+    if not cells.env.points_free([[x, y]])[0]:
+        raise UserError(f"the robot does not fit at the start ({x:g}, {y:g}).")
+    return x, y, h
 
 
 def cover_target(cells: CellSpace, target) -> np.ndarray:

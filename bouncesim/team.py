@@ -56,7 +56,7 @@ from planners.metrics import tv_distance
 
 from .robots.kinematic_team import INTERACT, FlightEnd, KinematicTeam
 from .robots.noise import NoiseModel
-from .tasks import check_goal, check_task, cover_target, flight_cells, goal_stop
+from .tasks import check_goal, check_task, cover_target, flight_cells, goal_stop, start_pose
 
 __all__ = ["TASKS", "TeamAECEnv", "TeamParallelEnv", "env", "raw_env", "parallel_env"]
 
@@ -112,22 +112,6 @@ class _Team:
                             "bouncing angles.")
         return self.angles[int(action)]
 
-    def _start_pose(self, start) -> tuple[float, float, float]:
-        cells = self.cells
-        if isinstance(start, (int, np.integer)):
-            if not 0 <= int(start) < cells.N:
-                raise UserError(f"start {int(start)} is out of range: configurations are 0 "
-                                f"to {cells.N - 1}.")
-            return cells.pose(int(start))
-        try:
-            x, y, h = (float(v) for v in start)
-        except (TypeError, ValueError):
-            raise UserError("a start must be a configuration index or a pose "
-                            "(x, y, heading).") from None
-        if not self.room.points_free([[x, y]])[0]:
-            raise UserError(f"a robot does not fit at the start ({x:g}, {y:g}).")
-        return x, y, h
-
     # ------------------------------------------------------------------ episode
     def reset(self, rng: np.random.Generator, options: dict | None) -> None:
         """Goals, starts and every robot's first flight (no turn) launched at time 0."""
@@ -149,8 +133,8 @@ class _Team:
         for i in range(self.k):
             for _ in range(_MAX_STARTS):
                 given = starts[i] if starts is not None else None
-                pose = self._start_pose(given if given is not None
-                                        else int(rng.integers(self.cells.N)))
+                pose = start_pose(self.cells, given if given is not None
+                                  else int(rng.integers(self.cells.N)))
                 if self.interact == "bump" and any(
                         math.hypot(pose[0] - x, pose[1] - y) < 2 * world.radius - 1e-9
                         for x, y, _ in placed):
