@@ -433,9 +433,6 @@ class EmulatorBackend:
         self._t0 = None
 
     # ------------------------------------------------------------------ clock
-    def _loop(self):
-        return self._running
-
     def _now(self) -> float:
         if self._t0 is None:
             return 0.0
@@ -457,7 +454,7 @@ class EmulatorBackend:
             return
         wake = emu.next_wake(now)
         if wake is not None:
-            self._handle = self._loop().call_at(self._t0 + max(wake, now), self._pump)
+            self._handle = self._running.call_at(self._t0 + max(wake, now), self._pump)
 
     # ------------------------------------------------------------------ Backend
     async def connect(self) -> None:
