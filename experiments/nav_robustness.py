@@ -24,16 +24,19 @@ Maps: the catalogue (``lab``, ``fig1``, ``studio``) and held-out ones generated 
 tuning: ``lroom`` (an L-shaped room with an octagonal pillar off the grid), ``office40`` (two
 rooms and a 0.40 m door), ``pentahex`` (a pentagon with a hexagonal pillar) and ``slantedN``
 (random rooms with slanted walls and pillars), all at h = 0.34 m, K = 8, Φ = {45°, 90°, 135°}.
-Pairs: drawn uniformly from the (start, goal) pairs the exact planner reaches.
+Pairs: drawn uniformly from the (start, goal) pairs the exact planner reaches. Under
+PyBullet's contact rule (the bodies ``twin-rule`` and ``pybullet``) some of them have no
+plan at all; each run records whether its pair is ``reachable`` for its body, and the
+summary gives the success over those pairs too (``success_reachable``).
 
 Outputs in ``--out``: ``runs.csv`` (one row per run: success, bumps, bumps to localize, the
-turn estimate, decision CPU times), ``summary.csv`` (per planner, body and condition, pooled
-over the maps and per map: Wilson 95 % intervals, median bumps, median bumps to localize,
-decision CPU p50/p95/max), ``outcomes.csv`` (runs per way of ending: reached, stopped
-outside the cell, heading off, bump budget spent, no bump; pooled and per map),
-``config.json``, ``success_vs_sigma.png`` (success against σ
-for the open-loop exact and reliable plans and feedback) and ``maps.png`` (every map with
-feedback's success at σ = 2° per body), drawn from runs.csv alone.
+turn estimate, decision CPU times, reachable), ``summary.csv`` (per planner, body and
+condition, pooled over the maps and per map: Wilson 95 % intervals, median bumps, median
+bumps to localize, decision CPU p50/p95/max), ``outcomes.csv`` (runs per way of ending:
+reached, stopped outside the cell, heading off, bump budget spent, no bump; pooled and per
+map), ``config.json``, ``success_vs_sigma.png`` (success against σ for the open-loop exact
+and reliable plans and feedback) and ``maps.png`` (every map with feedback's success at σ =
+2° per body), drawn from runs.csv alone.
 """
 
 from __future__ import annotations
@@ -137,6 +140,22 @@ def _body(kind: str, env, noise, rng, p_side: float, p_miss: float):
     return body
 
 
+@lru_cache(maxsize=8)
+def _rule_navigator(name: str, seed: int):
+    return make_planner("exact", _cells(name, seed), ANGLES, contact=PYBULLET_CONTACT)
+
+
+def reachable(params: dict) -> bool:
+    """Whether the exact planner reaches the pair's goal noise-free under the body's contact
+    rule (the pairs are drawn reachable without one; PyBullet's rule slides glancing flights
+    on, and makes some of them unreachable for any angle sequence the planner knows).
+    """
+    if params["body"] not in ("twin-rule", "pybullet"):
+        return True
+    nav = _rule_navigator(params["env"], int(params["map_seed"]))
+    return nav.plan(int(params["start"]), int(params["goal"])) is not None
+
+
 def trial(params: dict, rng: np.random.Generator) -> dict:
     """Drive one pair once: the sweep's trial function (pure in ``params`` and ``rng``).
 
@@ -178,7 +197,7 @@ def trial(params: dict, rng: np.random.Generator) -> dict:
     if run is None:
         return {"success": False, "reason": "no plan", "bumps": 0, "bumps_to_localize": -1,
                 "turn_factor": np.nan, "decisions": 0, "decision_cpu_ms": "",
-                "position_error_m": np.nan, "wall_s": wall}
+                "position_error_m": np.nan, "wall_s": wall, "reachable": reachable(params)}
     cpu = getattr(run, "decision_cpu_ms", ())
     loc = getattr(run, "bumps_to_localize", 0)
     return {"success": bool(run.success), "reason": run.reason, "bumps": int(run.bumps),
@@ -186,7 +205,7 @@ def trial(params: dict, rng: np.random.Generator) -> dict:
             "turn_factor": float(getattr(run, "turn_estimate", (np.nan,))[0]),
             "decisions": len(cpu), "decision_cpu_ms": " ".join(f"{v:.2f}" for v in cpu),
             "position_error_m": np.nan if run.position_error is None
-            else float(run.position_error), "wall_s": wall}
+            else float(run.position_error), "wall_s": wall, "reachable": reachable(params)}
 
 
 def feedback_config(text: str) -> FeedbackConfig:
@@ -281,10 +300,14 @@ def outcomes(runs: pd.DataFrame) -> pd.DataFrame:
 def summarise(runs: pd.DataFrame) -> pd.DataFrame:
     """Per (planner, body, condition), pooled over the maps (env = 'all'), over the held-out
     maps (env = 'held-out': those not in :data:`TUNED`, when the run has any) and per map:
-    runs, successes, success rate with its Wilson interval, median bumps, median bumps to
-    localize (unknown starts that localized), the share that never localized, and the
+    runs, successes, success rate with its Wilson interval, the success rate over the pairs
+    the body's contact rule leaves reachable (:func:`reachable`), median bumps, median bumps
+    to localize (unknown starts that localized), the share that never localized, and the
     decision CPU p50, p95 and maximum [ms] over every decision.
     """
+    if "reachable" not in runs:                 # a table from before the column
+        runs = runs.assign(reachable=True)
+    runs = runs.assign(reach_ok=runs.success.astype(bool) & runs.reachable.astype(bool))
     parts = []
     held = runs[~runs.env.isin(TUNED)]
     for by, rows, pooled in ((["planner", "body", "condition"], runs, "all"),
@@ -294,6 +317,7 @@ def summarise(runs: pd.DataFrame) -> pd.DataFrame:
             continue
         g = rows.groupby(by, sort=True)
         out = g.agg(runs=("success", "size"), successes=("success", "sum"),
+                    reachable_runs=("reachable", "sum"), reachable_ok=("reach_ok", "sum"),
                     median_bumps=("bumps", "median")).reset_index()
         loc = g["bumps_to_localize"].agg(
             lambda s: float(np.median(s[s >= 0])) if (s >= 0).any() else np.nan)
@@ -308,6 +332,7 @@ def summarise(runs: pd.DataFrame) -> pd.DataFrame:
     out = pd.concat(parts, ignore_index=True)
     out["successes"] = out["successes"].astype(int)
     out["success_rate"] = out["successes"] / out["runs"]
+    out["success_reachable"] = out.pop("reachable_ok") / out["reachable_runs"].replace(0, np.nan)
     out["ci_low"], out["ci_high"] = wilson(out["successes"].to_numpy(), out["runs"].to_numpy())
     return out
 
@@ -457,6 +482,7 @@ def _report(out: Path, runs: pd.DataFrame) -> None:
               out / "maps.png")
     pooled = summary[summary.env == "all"]
     cols = ["planner", "body", "condition", "runs", "success_rate", "ci_low", "ci_high",
+            "success_reachable",
             "median_bumps", "median_bumps_to_localize", "cpu_p95_ms"]
     print(pooled[cols].to_string(index=False, float_format=lambda v: f"{v:.3g}"))
     ends = outcomes(runs)

@@ -170,7 +170,8 @@ class FeedbackRunner:
         while True:
             shift = (fnav.heading_offset(belief) if cfg.correct_heading and not at_start
                      else 0.0)
-            cands = fnav.choose(belief, rng, keep=rest, bumped=not at_start, shift=shift)
+            cands = fnav.choose(belief, rng, keep=rest, bumped=not at_start, shift=shift,
+                                left=self.policy.max_bumps - len(flights))
             if cands:
                 best = cands[0]
                 self.p_succ.append(best.p_success)
@@ -192,7 +193,8 @@ class FeedbackRunner:
             rest = tuple(todo)
             if not todo and best is not None:  # the last turn: the final drive
                 self.final, mass = fnav.final(belief.pos, belief.heading, belief.weights)
-                if fnav.stops(mass, last=len(flights) >= self.policy.max_bumps - 1):
+                if fnav.stops(mass, last=len(flights) >= self.policy.max_bumps - 1,
+                              need=best.stop_min):
                     # else (too little belief mass stops in the cell, §15): fly on
                     self._note_decision()
                     if self.final > 0:

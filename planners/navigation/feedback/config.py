@@ -92,6 +92,16 @@ class FeedbackConfig:
                                to go of the contact-state graph (§15), not by §13's bound
     reference : bool           the straightforward search (unguided) and scoring instead of
                                the fast ones (for benchmarks and tests)
+    decision : str             how the next angle is chosen: "plan" (plans from particles'
+                               poses, scored by their open-loop success), "value" (the
+                               closed-loop value of the noisy contact-state chain weighed over
+                               the belief, :mod:`planners.navigation.feedback.value`) or
+                               "auto" (default: "value" when a turn error is declared,
+                               :attr:`value_sigma_deg` > 0, else "plan")
+    gamma : float              the value's discount per bump (in (0, 1])
+    value_horizon : int        flights the value table looks ahead (more are clipped)
+    heading_step_deg : float   [deg] the value table's heading grid
+    value_nodes : int          equally likely flights per state and angle (turn error and start
     contact : ContactParams or None
         the body's contact rule (docs/model.md §9) in the filter's motion model, the plan
         search's flights and the scores: a flight whose contact lies outside the bumper arc
@@ -135,11 +145,16 @@ class FeedbackConfig:
     correct_heading: bool = False
     guided: bool = False
     reference: bool = False
+    decision: str = "auto"
+    gamma: float = 0.98
+    value_horizon: int = 40
+    heading_step_deg: float = 1.0
+    value_nodes: int = 7
     contact: ContactParams | None = None
 
     def __post_init__(self) -> None:
         for name in ("particles", "votes", "per_pose", "eval_particles", "global_particles",
-                     "max_settled"):
+                     "max_settled", "value_horizon", "value_nodes"):
             v = getattr(self, name)
             if int(v) != v or v < 1:
                 raise UserError(f"feedback {name} must be a positive whole number, got {v}.")
@@ -171,6 +186,13 @@ class FeedbackConfig:
             raise UserError("feedback p_phantom + p_miss must stay below 1.")
         if not 0 < self.resample_ess <= 1:
             raise UserError("feedback resample_ess must lie in (0, 1].")
+        if self.decision not in ("auto", "plan", "value"):
+            raise UserError(f"feedback decision must be auto, plan or value, got "
+                            f"{self.decision!r}.")
+        if not 0 < self.gamma <= 1:
+            raise UserError("feedback gamma must lie in (0, 1].")
+        if not (math.isfinite(self.heading_step_deg) and 0 < self.heading_step_deg <= 45):
+            raise UserError("feedback heading_step_deg must lie in (0, 45].")
         if self.contact is not None and not isinstance(self.contact, ContactParams):
             raise UserError(f"feedback contact must be a ContactParams or None, got "
                             f"{self.contact!r}.")
@@ -179,3 +201,13 @@ class FeedbackConfig:
     def turn_spread_deg(self) -> float:
         """[deg] the heading spread the filter adds per turn: √(σ² + σ_floor²)."""
         return math.hypot(self.turn_sigma_deg, self.sigma_floor_deg)
+
+    @property
+    def value_sigma_deg(self) -> float:
+        """[deg] the turn error the value table assumes: the turn spread with the residual of
+        an unknown factor and offset added in quadrature, as uniform errors over a tenth of
+        their ranges (the commands correct for the filter's estimates, which learn a factor
+        within ±10 % to about 1 % in a few bumps: a 135° turn is then off by about 1.35°).
+        """
+        return math.sqrt(self.turn_spread_deg ** 2 + (13.5 * self.turn_scale) ** 2 / 3
+                         + (self.turn_bias_deg / 10) ** 2 / 3)

@@ -71,6 +71,7 @@ from .filter import (
     side_probs,
 )
 from .search import ScalarWalls, cost_to_go, search, search_reference
+from .value import ValueTable
 
 __all__ = ["FeedbackConfig", "FlightUpdate", "ParticleFilter", "Candidate", "FeedbackNavigator",
            "goal_intervals", "final_drive", "side_of", "SIDES"]
@@ -183,6 +184,10 @@ class Candidate:
     final_m : float            the plan's own final drive [m]
     cost : float               §13's cost
     p_success : float          estimated success under the belief (nan: not scored)
+    stop_min : float           after the last angle the final drive is made when the belief
+                               puts at least this much mass in the goal cell (nan: the
+                               config's ``final_min``; a value decision's: the value of
+                               flying on)
     """
 
     angles: tuple
@@ -190,6 +195,7 @@ class Candidate:
     final_m: float
     cost: float
     p_success: float = float("nan")
+    stop_min: float = float("nan")
 
 
 class FeedbackNavigator:
@@ -218,6 +224,24 @@ class FeedbackNavigator:
         self.walls = ScalarWalls(self.nav.caster)
         self.guide = cost_to_go(self).tolist() if self.cfg.guided and not self.cfg.reference \
             else None
+        self._value = None
+
+    @property
+    def by_value(self) -> bool:
+        """Whether decisions are made by the closed-loop value (``decision`` "value", or
+        "auto" with a declared turn error) rather than by scored plans.
+        """
+        d = self.cfg.decision
+        return d == "value" or (d == "auto" and self.cfg.value_sigma_deg > 0)
+
+    @property
+    def value(self) -> ValueTable:
+        """The closed-loop value table of this goal (:mod:`.value`), built on first use."""
+        if self._value is None:
+            cfg = self.cfg
+            self._value = ValueTable(self, cfg.value_sigma_deg, cfg.value_horizon, cfg.gamma,
+                                     cfg.heading_step_deg, cfg.value_nodes)
+        return self._value
 
     # ------------------------------------------------------------------ planning
     def plan_from(self, x: float, y: float, heading_deg: float) -> Candidate | None:
@@ -314,13 +338,15 @@ class FeedbackNavigator:
         return final_drive(pos, heading, D, w, self.box, self.goal_heading,
                            self.cells.delta_deg, self.cfg.margin_m, slides)
 
-    def stops(self, mass: float, last: bool = False) -> bool:
+    def stops(self, mass: float, last: bool = False, need: float = math.nan) -> bool:
         """Whether, after the plan's last turn, the robot makes the final drive (the belief
         puts ``mass`` in the goal cell, :meth:`final`) or flies on to the next bump and
-        decides again: it stops when ``mass`` > 0 and ``mass`` >= ``final_min``, or when
-        ``last`` (the bump budget allows no other try) and ``mass`` > 0 (§15).
+        decides again: it stops when ``mass`` > 0 and ``mass`` >= ``need`` (nan: the config's
+        ``final_min``; a candidate's ``stop_min``), or when ``last`` (the bump budget allows
+        no other try) and ``mass`` > 0 (§15).
         """
-        return mass > 0 and (mass >= self.cfg.final_min or last)
+        need = self.cfg.final_min if math.isnan(need) else need
+        return mass > 0 and (mass >= need or last)
 
     def localizing_angle(self, belief: ParticleFilter, n: int = 400,
                          bin_m: float = 0.05) -> float:
@@ -352,8 +378,53 @@ class FeedbackNavigator:
         m = math.atan2(float(belief.weights @ np.sin(a)), float(belief.weights @ np.cos(a)))
         return math.degrees(m) * d / 360.0
 
+    def choose_value(self, belief: ParticleFilter, rng: np.random.Generator,
+                     bumped: bool, left: int) -> list[Candidate]:
+        """The decision by closed-loop value (§15 "Deciding by value"; QMDP): every angle
+        φ turns ``eval_particles`` drawn from the belief by φ with the declared noise; the
+        final drive's mass in the goal cell (:func:`final_drive`) is the value of stopping
+        after φ, γ times the mean of :attr:`value`'s V over the particles' bumps (with
+        ``left`` − 1 flights left) the value of flying on; the best of the two over φ wins
+        (ties: stopping, then the first angle). Returns one candidate: ``(φ,)`` with
+        ``stop_min`` the value of flying on, or, before the first bump (``bumped`` False:
+        the robot is on its first flight), ``()`` when the final drive on this flight is
+        worth more than the next bump.
+        """
+        cfg, vt = self.cfg, self.value
+        n = cfg.eval_particles
+        pos, head, ef, eb = belief.sample(n, turns=True)
+        w = np.full(n, 1.0 / n)
+        caster, contact, s = self.nav.caster, cfg.contact, cfg.turn_spread_deg
+
+        def worth(h):
+            clock, end, _, slid, D = landings(caster, pos, h, contact, bearings=False)
+            final_m, mass = final_drive(pos, h, D, w, self.box, self.goal_heading,
+                                        self.cells.delta_deg, cfg.margin_m, slid)
+            cont = vt.gamma * float(vt.values(end, h, left - 1).mean()) if left > 0 else 0.0
+            return final_m, mass, cont
+
+        if not bumped:
+            final_m, mass, cont = worth(head)
+            if mass > 0 and mass >= cont:
+                return [Candidate((), (), final_m, math.nan, mass, cont)]
+            return [Candidate((float(self.nav.angles[0]),), (), final_m, math.nan, cont, cont)]
+        gain = bias = None
+        if belief.turns_uncertain:          # commands correct for the estimate (f̂, b̂)
+            f_hat, _, b_hat, _ = belief.turn_estimate()
+            gain, bias = ef / f_hat, eb - ef * b_hat / f_hat
+        best = None
+        for a in self.nav.angles:
+            turn = a if gain is None else gain * a + bias
+            noise = rng.normal(0.0, s, n) if s > 0 else 0.0
+            final_m, mass, cont = worth(head + turn + noise)
+            q = max(mass, cont)
+            if best is None or q > best.p_success + 1e-12:
+                best = Candidate((float(a),), (), final_m, math.nan, q, cont)
+        return [best]
+
     def choose(self, belief: ParticleFilter, rng: np.random.Generator,
-               keep: tuple = (), bumped: bool = False, shift: float = 0.0) -> list[Candidate]:
+               keep: tuple = (), bumped: bool = False, shift: float = 0.0,
+               left: int | None = None) -> list[Candidate]:
         """Scored candidate plans from the belief, best first (empty: no particle planned
         from reaches the goal). Planned from the heaviest particle and ``votes`` − 1 drawn by
         weight (distinct poses only); ``keep``, the rest of the previous choice's angles, is
@@ -365,6 +436,8 @@ class FeedbackNavigator:
         plans and scores see every heading less ``shift``.
         """
         cfg = self.cfg
+        if self.by_value and left is not None:
+            return self.choose_value(belief, rng, bumped, left)
         top = int(np.argmax(belief.weights))
         pos, head = belief.sample(max(cfg.votes - 1, 0))
         pos = np.vstack([belief.pos[top:top + 1], pos])

@@ -1,0 +1,216 @@
+"""The closed-loop value of the feedback navigator (docs/model.md §15, "Deciding by value"):
+the contact-state transitions against the twin's own flights, the value iteration against a
+plain recursion, the stop values on a hand-computed case, the value against the success of
+its own policy simulated in the twin, and the decision rule built on it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from bouncesim.robots.kinematic import KinematicRobot
+from bouncesim.robots.noise import parse_noise
+from bouncesim.runs.execute import navigate_feedback
+from envs import Environment, UserError
+from planners.cells import CellSpace
+from planners.navigation.feedback import FeedbackConfig, FeedbackNavigator, ParticleFilter
+from planners.navigation.feedback.value import transitions
+
+RECT = Environment.from_dict({"name": "rect", "boundary": [[0, 0], [2, 0], [2, 2], [0, 2]],
+                              "robot_radius": 0.17,
+                              "discretization": {"cell_size": 0.25, "orientations": 8}})
+L_ROOM = Environment.from_dict({
+    "name": "l-room", "boundary": [[0, 0], [3.06, 0], [3.06, 1.36], [1.70, 1.36], [1.70, 2.38],
+                                   [0, 2.38]],
+    "obstacles": [[[0.68, 1.36], [1.02, 1.36], [1.02, 1.70], [0.68, 1.70]]],
+    "robot_radius": 0.17, "discretization": {"cell_size": 0.34, "orientations": 8}})
+ANGLES = [45, 90, 135]
+
+
+def _nav(env, goal, sigma, **cfg):
+    return FeedbackNavigator(CellSpace(env), ANGLES, goal,
+                             FeedbackConfig(turn_sigma_deg=sigma, **cfg))
+
+
+def test_each_stored_flight_lands_where_the_twin_flies():
+    # independent evidence: the twin body (its own flight code) flown from the node's start
+    # point with the node's turn error ends in the state the table stores, for random states
+    fnav = _nav(RECT, 40, 3.0, heading_step_deg=5.0, value_nodes=3)
+    tr = transitions(fnav.nav, 3.0, 5.0, 3)
+    assert tr.offsets.tolist() == pytest.approx([-3 * 0.9674216, 0.0, 3 * 0.9674216])
+    rng = np.random.default_rng(0)
+    body = KinematicRobot(RECT)
+    checked = 0
+    for s in rng.choice(tr.nxt.shape[1], 60, replace=False):
+        b, j = divmod(int(s), tr.n_head)
+        i, q = int(rng.integers(len(ANGLES))), int(rng.integers(3))
+        x, y = tr.points[q, b]
+        heading = j * tr.step_deg + ANGLES[i] + tr.offsets[q]
+        try:
+            body.place(x, y, heading)
+        except UserError:            # a bin point on a rounded corner, 1e-9 m inside
+            continue
+        ev = body.drive_until_bump(0.2, 100.0)
+        assert ev.bumped
+        X, Y, th = body.true_pose()
+        assert ev.elapsed * 0.2 == pytest.approx(float(tr.drive[i, s, q]), abs=1e-6)
+        assert int(tr.state(np.array([[X, Y]]), np.array([th]))[0]) == tr.nxt[i, s, q]
+        checked += 1
+    assert checked >= 50
+
+
+def test_the_value_iteration_is_the_plain_recursion():
+    # V_t(s) = max_φ max(stop(s, φ), γ Σ_q V_{t−1}(next) / M), written out state by state
+    fnav = _nav(RECT, 40, 2.0, heading_step_deg=15.0, value_nodes=3, gamma=0.9,
+                value_horizon=3)
+    vt = fnav.value
+    tr, stop = vt.tr, vt.stop.astype(float)
+    S = tr.nxt.shape[1]
+    V = [[max(stop[a, s] for a in range(3)) for s in range(S)]]
+    for _ in range(3):
+        prev = V[-1]
+        V.append([max(max(stop[a, s], 0.9 * sum(prev[n] for n in tr.nxt[a, s]) / 3)
+                      for a in range(3)) for s in range(S)])
+    np.testing.assert_allclose(vt.V, np.array(V), atol=1e-6)
+    assert np.all(np.diff(vt.V, axis=0) >= -1e-7)        # more flights never hurt
+    assert 0 <= vt.V.min() and vt.V.max() <= 1
+
+
+def test_stop_values_by_hand_in_a_square_room():
+    # 2 m room, h = 0.25: the goal is cell x ∈ [0.25, 0.5], y ∈ [0.25, 0.5] facing 0°. A
+    # robot at the west wall's contact line x = 0.17 heading 270° that turns by 90° faces
+    # east: its final drive ends in the cell when y ∈ [0.25, 0.5] and never from y = 1;
+    # turned by 45° it faces 315°, outside 0° ± 22.5°. Noise-free, a stop either succeeds
+    # or it does not
+    cs = CellSpace(RECT)
+    goal = cs.config_of_pose(0.375, 0.375, 0.0)
+    assert tuple(round(v, 3) for v in cs.pose(goal)) == (0.375, 0.375, 0.0)
+    fnav = FeedbackNavigator(cs, ANGLES, goal, FeedbackConfig(decision="value"))
+    vt = fnav.value
+    tr = vt.tr
+    assert not tr.offsets.any()                      # noise-free: flights differ by start
+    west = np.array([[0.17 + 1e-9, 0.4], [0.17 + 1e-9, 1.0]])
+    s = tr.state(west, np.array([270.0, 270.0]))
+    i90 = ANGLES.index(90)
+    assert vt.stop[i90, s].tolist() == [1.0, 0.0]
+    assert vt.stop[ANGLES.index(45), s].tolist() == [0.0, 0.0]     # faces 315°: heading off
+
+
+def test_the_value_is_what_its_own_policy_achieves_in_the_twin():
+    # predicted against simulated: a robot that knows its contact state after every bump
+    # and follows the table's best action (stop or fly on) succeeds about as often as
+    # V_t(s) says. Bound: 120 runs give a binomial σ ≤ 0.046, and the table averages each
+    # value over its bin while a run starts from one point of it (measured differences
+    # 0.02–0.10): every start within 0.18, the mean within 0.08
+    sig, H = 3.0, 6
+    fnav = _nav(L_ROOM, 20, sig, gamma=1.0)
+    vt, tr = fnav.value, fnav.value.tr
+    body = KinematicRobot(L_ROOM, parse_noise(f"gauss:{sig}", fnav.cells.delta_deg),
+                          np.random.default_rng(1))
+    x0, y0, x1, y1 = fnav.box
+    centre, half = np.array([(x0 + x1) / 2, (y0 + y1) / 2]), (x1 - x0) / 2
+
+    def run(x, y, th, t):
+        body.place(x, y, th)
+        while True:
+            s = int(tr.state(np.array([[x, y]]), np.array([th]))[0])
+            cont = vt.V[t - 1][tr.nxt[:, s]] @ tr.weights if t > 0 else np.zeros(3)
+            i = int(np.argmax(np.maximum(vt.stop[:, s], cont)))
+            body.turn(ANGLES[i])
+            if vt.stop[i, s] >= cont[i]:
+                u = np.array([math.cos(math.radians(th + ANGLES[i])),
+                              math.sin(math.radians(th + ANGLES[i]))])
+                d = max(float((centre - [x, y]) @ u), 0.0)
+                bumped = d > 0 and body.drive_for(0.2, d / 0.2).bumped
+                X, Y, TH = body.true_pose()
+                off = abs((TH - fnav.goal_heading + 180) % 360 - 180)
+                return (not bumped and half - np.abs(np.array([X, Y]) - centre).max() >= 0
+                        and off <= fnav.cells.delta_deg / 2)
+            body.drive_until_bump(0.2, 100.0)
+            x, y, th = body.true_pose()
+            t -= 1
+
+    rng = np.random.default_rng(5)
+    diffs = []
+    for s in rng.permutation(np.flatnonzero(vt.V[H] > 0.2)):
+        b, j = divmod(int(s), tr.n_head)
+        x, y = fnav.nav.boundary.points(np.array([b]), np.array([0.5]))[0]
+        try:
+            ok = [run(x, y, j * tr.step_deg, H) for _ in range(120)]
+        except UserError:
+            continue
+        diffs.append(float(vt.V[H][s]) - float(np.mean(ok)))
+        if len(diffs) == 6:
+            break
+    assert len(diffs) == 6
+    assert max(abs(d) for d in diffs) <= 0.18, diffs
+    assert abs(float(np.mean(diffs))) <= 0.08, diffs
+
+
+def test_a_value_decision_stops_when_the_goal_is_on_the_current_flight():
+    # the robot at (0.5, 1) facing south, known exactly: its flight passes the goal cell
+    # below it, so the final drive (mass 1) beats any bump
+    cs = CellSpace(RECT)
+    z = cs.config_of_pose(0.625, 0.375, 270.0)
+    fnav = FeedbackNavigator(cs, ANGLES, z, FeedbackConfig(turn_sigma_deg=2.0))
+    assert fnav.by_value
+    rng = np.random.default_rng(0)
+    pf = ParticleFilter(RECT, fnav.cfg, rng, poses=[[0.625, 1.0, 270.0]] * 50)
+    (cand,) = fnav.choose(pf, rng, bumped=False, left=40)
+    assert cand.angles == () and cand.p_success == pytest.approx(1.0)
+    assert cand.final_m == pytest.approx(1.0 - 0.375, abs=0.13)
+
+
+def test_auto_decides_by_plan_without_noise_and_by_value_with_it():
+    cs = CellSpace(RECT)
+    assert not FeedbackNavigator(cs, ANGLES, 40, FeedbackConfig()).by_value
+    assert FeedbackNavigator(cs, ANGLES, 40, FeedbackConfig(turn_sigma_deg=1.0)).by_value
+    assert FeedbackNavigator(cs, ANGLES, 40, FeedbackConfig(turn_scale=0.05)).by_value
+    assert not FeedbackNavigator(cs, ANGLES, 40,
+                                 FeedbackConfig(turn_sigma_deg=1.0, decision="plan")).by_value
+    with pytest.raises(UserError, match="decision"):
+        FeedbackConfig(decision="greedy")
+    with pytest.raises(UserError, match="gamma"):
+        FeedbackConfig(gamma=0.0)
+
+
+def test_the_transitions_are_built_once_per_map_and_noise():
+    cs = CellSpace(RECT)
+    a = FeedbackNavigator(cs, ANGLES, 40, FeedbackConfig(turn_sigma_deg=2.0)).value
+    b = FeedbackNavigator(cs, ANGLES, 41, FeedbackConfig(turn_sigma_deg=2.0)).value
+    c = FeedbackNavigator(cs, ANGLES, 41, FeedbackConfig(turn_sigma_deg=3.0)).value
+    assert a.tr is b.tr and b.tr is not c.tr
+    assert not np.array_equal(a.stop, b.stop)
+
+
+@pytest.mark.parametrize("rule", ["touched", "nearest"])
+def test_value_decisions_reach_goals_under_noise_on_two_bodies(rule):
+    # σ = 3° on the L-room (not a map the rule was chosen on), two bumper conventions:
+    # at least 8 of 10 seeded runs reach the goal (measured: 10 and 10)
+    env, cs, done = L_ROOM, CellSpace(L_ROOM), 0
+    for i in range(10):
+        rng = np.random.default_rng(i)
+        body = KinematicRobot(env, parse_noise("gauss:3", 45.0), rng.spawn(1)[0],
+                              side_rule=rule)
+        run = navigate_feedback(body, env, 5, 20, "gauss:3", rng, cells=cs)
+        done += run.success
+    assert done >= 8
+
+
+def test_plan_decisions_ignore_the_value_settings():
+    # decision="plan" is the rule before the value: its candidates carry no stop threshold
+    # (final_min decides) and no value table is built, so the value's settings change nothing
+    env = L_ROOM
+    runs = []
+    for cfg in (FeedbackConfig(decision="plan"), replace(FeedbackConfig(decision="plan"),
+                                                         gamma=0.5, value_nodes=3)):
+        rng = np.random.default_rng(3)
+        body = KinematicRobot(env, parse_noise("gauss:2", 45.0), rng.spawn(1)[0])
+        runs.append(navigate_feedback(body, env, 5, 20, "gauss:2", rng, config=cfg))
+    assert runs[0].plan.turns == runs[1].plan.turns
+    assert runs[0].plan.final_m == runs[1].plan.final_m
+    assert all(math.isnan(p) or 0 <= p <= 1 for p in runs[0].p_success)
