@@ -135,6 +135,8 @@ class FeedbackRunner:
         self.contact = planner.resolved(body_contact(robot))
         self.fnav = planner.navigator(policy.goal, self.contact)
         self.cfg = self.fnav.cfg
+        if self.fnav.by_value:
+            _ = self.fnav.value                 # set-up before the robot moves, not a decision
         self.goal_pose = cs.pose(policy.goal)
         place_if_simulated(robot, self.start_pose)      # hardware: a person placed the robot
         self.belief = ParticleFilter(cs.env, self.cfg, self.rng, start=self.start_pose,

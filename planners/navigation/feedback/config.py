@@ -129,7 +129,7 @@ class FeedbackConfig:
     consistent_z: float = 5.0
     resample_ess: float = 0.5
     reinit_sigma_deg: float = 10.0
-    global_particles: int = 3000
+    global_particles: int = 6000
     localized_mass: float = 0.9
     jitter_deg: float = 1.0
     jitter_m: float = 0.005

@@ -11,11 +11,13 @@ from scipy.special import ndtr
 
 from envs import UserError
 from envs.contact import contact_flights
-from envs.motion import BUMP_RANGE, ContactParams, drive_distance, unit
+from envs.motion import APPROACH_MIN, BUMP_RANGE, CONTACT_GAP, ContactParams, drive_distance, unit
 
+from ._kernels import flights_kernel, side_probs_kernel
 from .config import FeedbackConfig
 
-__all__ = ["SIDES", "flights", "landings", "side_of", "side_probs"]
+__all__ = ["SIDES", "flights", "flights_reference", "landings", "side_of", "side_probs",
+           "side_probs_reference"]
 
 SIDES = ("both", "left", "right")
 """Bumper readings: both switches, the left one only, the right one only."""
@@ -33,13 +35,39 @@ def side_of(left: bool, right: bool) -> int:
     raise UserError("a bump needs at least one closed bumper switch.")
 
 
+def _walls(caster) -> tuple:
+    """The caster's walls as contiguous arrays for the kernels (built once per caster)."""
+    w = getattr(caster, "_kernel_walls", None)
+    if w is None:
+        c = lambda a: np.ascontiguousarray(a, dtype=float)  # noqa: E731
+        w = (c(caster.A[:, 0]), c(caster.A[:, 1]), c(caster.e[:, 0]), c(caster.e[:, 1]),
+             c(caster.n[:, 0]), c(caster.n[:, 1]), c(caster.L),
+             c(np.asarray(caster.vertices).reshape(-1, 2)[:, 0]),
+             c(np.asarray(caster.vertices).reshape(-1, 2)[:, 1]),
+             float(caster.r), float(caster.r2), float(caster.graze))
+        caster._kernel_walls = w
+    return w
+
+
 def flights(caster, pos, heading_deg, bearings: bool = True):
     """Exact flights of poses: (drive [m], unit headings, contact bearings [deg] or None).
 
     The bearings (n, F) are those of every wall feature (side or corner) the disk touches at
     its contact (within ``BUMP_RANGE`` of the first), relative to the heading, + to the
-    left; NaN for the features it does not touch (two walls at once in a corner).
+    left; NaN for the features it does not touch (two walls at once in a corner). Compiled
+    (:func:`._kernels.flights_kernel`); :func:`flights_reference` is the numpy original.
     """
+    pos = np.asarray(pos, dtype=float).reshape(-1, 2)
+    u = unit(heading_deg)
+    D, beta = flights_kernel(np.ascontiguousarray(pos[:, 0]), np.ascontiguousarray(pos[:, 1]),
+                             np.ascontiguousarray(u[:, 0]), np.ascontiguousarray(u[:, 1]),
+                             *_walls(caster), APPROACH_MIN, BUMP_RANGE, CONTACT_GAP,
+                             bool(bearings))
+    return D, u, (beta if bearings else None)
+
+
+def flights_reference(caster, pos, heading_deg, bearings: bool = True):
+    """:func:`flights` in numpy (the reference the kernel is checked against)."""
     pos = np.asarray(pos, dtype=float).reshape(-1, 2)
     u = unit(heading_deg)
     if not bearings:
@@ -98,6 +126,14 @@ def landings(caster, pos, heading_deg, contact: ContactParams | None, bearings: 
 
 
 def side_probs(beta, cfg: FeedbackConfig) -> np.ndarray:
+    """:func:`side_probs_reference`, compiled (:func:`._kernels.side_probs_kernel`)."""
+    beta = np.ascontiguousarray(beta, dtype=float)
+    return side_probs_kernel(beta.reshape(len(beta), -1), float(cfg.centre_zone_deg),
+                             float(max(cfg.side_blur_deg, 1e-9)), float(cfg.side_union),
+                             float(cfg.p_side))
+
+
+def side_probs_reference(beta, cfg: FeedbackConfig) -> np.ndarray:
     """(n, 3) probability of each reading of :data:`SIDES` given the touched features'
     bearings (n, F) [deg] (NaN: not touched).
 
