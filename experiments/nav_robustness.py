@@ -61,7 +61,7 @@ from bouncesim.runs.sweep import Sweep
 from envs.motion import PYBULLET_CONTACT
 from planners.cells import CellSpace
 from planners.navigation import make_planner, planner_class
-from planners.navigation.feedback import FeedbackConfig
+from planners.navigation.feedback import FeedbackConfig, FeedbackNavigator
 
 from .common import experiment_parser, invocation, name_list, output_dir, run_main
 from .nav_montecarlo import wilson
@@ -337,6 +337,40 @@ def summarise(runs: pd.DataFrame) -> pd.DataFrame:
     return out
 
 
+def value_bound(runs: pd.DataFrame) -> pd.DataFrame:
+    """What a robot that knew its contact state after every bump would reach: per feedback
+    run from a known start under turn noise σ (the sigma conditions), the closed-loop value
+    (docs/model.md §15, "Deciding by value"; γ = 1, the budget's 40 flights) of the bump
+    that ends the first flight from the pair's start, beside the run's success; pooled
+    (env = 'all') and per map, per body and condition. A ceiling for the value decision
+    under its own model of the robot (bins and 7 flights per state, not an exact bound).
+    """
+    from planners.navigation.feedback.observe import landings
+    rows = []
+    keep = runs[(runs.planner == "feedback") & runs.condition.isin(NOISE_ONLY)
+                & (runs.condition != "sigma0")]
+    for (env, seed, cond, body), grp in keep.groupby(["env", "map_seed", "condition", "body"]):
+        cs = _cells(env, int(seed))
+        sigma = float(cond.removeprefix("sigma"))
+        rule = PYBULLET_CONTACT if body in ("twin-rule", "pybullet") else None
+        for (s, g), pair in grp.groupby(["start", "goal"]):
+            cfg = FeedbackConfig(turn_sigma_deg=sigma, gamma=1.0, contact=rule)
+            fnav = FeedbackNavigator(cs, ANGLES, int(g), cfg)
+            x, y, th = cs.pose(int(s))
+            _, end, _, _, _ = landings(fnav.nav.caster, np.array([[x, y]]), np.array([th]),
+                                       rule, bearings=False)
+            v = float(fnav.value.values(end, np.array([th]), 39)[0])
+            rows.extend((env, body, cond, v, bool(ok)) for ok in pair.success)
+    t = pd.DataFrame(rows, columns=["env", "body", "condition", "bound", "success"])
+    parts = [t.groupby(["body", "condition"]).agg(runs=("success", "size"),
+             bound=("bound", "mean"), success=("success", "mean")).reset_index()
+             .assign(env="all"),
+             t.groupby(["body", "condition", "env"]).agg(runs=("success", "size"),
+             bound=("bound", "mean"), success=("success", "mean")).reset_index()]
+    return pd.concat(parts, ignore_index=True)[["body", "condition", "env", "runs", "bound",
+                                                "success"]]
+
+
 def draw(summary: pd.DataFrame, path: Path) -> Path:
     """Success against σ (pooled over the maps, the twin body): open-loop exact and reliable
     plans and feedback, with 95 % Wilson intervals.
@@ -415,6 +449,7 @@ class Config:
     seed : int           root seed (random maps, pairs and the sweep)
     out : Path           output folder
     restart, plot_only, quick : bool
+    bound : bool         only write bound.csv from runs.csv (:func:`value_bound`)
     workers, dask_local, dask : the executor (``add_executor_args``)
     progress : bool
     """
@@ -431,6 +466,7 @@ class Config:
     restart: bool = False
     plot_only: bool = False
     quick: bool = False
+    bound: bool = False
     workers: int | None = None
     dask_local: int | None = None
     dask: str | None = None
@@ -440,9 +476,16 @@ class Config:
 def run(config: Config) -> Path:
     """Sample the pairs, run (or resume) the sweep, write the summary and the figure."""
     out = output_dir(config.out)
-    if config.plot_only:
+    if config.plot_only or config.bound:
         runs = pd.read_csv(out / "runs.csv")
-        _report(out, runs)
+        if config.bound:
+            table = value_bound(runs)
+            table.to_csv(out / "bound.csv", index=False)
+            print(table[table.env == "all"].drop(columns="env").to_string(
+                index=False, float_format=lambda v: f"{v:.3f}"))
+            print(f"wrote {out}/bound.csv")
+        else:
+            _report(out, runs)
         return out
     for what, names, known in (("body", config.bodies, BODIES),
                                ("condition", config.conditions, tuple(CONDITIONS))):
@@ -508,6 +551,10 @@ def main(argv: list[str] | None = None) -> int:
                    help="the feedback navigator's FeedbackConfig settings (default: its own)")
     p.add_argument("--restart", action="store_true", help="start the sweep again")
     p.add_argument("--plot-only", action="store_true", help="redraw from runs.csv")
+    p.add_argument("--bound", action="store_true",
+                   help="only write bound.csv from runs.csv: the success a robot that knew its "
+                   "contact state after every bump would reach, per body, condition and map, "
+                   "beside feedback's")
     add_executor_args(p)
     args = p.parse_args(argv)
     base = Config(maps=QUICK_MAPS, pairs=3, bodies=("twin", "nearest"),
@@ -518,7 +565,7 @@ def main(argv: list[str] | None = None) -> int:
         "planners": args.planners, "pairs": args.pairs, "reps": args.reps,
         "feedback": args.feedback}.items()
         if v is not None}, seed=args.seed, out=args.out, restart=args.restart,
-        plot_only=args.plot_only, quick=args.quick, workers=args.workers,
+        plot_only=args.plot_only, bound=args.bound, quick=args.quick, workers=args.workers,
         dask_local=args.dask_local, dask=args.dask, progress=not args.no_progress)
     return run_main("nav_robustness", lambda: config, run)
 

@@ -245,7 +245,32 @@ def test_cli_metrics_default_horizon_and_start(tmp_path):
     assert not (out / "cover_time.png").exists()
 
 
-@pytest.mark.parametrize("argv,msg", [(["--robots", "3"], "--robots needs --metrics"),
+def test_cli_designs_for_a_time_objective(tmp_path, capsys):
+    # --objective cover90: alpha is the simplex-grid candidate with the least mean time to
+    # cover 90 % (the API's own design, the same seed), and alpha.json's tv is that mix's
+    out = tmp_path / "out"
+    argv = ["coverage", "lab", "--orientations", "8", "--angles", "90,135", "--eps", "45",
+            "--r", "0.9", "--horizon", "400", "--epoch", "100", "--robots", "2", "--json"]
+    assert main([*argv, "--objective", "cover90", "--no-plots", "--out", str(out)]) == 0
+    got = json.loads(capsys.readouterr().out)
+    from planners.coverage import design_mix
+    from planners.metrics import tv_distance
+    cs = CellSpace(envs.load("lab", orientations=8))
+    model = model_for(cs, "step")
+    d = design_mix(model, (90, 135), TurnNoise(45, 0.9), objective="cover90", horizon=400,
+                   epoch=100, robots=2, rng=0)
+    assert got["alpha"] == pytest.approx(d.alpha.tolist())
+    assert got["objective"]["value_steps"] == pytest.approx(d.value)
+    assert got["objective"]["robots"] == 2 and got["objective"]["name"] == "cover90"
+    per = design_mix(model, (90, 135), TurnNoise(45, 0.9), horizon=400, epoch=100)
+    q = per.columns @ d.alpha
+    assert got["tv"] == pytest.approx(tv_distance(q, per.target))
+    assert got["objective"]["tv_design_alpha"] == pytest.approx(per.alpha.tolist())
+
+
+@pytest.mark.parametrize("argv,msg", [(["--objective", "idleness", "--start", "0"],
+                                       "drop --start"),
+                                      (["--robots", "3"], "--robots needs --metrics"),
                                       (["--seed", "3"], "--seed needs --metrics"),
                                       (["--metrics", "--robots", "0"], "at least 1"),
                                       (["--metrics", "--metrics-runs", "1"], "at least 2")])

@@ -35,9 +35,18 @@ def add_args(p) -> None:
                    "(docs/model.md section 20a); computed exactly on tiny maps, otherwise by "
                    "sampling the model's chain (with standard errors); writes metrics.json "
                    "and cover_time.png to --out")
+    p.add_argument("--objective", choices=("tv", "cover90", "idleness"), default="tv",
+                   help="what the mix alpha minimises: tv (default), the TV to the target; "
+                   "cover90, the mean time for --robots robots to cover 90 %% of the cells; "
+                   "idleness, the mean worst idleness; both over --horizon steps (default "
+                   f"{DEFAULT_HORIZON}) with the mix in epochs of --epoch steps (default "
+                   "1000), sampled from the model's chain over a simplex grid of alpha "
+                   "(docs/model.md section 20b); alpha.json then reports the objective's "
+                   "value and the TV design's alpha")
     p.add_argument("--robots", type=int, default=1, metavar="K",
                    help="with --metrics: also a team of K robots that ignore each other and "
-                   "start independently (t counts each robot's own steps)")
+                   "start independently (t counts each robot's own steps); with a time "
+                   "--objective: the team size it is for")
     p.add_argument("--metrics-runs", type=int, default=RUNS, metavar="N",
                    help=f"with --metrics: sampled runs (teams) per record (default {RUNS})")
     p.add_argument("--simulate", type=int, default=0, metavar="N",
@@ -49,16 +58,28 @@ def add_args(p) -> None:
 
 
 def check_args(args) -> None:
-    """One-sentence errors for the metrics flags, before any heavy work."""
+    """One-sentence errors for the metrics and time-objective flags, before any heavy work."""
+    timed = args.objective != "tv"
+    if timed:
+        if args.target is not None:
+            raise UserError(f"--objective {args.objective} covers the whole room: drop "
+                            "--target.")
+        if args.start is not None:
+            raise UserError(f"--objective {args.objective} starts from the uniform start: "
+                            "drop --start.")
+        if args.target_space != "positions":
+            raise UserError("a time objective counts position cells only; use "
+                            "--target-space positions.")
     if not args.metrics:
         for flag, value, default in (("--robots", args.robots, 1),
                                      ("--metrics-runs", args.metrics_runs, RUNS),
                                      ("--simulate", args.simulate, 0),
                                      ("--seed", args.seed, None)):
-            if value != default:
+            if value != default and not (timed and flag in ("--robots", "--seed")):
                 raise UserError(f"{flag} needs --metrics.")
-        return
-    if args.seed is None:                  # the metrics are random: config.json records it
+        if not timed:
+            return
+    if args.seed is None:      # the metrics are random: config.json records the seed
         args.seed = 0
     if args.robots < 1:
         raise UserError(f"--robots must be at least 1, got {args.robots}.")

@@ -397,7 +397,7 @@ class FeedbackNavigator:
         caster, contact, s = self.nav.caster, cfg.contact, cfg.turn_spread_deg
 
         def worth(h):
-            clock, end, _, slid, D = landings(caster, pos, h, contact, bearings=False)
+            _, end, _, slid, D = landings(caster, pos, h, contact, bearings=False)
             final_m, mass = final_drive(pos, h, D, w, self.box, self.goal_heading,
                                         self.cells.delta_deg, cfg.margin_m, slid)
             cont = vt.gamma * float(vt.values(end, h, left - 1).mean()) if left > 0 else 0.0
@@ -433,7 +433,9 @@ class FeedbackNavigator:
         :meth:`scores`). Ties keep the cheaper plan.
         ``bumped``: the robot is at a contact (plans start with a turn); ``shift`` [deg]: the
         next turn is commanded ``shift`` short of its angle (heading correction, §15), so
-        plans and scores see every heading less ``shift``.
+        plans and scores see every heading less ``shift``. ``left``: the flights the bump
+        budget leaves; given, a navigator that decides by value (:attr:`by_value`) returns
+        :meth:`choose_value`'s one candidate instead (``keep`` and ``shift`` do not apply).
         """
         cfg = self.cfg
         if self.by_value and left is not None:

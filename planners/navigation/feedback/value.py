@@ -65,8 +65,8 @@ class Transitions:
                                     (q + ½)/M of N(0, σ²)
     fracs : (M,)                    where along its bin each node's flight starts
     nxt : (A, S, M) int32           the state each flight lands in
-    drive : (A, S, M) float32       its straight drive to the first contact [m]
-    slid : (A, S, M) bool or None   whether it slid on (a contact rule)
+    drive : (A, S, M) float32       its straight drive to the first contact [m] (a final
+                                    drive must stop before it, slide or not)
     points : (M, n_bins, 2)         the nodes' start points [m]
     """
 
@@ -90,7 +90,6 @@ class Transitions:
         S = self.n_bins * self.n_head
         self.nxt = np.empty((len(angles), S, M), dtype=np.int32)
         self.drive = np.empty((len(angles), S, M), dtype=np.float32)
-        self.slid = None if contact is None else np.zeros((len(angles), S, M), dtype=bool)
         b = np.repeat(np.arange(self.n_bins), self.n_head)
         head0 = np.tile(np.arange(self.n_head) * self.step_deg, self.n_bins)
         for i, a in enumerate(angles):
@@ -98,12 +97,10 @@ class Transitions:
                 th = head0 + a + off
                 for lo in range(0, S, _CHUNK):
                     sl = slice(lo, min(lo + _CHUNK, S))
-                    _, end, _, slid, straight = landings(caster, self.points[q, b[sl]],
-                                                         th[sl], contact, bearings=False)
+                    _, end, _, _, straight = landings(caster, self.points[q, b[sl]],
+                                                      th[sl], contact, bearings=False)
                     self.nxt[i, sl, q] = self.state(end, th[sl])
                     self.drive[i, sl, q] = straight
-                    if slid is not None:
-                        self.slid[i, sl, q] = slid
 
     def state(self, pos, heading_deg) -> np.ndarray:
         """The contact state of bump poses (pos (n, 2) [m], heading (n,) [deg])."""
@@ -179,8 +176,6 @@ class ValueTable:
                 depth = half - np.abs(end - centre).max(axis=1)
                 good = (depth >= 0) & (d <= tr.drive[i, idx, q]) & \
                     heading_ok(t + off, fnav.goal_heading, cs.delta_deg)
-                if tr.slid is not None:
-                    good &= ~tr.slid[i, idx, q] | (d <= tr.drive[i, idx, q])
                 ok += tr.weights[q] * good
             out[i, idx] = ok
         return out
