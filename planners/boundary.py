@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 import shapely
 from shapely.geometry.polygon import orient
@@ -103,6 +104,7 @@ class Boundary:
         self._ring_seg_first = np.concatenate(
             [[0], np.cumsum(np.bincount(self.seg_ring, minlength=len(rings)))[:-1]])
         self._build_grid(max(min(0.05, env.cell_size / 4), 1e-3))
+        self._ab = None
 
     def _build_grid(self, g: float) -> None:
         lo = np.minimum(self.A, self.B).min(axis=0) - g
@@ -127,7 +129,19 @@ class Boundary:
         self.candidates = table
 
     def locate(self, pts) -> tuple[np.ndarray, np.ndarray]:
-        """(ring, arc length [m]) of the nearest ring point of each point (n, 2)."""
+        """(ring, arc length [m]) of the nearest ring point of each point (n, 2): compiled
+        (:func:`_locate_kernel`, the same numbers as :meth:`locate_reference`).
+        """
+        pts = np.ascontiguousarray(np.asarray(pts, dtype=float).reshape(-1, 2))
+        if self._ab is None:
+            self._ab = (np.ascontiguousarray(self.A), np.ascontiguousarray(self.B))
+        seg, lam = _locate_kernel(pts, self.x0, self.y0, self.g, self.nx, self.ny,
+                                  self.candidates, self._ab[0], self._ab[1], self.seg_len,
+                                  _SNAP)
+        return self.seg_ring[seg], self.seg_s0[seg] + lam * self.seg_len[seg]
+
+    def locate_reference(self, pts) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`locate` in numpy (the reference the kernel is checked against)."""
         pts = np.asarray(pts, dtype=float).reshape(-1, 2)
         i = np.clip(((pts[:, 0] - self.x0) / self.g).astype(np.int64), 0, self.nx - 1)
         j = np.clip(((pts[:, 1] - self.y0) / self.g).astype(np.int64), 0, self.ny - 1)
@@ -186,6 +200,48 @@ def _point_seg_dist(p, a, b) -> np.ndarray:
     t = np.clip(((p - a) * e).sum(-1) / np.where(ee > 0, ee, 1.0), 0.0, 1.0)
     d = p - (a + t[..., None] * e)
     return np.hypot(d[..., 0], d[..., 1])
+
+
+@numba.njit(cache=True)
+def _seg_dist(px, py, ax, ay, bx, by):
+    """:func:`_point_seg_dist` of one point and one segment (the same operations)."""
+    ex, ey = bx - ax, by - ay
+    ee = ex * ex + ey * ey
+    t = ((px - ax) * ex + (py - ay) * ey) / (ee if ee > 0 else 1.0)
+    t = min(max(t, 0.0), 1.0)
+    return math.hypot(px - (ax + t * ex), py - (ay + t * ey))
+
+
+@numba.njit(cache=True)
+def _locate_kernel(pts, x0, y0, g, nx, ny, candidates, A, B, seg_len, snap):
+    """Per point: its nearest segment among its fine cell's candidates (all segments when
+    that one is farther than ``snap``; ties: the first) and the fraction along it.
+    """
+    n, k = pts.shape[0], candidates.shape[1]
+    seg = np.empty(n, dtype=np.int64)
+    lam = np.empty(n)
+    for p in range(n):
+        px, py = pts[p, 0], pts[p, 1]
+        i = min(max(int((px - x0) / g), 0), nx - 1)
+        j = min(max(int((py - y0) / g), 0), ny - 1)
+        best, bd = 0, np.inf
+        first = True
+        for c in range(k):
+            s = candidates[j * nx + i, c]
+            d = _seg_dist(px, py, A[s, 0], A[s, 1], B[s, 0], B[s, 1]) if s >= 0 else np.inf
+            if first or d < bd:
+                best, bd, first = (s if s >= 0 else 0), d, False
+        if bd > snap:                                    # off the grid's reach
+            bd = np.inf
+            for s in range(A.shape[0]):
+                d = _seg_dist(px, py, A[s, 0], A[s, 1], B[s, 0], B[s, 1])
+                if d < bd:
+                    best, bd = s, d
+        ex, ey = B[best, 0] - A[best, 0], B[best, 1] - A[best, 1]
+        t = ((px - A[best, 0]) * ex + (py - A[best, 1]) * ey) / (seg_len[best] ** 2)
+        seg[p] = best
+        lam[p] = min(max(t, 0.0), 1.0)
+    return seg, lam
 
 
 def bins_estimate(env, bin_length: float) -> int:

@@ -6,7 +6,7 @@ formulas in one pass per pose instead of (poses × walls) temporaries: a global 
 6000 particles is updated in a few ms instead of 30.
 
 The numpy versions are kept as the reference (``flights_reference``,
-``side_probs_reference``); ``tests/test_feedback_kernels.py`` checks the two on random poses.
+``side_probs_reference``); ``tests/test_kernels.py`` checks the two on random poses.
 """
 
 from __future__ import annotations

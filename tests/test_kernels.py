@@ -1,6 +1,8 @@
-"""The feedback filter's compiled kernels (planners/navigation/feedback/_kernels.py) against
-their numpy references on random poses in rooms with slanted walls and pillars: the same
-drives to the bit, the same touched features, bearings and side probabilities to 1e-12.
+"""Compiled kernels (numba) against their numpy references on random points in rooms with
+slanted walls and pillars: the feedback filter's flights and side probabilities
+(planners/navigation/feedback/_kernels.py: the same drives to the bit, the same touched
+features, bearings and side probabilities to 1e-12) and the contact bins' nearest ring point
+(planners/boundary.py: the same to the bit).
 """
 
 from __future__ import annotations
@@ -48,3 +50,22 @@ def test_flights_and_side_probabilities_match_the_numpy_reference(seed):
                                            atol=1e-12)
         else:
             assert b1 is None and b0 is None
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_boundary_locate_matches_the_numpy_reference(seed):
+    # contact points on the ring (nudged), points a little off it, and points far from it
+    # (the full search): the same segment and arc length, to the bit
+    from planners.boundary import Boundary
+    rng = np.random.default_rng(seed)
+    env = generated.slanted_room(rng, orientations=8)
+    bd = Boundary(env, 0.085)
+    on = bd.points(rng.integers(0, bd.n_bins, 500), rng.random(500))
+    near = on + rng.normal(0, 0.003, on.shape)
+    lo, hi = np.asarray(env.bounds[:2]), np.asarray(env.bounds[2:])
+    far = lo + rng.random((300, 2)) * (hi - lo)
+    for pts in (on, near, far):
+        ring, s = bd.locate(pts)
+        ring0, s0 = bd.locate_reference(pts)
+        np.testing.assert_array_equal(ring, ring0)
+        np.testing.assert_array_equal(s, s0)
