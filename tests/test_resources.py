@@ -77,6 +77,8 @@ def test_step_chain_estimate(name, K, eps):
 def test_continuous_model_estimates(model, K):
     cs = CellSpace(envs.load("lab", orientations=K))
     _ = cs.forward
+    from planners.boundary import Boundary
+    Boundary(cs.env, 0.1).bin_of(cs.centres[:1])   # compile the bin lookup outside the peak
     clear_cache()
     measured = traced_peak(lambda: model_for(cs, model).analyse(90, TurnNoise(0.0, 1.0)))
     clear_cache()
