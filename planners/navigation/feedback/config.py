@@ -101,7 +101,8 @@ class FeedbackConfig:
     gamma : float              the value's discount per bump (in (0, 1])
     value_horizon : int        flights the value table looks ahead (more are clipped)
     heading_step_deg : float   [deg] the value table's heading grid
-    value_nodes : int          equally likely flights per state and angle (turn error and start
+    value_nodes : int          equally likely flights per state and angle, each with its own
+                               turn error and start point along the bin
     contact : ContactParams or None
         the body's contact rule (docs/model.md §9) in the filter's motion model, the plan
         search's flights and the scores: a flight whose contact lies outside the bumper arc
