@@ -214,3 +214,29 @@ def test_plan_decisions_ignore_the_value_settings():
     assert runs[0].plan.turns == runs[1].plan.turns
     assert runs[0].plan.final_m == runs[1].plan.final_m
     assert all(math.isnan(p) or 0 <= p <= 1 for p in runs[0].p_success)
+
+
+def test_the_value_bound_of_the_robustness_experiment():
+    # nav_robustness --bound: per run the state-known value from the first bump, with γ = 1
+    # at least the discounted one the navigator uses, pooled over the runs of each cell
+    import pandas as pd
+
+    from experiments.nav_robustness import ANGLES as EXP_ANGLES
+    from experiments.nav_robustness import _cells, value_bound
+    runs = pd.DataFrame({"env": "lab", "map_seed": 0, "planner": "feedback", "body": "twin",
+                         "condition": "sigma2", "start": [20, 20, 8], "goal": [300, 300, 0],
+                         "success": [True, False, True]})
+    t = value_bound(runs)
+    pooled = t[t.env == "all"].iloc[0]
+    assert pooled.runs == 3 and pooled.success == pytest.approx(2 / 3)
+    cs = _cells("lab", 0)
+    own = []
+    for s, g in ((20, 300), (20, 300), (8, 0)):
+        fnav = FeedbackNavigator(cs, EXP_ANGLES, g, FeedbackConfig(turn_sigma_deg=2.0))
+        x, y, th = cs.pose(s)
+        body = KinematicRobot(cs.env)
+        body.place(x, y, th)
+        body.drive_until_bump(0.2, 100.0)
+        X, Y, TH = body.true_pose()
+        own.append(float(fnav.value.values(np.array([[X, Y]]), np.array([TH]), 39)[0]))
+    assert 0 <= np.mean(own) <= pooled.bound <= 1
