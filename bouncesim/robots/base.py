@@ -17,6 +17,8 @@ import threading
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 
+from envs import UserError
+
 __all__ = ["CREATE2", "BumpEvent", "Robot", "RobotError", "RobotSpec", "SigtermStop"]
 
 
@@ -51,6 +53,16 @@ class RobotSpec:
     def metres_per_count(self) -> float:
         """Wheel travel per encoder count [m]."""
         return math.pi * self.wheel_diameter / self.counts_per_rev
+
+    def check_speed(self, speed: float) -> float:
+        """``speed`` [m/s] as a float, or one sentence when it is not finite or beyond the
+        wheel limit (a drive of every body checks it the same way).
+        """
+        speed = float(speed)
+        if not math.isfinite(speed) or abs(speed) > self.max_wheel_speed + 1e-12:
+            raise UserError(f"speed {speed:g} m/s is beyond the robot's "
+                            f"{self.max_wheel_speed:g} m/s wheel limit.")
+        return speed
 
     def turn_time(self, angle_deg: float, wheel_speed: float) -> float:
         """Time [s] to turn in place by |angle| at wheel speeds ±wheel_speed [m/s] (by clock)."""

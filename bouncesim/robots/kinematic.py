@@ -218,11 +218,7 @@ class KinematicRobot(Robot):
     # ------------------------------------------------------------------ Robot interface
     def drive(self, speed: float) -> None:
         """Start driving straight at ``speed`` [m/s] (negative: backwards)."""
-        speed = float(speed)
-        if not math.isfinite(speed) or abs(speed) > self.spec.max_wheel_speed + 1e-12:
-            raise UserError(f"speed {speed:g} m/s is beyond the robot's "
-                            f"{self.spec.max_wheel_speed:g} m/s wheel limit.")
-        self._speed = speed
+        self._speed = self.spec.check_speed(speed)
 
     def stop(self) -> None:
         """Stop both wheels."""

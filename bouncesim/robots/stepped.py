@@ -31,10 +31,7 @@ class SteppedWheels:
     def drive(self, speed: float) -> None:
         """Drive straight at ``speed`` [m/s] (|speed| ≤ 0.5 m/s, the Create 2's limit)."""
         self._check_open()
-        speed = float(speed)
-        if not math.isfinite(speed) or abs(speed) > self.spec.max_wheel_speed + 1e-12:
-            raise UserError(f"speed {speed} m/s exceeds the wheel speed limit "
-                            f"{self.spec.max_wheel_speed} m/s.")
+        speed = self.spec.check_speed(speed)
         self._set_wheels(speed, speed)
 
     def stop(self) -> None:

@@ -351,10 +351,7 @@ class Create2Robot(SigtermStop, SensingMixin, TurningMixin, Robot):
     # ------------------------------------------------------------------ Robot interface
     def drive(self, speed: float) -> None:
         """Drive straight at ``speed`` [m/s] (both wheels) until stopped."""
-        speed = float(speed)
-        if not math.isfinite(speed) or abs(speed) > self.spec.max_wheel_speed + 1e-12:
-            raise UserError(f"speed {speed:g} m/s is beyond the robot's "
-                            f"{self.spec.max_wheel_speed:g} m/s wheel limit.")
+        speed = self.spec.check_speed(speed)
         self._drive_direct(speed, speed)
 
     def stop(self) -> None:
