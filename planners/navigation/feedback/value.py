@@ -18,8 +18,8 @@ decision rule what it lacks, the value of a contact state when the robot keeps d
   order that does not pair with n_q). So a state's value is averaged over where in its bin
   the robot is, as the belief, a few cm wide, does not know it either: a value from the
   bin's centre alone promised 0.52 where every flight from the true point of `lab`'s
-  corridor gave 0.06. The flights are stored with their straight drive for the stop
-  values.
+  corridor gave 0.06 (a development measurement of that variant). The flights are stored
+  with their straight drive for the stop values.
 - **Stop values (per goal).** Turning by φ and making the final drive succeeds with the
   probability (over the same nodes) that one drive length, the one that brings the noise-free
   heading's flight nearest the goal cell's centre, ends in the goal cell with the heading
