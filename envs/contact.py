@@ -88,15 +88,30 @@ def switches(bearings_deg) -> tuple[bool, bool]:
 
 
 def _group(contacts) -> list[list]:
+    """Front contacts grouped into distinct contacts: a contact within ``_SAME_CONTACT`` of a
+    group's first, or a vertex that ends a side of the group (the robot near a side's end
+    touches the side and, within BUMP_RANGE, its end vertex: one surface, not a pocket,
+    however close to the end a drive stopped), joins that group.
+    """
     groups: list[list] = []
     for c in sorted(contacts, key=lambda c: c[3] is None):     # a side before its vertex
         for g in groups:
-            if math.hypot(c[1] - g[0][1], c[2] - g[0][2]) < _SAME_CONTACT:
+            if math.hypot(c[1] - g[0][1], c[2] - g[0][2]) < _SAME_CONTACT or (
+                    c[3] is None and any(_ends_side(c[1], c[2], m[3]) for m in g)):
                 g.append(c)
                 break
         else:
             groups.append([c])
     return groups
+
+
+def _ends_side(px: float, py: float, side) -> bool:
+    """Whether the point (px, py) is an end of ``side`` (Ax, Ay, ex, ey, L)."""
+    if side is None:
+        return False
+    Ax, Ay, ex, ey, L = side
+    return (math.hypot(px - Ax, py - Ay) < _SAME_CONTACT
+            or math.hypot(px - Ax - L * ex, py - Ay - L * ey) < _SAME_CONTACT)
 
 
 def _clear(caster: WallCaster, x: float, y: float) -> bool:

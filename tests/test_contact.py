@@ -113,6 +113,37 @@ def test_corner_wrap_clock_matches_quadrature():
     assert used == pytest.approx((x_touch - 0.3) + wrap + (2.04 - R - 1.02), rel=1e-9)
 
 
+@pytest.mark.parametrize("heading", [268.5, 269.0, 271.5])
+@pytest.mark.parametrize("tick", [0.0075, 0.004, 0.013])
+def test_a_drive_in_ticks_slides_past_a_face_end_like_one_drive(heading, tick):
+    """Sliding down a block's face at 1-1.5° into it: a drive cut into ticks (as the Create 2
+    emulator drives) must pass the face's end as one drive does. A tick that stops within
+    BUMP_RANGE's reach of the end touches the face and its end vertex, one surface (it once
+    counted them as a pocket, a bump no switch reads, and the robot stayed there).
+    """
+    env = room(8, 6, obstacles=[(3, 2, 4, 3)])       # block [1.02, 1.36] x [0.68, 1.02]
+    caster = casters(env)[0]
+    rule = ContactParams(beta_deg=10.0)
+    side = 1.36 + R if heading < 270 else 1.02 - R    # touching the face, heading into it
+    ux, uy = _deg(heading)
+    # the face ends at y = 0.68; start so that a tick stops just above the end, within reach
+    # of the end vertex (the stuck case: 6.7e-5 m above it)
+    y0 = 0.68 + 6.7e-5 - 20 * tick * uy
+    x1, y1, used, bumped, _ = advance(caster, side, y0, ux, uy, rule)
+    assert bumped and y1 == pytest.approx(R, abs=1e-8)  # one drive: down to the south wall
+    for off in (2e-5, 6.7e-5, 3e-4):                  # from just above the end: on, no bump
+        _, y, u, b, _ = advance(caster, side, 0.68 + off, ux, uy, rule, tick)
+        assert not b and u == tick and y < 0.68
+    x, y, t = side, y0, 0.0
+    for _ in range(2000):
+        x, y, u, b, _ = advance(caster, x, y, ux, uy, rule, tick)
+        t += u
+        if b:
+            break
+    assert b and (x, y) == pytest.approx((x1, y1), abs=1e-6)
+    assert t == pytest.approx(used, abs=1e-6)
+
+
 def test_rule_with_beta_zero_is_the_front_half_bumper_bitwise():
     """β = 0: every front contact closes the bumper, so the shared rule must reproduce the
     paper's model exactly, in the event model and in the twin batch.
