@@ -30,7 +30,8 @@ plan at all; each run records whether its pair is ``reachable`` for its body, an
 summary gives the success over those pairs too (``success_reachable``).
 
 Outputs in ``--out``: ``runs.csv`` (one row per run: success, bumps, bumps to localize, the
-turn estimate, decision CPU times, reachable), ``summary.csv`` (per planner, body and
+turn estimate, decision CPU times, reachable, the belief's mass in the goal cell at the
+final drive ``stop_mass``), ``summary.csv`` (per planner, body and
 condition, pooled over the maps and per map: Wilson 95 % intervals, median bumps, median
 bumps to localize, decision CPU p50/p95/max), ``outcomes.csv`` (runs per way of ending:
 reached, stopped outside the cell, heading off, bump budget spent, no bump; pooled and per
@@ -61,7 +62,7 @@ from bouncesim.runs.sweep import Sweep
 from envs.motion import PYBULLET_CONTACT
 from planners.cells import CellSpace
 from planners.navigation import make_planner, planner_class
-from planners.navigation.feedback import FeedbackConfig, FeedbackNavigator
+from planners.navigation.feedback import DEFAULT_MAX_BUMPS, FeedbackConfig, FeedbackNavigator
 
 from .common import experiment_parser, invocation, name_list, output_dir, run_main
 from .nav_montecarlo import wilson
@@ -197,7 +198,8 @@ def trial(params: dict, rng: np.random.Generator) -> dict:
     if run is None:
         return {"success": False, "reason": "no plan", "bumps": 0, "bumps_to_localize": -1,
                 "turn_factor": np.nan, "decisions": 0, "decision_cpu_ms": "",
-                "position_error_m": np.nan, "wall_s": wall, "reachable": reachable(params)}
+                "position_error_m": np.nan, "wall_s": wall, "reachable": reachable(params),
+                "stop_mass": np.nan}
     cpu = getattr(run, "decision_cpu_ms", ())
     loc = getattr(run, "bumps_to_localize", 0)
     return {"success": bool(run.success), "reason": run.reason, "bumps": int(run.bumps),
@@ -205,7 +207,8 @@ def trial(params: dict, rng: np.random.Generator) -> dict:
             "turn_factor": float(getattr(run, "turn_estimate", (np.nan,))[0]),
             "decisions": len(cpu), "decision_cpu_ms": " ".join(f"{v:.2f}" for v in cpu),
             "position_error_m": np.nan if run.position_error is None
-            else float(run.position_error), "wall_s": wall, "reachable": reachable(params)}
+            else float(run.position_error), "wall_s": wall, "reachable": reachable(params),
+            "stop_mass": float(getattr(run, "stop_mass", np.nan))}
 
 
 def feedback_config(text: str) -> FeedbackConfig:
@@ -340,7 +343,7 @@ def summarise(runs: pd.DataFrame) -> pd.DataFrame:
 def value_bound(runs: pd.DataFrame) -> pd.DataFrame:
     """What a robot that knew its contact state after every bump would reach: per feedback
     run from a known start under turn noise σ (the sigma conditions), the closed-loop value
-    (docs/model.md §15, "Deciding by value"; γ = 1, the budget's 40 flights) of the bump
+    (docs/model.md §15, "Deciding by value"; γ = 1, the bump budget's flights) of the bump
     that ends the first flight from the pair's start, beside the run's success; pooled
     (env = 'all') and per map, per body and condition. A ceiling for the value decision
     under its own model of the robot (bins and 7 flights per state, not an exact bound).
@@ -359,7 +362,7 @@ def value_bound(runs: pd.DataFrame) -> pd.DataFrame:
             x, y, th = cs.pose(int(s))
             _, end, _, _, _ = landings(fnav.nav.caster, np.array([[x, y]]), np.array([th]),
                                        rule, bearings=False)
-            v = float(fnav.value.values(end, np.array([th]), 39)[0])
+            v = float(fnav.value.values(end, np.array([th]), DEFAULT_MAX_BUMPS - 1)[0])
             rows.extend((env, body, cond, v, bool(ok)) for ok in pair.success)
     t = pd.DataFrame(rows, columns=["env", "body", "condition", "bound", "success"])
     parts = [t.groupby(["body", "condition"]).agg(runs=("success", "size"),

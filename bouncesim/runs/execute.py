@@ -60,7 +60,12 @@ import numpy as np
 
 from envs import Environment, UserError
 from planners.cells import CellSpace
-from planners.navigation.feedback import FeedbackConfig, FeedbackPlanner, FeedbackPolicy
+from planners.navigation.feedback import (
+    DEFAULT_MAX_BUMPS,
+    FeedbackConfig,
+    FeedbackPlanner,
+    FeedbackPolicy,
+)
 from planners.plan import PolicyMix
 
 from ..robots.base import Robot, RobotError
@@ -256,7 +261,8 @@ def navigate_feedback(robot: Robot, env: Environment | None, start, goal: int, n
                       rng: np.random.Generator, *, angles=(45.0, 90.0, 135.0),
                       cells: CellSpace | None = None, config: FeedbackConfig | None = None,
                       speed: float = 0.2, back_off: float = 0.0, w1: float = 1.0,
-                      w2: float = 100.0, max_bumps: int = 40, max_time: float | None = None,
+                      w2: float = 100.0, max_bumps: int = DEFAULT_MAX_BUMPS,
+                      max_time: float | None = None,
                       on_belief=None, contact="auto") -> FeedbackRun:
     """Drive ``robot`` from ``start`` to the goal configuration by feedback (§15):
     ``execute(FeedbackPlanner(...).policy(start, goal), robot)``.

@@ -17,6 +17,7 @@ The front door is :func:`bouncesim.runs.execute.navigate_feedback`.
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 
@@ -58,6 +59,8 @@ class FeedbackRun(PlanRun):
                                    start; None: it never did)
     turn_estimate : tuple          the belief's final estimate of the turn's constant factor
                                    and offset: (factor, its std, offset [deg], its std)
+    stop_mass : float              the belief's mass in the goal cell when the final drive
+                                   was chosen (nan: the run ended without one)
     """
 
     decision_ms: tuple = ()
@@ -67,6 +70,7 @@ class FeedbackRun(PlanRun):
     no_plan: int = 0
     bumps_to_localize: int | None = 0
     turn_estimate: tuple = (1.0, 0.0, 0.0, 0.0)
+    stop_mass: float = math.nan
 
     @property
     def reinits(self) -> int:
@@ -89,6 +93,8 @@ class FeedbackRun(PlanRun):
                     "turn_offset_deg": round(self.turn_estimate[2], 4),
                     "turn_offset_sd": round(self.turn_estimate[3], 4),
                     "lost": sum(1 for u in self.updates if u.lost),
+                    "stop_mass": None if math.isnan(self.stop_mass)
+                    else round(float(self.stop_mass), 4),
                     "p_success": [round(float(v), 4) for v in self.p_success]})
         return out
 
@@ -147,7 +153,7 @@ class FeedbackRunner:
                                                       if self.localizing else "")
         self.turns, self.flights, self.final = [], [], 0.0
         self.decision_ms, self.decision_cpu, self.updates, self.p_succ = [], [], [], []
-        self.no_plan, self.completed = 0, False
+        self.no_plan, self.completed, self.stop_mass = 0, False, math.nan
 
     def moves(self, pose):
         """The run's moves from the true start ``pose`` (a generator; its value: the
@@ -182,7 +188,8 @@ class FeedbackRunner:
                 best = None
             todo = list(best.angles) if best is not None else [float(rng.choice(fnav.nav.angles))]
             if not todo:                       # already on the final flight (or in the cell)
-                self.final, _ = fnav.final(belief.pos, belief.heading, belief.weights)
+                self.final, self.stop_mass = fnav.final(belief.pos, belief.heading,
+                                                        belief.weights)
                 self._note_decision()
                 if flights and len(flights) > len(turns):
                     self.final += flights.pop()     # the flight into the cell ends the plan
@@ -198,6 +205,7 @@ class FeedbackRunner:
                 if fnav.stops(mass, last=len(flights) >= self.policy.max_bumps - 1,
                               need=best.stop_min):
                     # else (too little belief mass stops in the cell, §15): fly on
+                    self.stop_mass = mass
                     self._note_decision()
                     if self.final > 0:
                         res = yield Drive(self.final)
@@ -266,4 +274,5 @@ class FeedbackRunner:
                            decision_cpu_ms=tuple(self.decision_cpu),
                            updates=tuple(self.updates), p_success=tuple(self.p_succ),
                            no_plan=self.no_plan, bumps_to_localize=self.bumps_to_localize,
-                           turn_estimate=self.belief.turn_estimate())
+                           turn_estimate=self.belief.turn_estimate(),
+                           stop_mass=self.stop_mass)

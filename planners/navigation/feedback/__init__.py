@@ -5,10 +5,11 @@ and the registry's planner with the policy that the run loop executes (:mod:`.pl
 
 from __future__ import annotations
 
+from .config import DEFAULT_MAX_BUMPS
 from .filter import SIDES, FeedbackConfig, FlightUpdate, ParticleFilter, side_of
 from .navigator import Candidate, FeedbackNavigator, final_drive, goal_intervals
 from .planner import FeedbackPlanner, FeedbackPolicy, declared_sigma
 
-__all__ = ["Candidate", "FeedbackConfig", "FeedbackNavigator", "FeedbackPlanner",
-           "FeedbackPolicy", "FlightUpdate", "ParticleFilter", "SIDES", "declared_sigma",
-           "final_drive", "goal_intervals", "side_of"]
+__all__ = ["Candidate", "DEFAULT_MAX_BUMPS", "FeedbackConfig", "FeedbackNavigator",
+           "FeedbackPlanner", "FeedbackPolicy", "FlightUpdate", "ParticleFilter", "SIDES",
+           "declared_sigma", "final_drive", "goal_intervals", "side_of"]

@@ -10,7 +10,12 @@ from dataclasses import dataclass
 from envs import UserError
 from envs.motion import CENTRE_ZONE_DEG, ContactParams
 
-__all__ = ["FeedbackConfig"]
+__all__ = ["FeedbackConfig", "DEFAULT_MAX_BUMPS"]
+
+DEFAULT_MAX_BUMPS = 80
+"""A feedback run gives up after this many bumps (the value table looks as far ahead). 80,
+not 40: at σ = 2° and 5° the runs that needed more than 40 bumps reach the goal without the
+median run's bumps changing (docs/readme_feedback.md, "The bump budget")."""
 
 
 # ============================================================================ configuration
@@ -99,7 +104,8 @@ class FeedbackConfig:
                                "auto" (default: "value" when a turn error is declared,
                                :attr:`value_sigma_deg` > 0, else "plan")
     gamma : float              the value's discount per bump (in (0, 1])
-    value_horizon : int        flights the value table looks ahead (more are clipped)
+    value_horizon : int        flights the value table looks ahead (more are clipped; the
+                               default: the bump budget, :data:`DEFAULT_MAX_BUMPS`)
     heading_step_deg : float   [deg] the value table's heading grid
     value_nodes : int          equally likely flights per state and angle, each with its own
                                turn error and start point along the bin
@@ -148,7 +154,7 @@ class FeedbackConfig:
     reference: bool = False
     decision: str = "auto"
     gamma: float = 0.98
-    value_horizon: int = 40
+    value_horizon: int = DEFAULT_MAX_BUMPS
     heading_step_deg: float = 1.0
     value_nodes: int = 7
     contact: ContactParams | None = None

@@ -265,7 +265,9 @@ class ParticleFilter:
         ll, ghost, ok = self._loglik(d, side, D, beta)
         ok &= self.w > 0
         stop = self.pos + np.minimum(d, D)[:, None] * unit(self.heading)
-        phantom = np.log(self.rng.random(self.n)) < ghost - ll      # which branch it took
+        # which branch it took (a particle the reading rules out, ll = −inf, took neither)
+        with np.errstate(invalid="ignore"):
+            phantom = np.log(self.rng.random(self.n)) < ghost - ll
         pos = np.where(phantom[:, None], stop, end)
         return self._posterior(d, "none" if side is None else SIDES[side], ll, pos,
                                int(ok.sum()),

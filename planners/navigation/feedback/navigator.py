@@ -361,8 +361,9 @@ class FeedbackNavigator:
         for a in self.nav.angles:
             D, _, beta, _, _ = landings(self.nav.caster, pos, head + a, self.cfg.contact)
             side = np.argmax(side_probs(beta, self.cfg), axis=1)
-            _, counts = np.unique(np.floor(D / bin_m).astype(np.int64) * 3 + side,
-                                  return_counts=True)
+            # a ray that meets no wall (a particle off the free space): a reading of its own
+            key = np.where(np.isfinite(D), np.floor(np.nan_to_num(D, posinf=0.0) / bin_m), -1)
+            _, counts = np.unique(key.astype(np.int64) * 3 + side, return_counts=True)
             p = counts / counts.sum()
             h = float(-(p * np.log(p)).sum())
             if h > best_h + 1e-12:

@@ -36,13 +36,12 @@ from ...plan import Plan
 from ...resources import MemoryEstimate
 from ..base import Route, check_angles, check_config, check_weights
 from ..exact import ExactNavigator
+from .config import DEFAULT_MAX_BUMPS
 from .filter import FeedbackConfig
 from .navigator import FeedbackNavigator
 
 __all__ = ["FeedbackPlanner", "FeedbackPolicy", "declared_sigma", "declared_turn"]
 
-DEFAULT_MAX_BUMPS = 40
-"""A feedback run gives up after this many bumps."""
 
 
 def declared_turn(noise) -> dict:
