@@ -191,6 +191,24 @@ def slanted_room(rng: np.random.Generator, orientations: int = 8,
         "robot_radius": R, "discretization": {"cell_size": H, "orientations": int(orientations)}})
 
 
+def big_two_room(orientations: int = 360) -> Environment:
+    """Two rooms of 10 × 11 cells (h = 0.34 m) joined by a 0.51 m door, a pillar in each:
+    203 free cells.
+    """
+    h = 0.34
+    W, H = 20 * h, 11 * h
+    x0, x1 = 9.5 * h, 10.5 * h
+    d0, d1 = 5.5 * h - 0.255, 5.5 * h + 0.255
+    return Environment.from_dict({
+        "name": "big_two_room", "boundary": [[0, 0], [W, 0], [W, H], [0, H]],
+        "obstacles": [[[x0, 0], [x1, 0], [x1, d0], [x0, d0]],
+                      [[x0, d1], [x1, d1], [x1, H], [x0, H]],
+                      [[3 * h, 7 * h], [4 * h, 7 * h], [4 * h, 8 * h], [3 * h, 8 * h]],
+                      [[15 * h, 3 * h], [16 * h, 3 * h], [16 * h, 4 * h], [15 * h, 4 * h]]],
+        "robot_radius": 0.17,
+        "discretization": {"cell_size": h, "orientations": int(orientations)}})
+
+
 MAPS = {"office": lambda K: office(2 * R, K),
         "office-pinhole": lambda K: office(2 * R + 1e-7, K),
         "office-wide": lambda K: office(0.40, K)}

@@ -24,6 +24,7 @@ import numpy as np
 import pandas as pd
 
 from bouncesim.runs.cover import twin_cover
+from envs.generated import big_two_room
 from planners.cells import CellSpace
 from planners.coverage import TurnNoise, design_mix, model_for
 from planners.coverage.cover_time import LEVELS, coverage_metrics
@@ -31,7 +32,7 @@ from planners.coverage.time_design import objective_value
 from planners.plan import PolicyMix
 
 from .common import experiment_parser, output_dir, run_main, write_config
-from .cover_time import ANGLES, EPS, R, big_two_room
+from .cover_time import ANGLES, EPS, R
 
 __all__ = ["Config", "main", "run"]
 

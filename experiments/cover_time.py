@@ -1,14 +1,15 @@
 """Coverage-time metrics (docs/model.md §20a): the event model's prediction against the
 kinematic twin, for one robot and teams of four.
 
-On maps nobody tuned for (a two-room map of about 200 cells drawn here, and random
-rectilinear rooms from :mod:`envs.generated`) at K = 360, ε = 5°, r = 0.8 and the angles
-30°, 75° and 315°: the predicted mean covered fraction C(t) (sampled from the model's chain)
-against the twin's, at t = 1000, 5000 and 20000 steps, and T_90. Writes cover_time.csv (one
-row per map, angle, team size and t), config.json and cover_time.png (C(t), model against
-twin).
+On maps nobody tuned for (a two-room map of about 200 cells drawn here, a random rectilinear
+room and a random room with slanted walls and pillars from :mod:`envs.generated`) at K = 360,
+ε = 5°, r = 0.8 and the angles 30°, 75° and 315°: the predicted mean covered fraction C(t)
+(sampled from the model's chain) against the twin's, at t = 1000, 5000 and 20000 steps, and
+T_90. Writes cover_time.csv (one row per map, angle, team size and t), cover_cells.csv (per
+cell, the share of runs that have visited it by each t, model and twin: where the two
+disagree), config.json and cover_time.png (C(t), model against twin).
 
-    python -m experiments.cover_time            # the full run (about ten minutes)
+    python -m experiments.cover_time            # the full run (about five minutes)
     python -m experiments.cover_time --quick    # a small map, K = 72, short horizon
 """
 
@@ -22,35 +23,16 @@ import numpy as np
 import pandas as pd
 
 from bouncesim.runs.cover import twin_cover
-from envs import Environment
-from envs.generated import random_rectilinear_room
+from envs.generated import big_two_room, random_rectilinear_room, slanted_room
 from planners.cells import CellSpace
 from planners.coverage import TurnNoise, model_for
-from planners.coverage.cover_time import coverage_metrics, metric_times
+from planners.coverage.cover_time import coverage_metrics, metric_times, visited_by
 
 from .common import experiment_parser, output_dir, recorded, write_config
 
 NAME = "cover_time"
 ANGLES = (30.0, 75.0, 315.0)
 EPS, R = 5.0, 0.8
-
-
-def big_two_room(orientations: int = 360) -> Environment:
-    """Two rooms of 10 × 11 cells (h = 0.34 m) joined by a 0.51 m door, a pillar in each:
-    203 free cells.
-    """
-    h = 0.34
-    W, H = 20 * h, 11 * h
-    x0, x1 = 9.5 * h, 10.5 * h
-    d0, d1 = 5.5 * h - 0.255, 5.5 * h + 0.255
-    return Environment.from_dict({
-        "name": "big_two_room", "boundary": [[0, 0], [W, 0], [W, H], [0, H]],
-        "obstacles": [[[x0, 0], [x1, 0], [x1, d0], [x0, d0]],
-                      [[x0, d1], [x1, d1], [x1, H], [x0, H]],
-                      [[3 * h, 7 * h], [4 * h, 7 * h], [4 * h, 8 * h], [3 * h, 8 * h]],
-                      [[15 * h, 3 * h], [16 * h, 3 * h], [16 * h, 4 * h], [15 * h, 4 * h]]],
-        "robot_radius": 0.17,
-        "discretization": {"cell_size": h, "orientations": int(orientations)}})
 
 
 @dataclass(frozen=True)
@@ -63,6 +45,8 @@ class Config:
     horizon : int          steps per robot
     times : tuple          the t compared
     rooms : int            random rectilinear rooms besides the two-room map
+    slanted : int          random rooms with slanted walls and pillars off the grid
+                           (:func:`envs.generated.slanted_room`, every pillar 2.2 r clear)
     model_runs : int       sampled runs (teams) of the model per record
     twin_runs : int        simulated teams per angle and team size
     quick, seed, out
@@ -72,6 +56,7 @@ class Config:
     horizon: int = 20_000
     times: tuple = (1000, 5000, 20_000)
     rooms: int = 1
+    slanted: int = 1
     model_runs: int = 2000
     twin_runs: int = 200
     quick: bool = False
@@ -85,9 +70,11 @@ def run(config: Config) -> Path:
     rng = np.random.default_rng(config.seed)
     maps = [big_two_room(config.orientations)] + [
         random_rectilinear_room(rng, config.orientations, name=f"rect{i}")
-        for i in range(config.rooms)]
+        for i in range(config.rooms)] + [
+        slanted_room(rng, config.orientations, name=f"slanted{i}")
+        for i in range(config.slanted)]
     noise = TurnNoise(EPS, R)
-    rows, curves = [], []
+    rows, curves, per_cell = [], [], []
     t0 = time.perf_counter()
     for env in maps:
         cs = CellSpace(env)
@@ -115,12 +102,26 @@ def run(config: Config) -> Path:
                              "T90_model_not_reached": m.T["0.9"]["not_reached"],
                              "T90_twin": tw_T, "T90_twin_not_reached": tw_nr,
                              "model_seconds_all": model_s, "twin_seconds": sim.seconds})
+            sim_cells = visited_by(sim.first, m.t)
+            for t in config.times:
+                if t in m.t:
+                    i = list(m.t).index(t)
+                    per_cell.extend({"map": env.name, "angle": int(m.angle),
+                                     "robots": m.robots, "t": t, "cell": p,
+                                     "x": cs.centres[p][0], "y": cs.centres[p][1],
+                                     "model": m.cell_visited[i, p], "twin": sim_cells[i, p]}
+                                    for p in range(cs.P))
             for ti, cm, ct in zip(m.t, m.covered_mean, sim.covered_mean):
                 curves.append({"map": env.name, "angle": int(m.angle), "robots": m.robots,
                                "t": int(ti), "model": cm, "twin": ct})
         print(pd.DataFrame([r for r in rows if r["map"] == env.name]).to_string(index=False))
     pd.DataFrame(rows).to_csv(out / "cover_time.csv", index=False, float_format="%.6g")
     pd.DataFrame(curves).to_csv(out / "cover_curves.csv", index=False, float_format="%.6g")
+    cells = pd.DataFrame(per_cell)
+    cells.to_csv(out / "cover_cells.csv", index=False, float_format="%.4g")
+    worst = cells.assign(diff=cells.model - cells.twin).sort_values("diff").head(8)
+    print("cells the model visits least often against the twin:")
+    print(worst.to_string(index=False))
     write_config(out, {"experiment": NAME, **recorded(config), "angles": list(ANGLES),
                        "eps": EPS, "r": R, "model": "event",
                        "seconds": time.perf_counter() - t0})
@@ -161,7 +162,7 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
     if args.quick:
         config = Config(orientations=72, horizon=2000, times=(100, 1000, 2000), rooms=0,
-                        model_runs=300, twin_runs=30, quick=True, seed=args.seed,
+                        slanted=0, model_runs=300, twin_runs=30, quick=True, seed=args.seed,
                         out=args.out)
     else:
         config = Config(seed=args.seed, out=args.out)

@@ -12,6 +12,7 @@ import json
 import math
 
 import numpy as np
+import pandas as pd
 import pytest
 
 import bouncesim
@@ -23,7 +24,7 @@ from envs.generated import random_rectilinear_room
 from experiments.coverage_horizon import two_room
 from planners.cells import CellSpace
 from planners.coverage import TurnNoise, model_for
-from planners.coverage.cover_time import coverage_metrics, metric_times, return_times
+from planners.coverage.cover_time import coverage_metrics, metric_times, return_times, visited_by
 from planners.coverage.step import transition_matrix
 from planners.plan import PolicyMix
 
@@ -144,6 +145,12 @@ def test_a_team_of_one_is_one_robot_and_teams_are_independent_unions():
     for t, d in enumerate(sets):
         pc = np.array([sum(p for V, p in d.items() if V >> c & 1) for c in range(8)])
         assert team3.covered_mean[t] == pytest.approx(np.mean(1 - (1 - pc) ** 3), abs=1e-12)
+        # each cell's share visited (always sampled: 1000 runs) against the exact marginal,
+        # within 4 binomial standard errors (at least 1e-3)
+        pk = np.stack([pc, 1 - (1 - pc) ** 3])
+        got = np.stack([one.cell_visited[t], team3.cell_visited[t]])
+        assert np.all(np.abs(got - pk) <= 4 * np.sqrt(pk * (1 - pk) / one.runs) + 1e-3), (
+            t, got, pk)
     # the sampled path: K = 1 runs the same sampler as one robot
     a, = coverage_metrics(model, 90, noise, robots=1, horizon=20, rng=5, exact=False)
     b, = coverage_metrics(model, 90, noise, robots=[1], horizon=20, rng=5, exact=False)
@@ -199,6 +206,10 @@ def _twin_check(env, angle, noise, robots, T, times, runs):
                           times=times, runs=2000, rng=0, exact=False)
     sim = twin_cover(env, angle, noise, robots=robots, runs=runs, horizon=T, times=times,
                      rng=1, cells=cs)
+    # per cell: the shares visited average to the covered fraction, in model and twin alike
+    assert m.cell_visited.mean(axis=1) == pytest.approx(m.covered_mean, abs=1e-12)
+    assert visited_by(sim.first, times).mean(axis=1) == pytest.approx(sim.covered_mean,
+                                                                       abs=1e-12)
     se = np.hypot(m.covered_se, sim.covered_se)
     # the goal (0.03) where the simulation is precise; 3 combined standard errors beyond it
     assert np.all(np.abs(m.covered_mean - sim.covered_mean) <= 0.03 + 3 * se), (
@@ -285,5 +296,11 @@ def test_experiment_quick(tmp_path):
     rows = tmp_path.joinpath("cover_time.csv").read_text().splitlines()
     assert rows[0].startswith("map,P,angle,robots,t,model") and len(rows) == 1 + 3 * 2 * 3
     assert (tmp_path / "cover_time.png").stat().st_size > 0
+    cells = pd.read_csv(tmp_path / "cover_cells.csv")
+    assert len(cells) == 3 * 2 * 3 * cells.cell.nunique()
+    assert cells[["model", "twin"]].stack().between(0, 1).all()
+    # a cell's share visited by t can only grow with t
+    for _, g in cells.groupby(["angle", "robots", "cell"]):
+        assert np.all(np.diff(g.sort_values("t")[["model", "twin"]].to_numpy(), axis=0) >= 0)
     cfg = json.loads((tmp_path / "config.json").read_text())
     assert cfg["quick"] is True and cfg["orientations"] == 72

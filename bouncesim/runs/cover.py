@@ -35,12 +35,15 @@ class TwinCover:
                              steps 0 … t−1)
     reach : (runs, 4) int    first t with C(t) ≥ X for X in LEVELS, −1 when not reached
     seconds : float
+    first : (runs, P) int    the step at which each team first visits each cell (−1: not
+                             within the horizon)
     """
 
     t: np.ndarray
     covered: np.ndarray
     reach: np.ndarray
     seconds: float
+    first: np.ndarray | None = None
 
     @property
     def covered_mean(self) -> np.ndarray:
@@ -94,7 +97,7 @@ def twin_cover(env, policy, noise: TurnNoise, *, robots: int = 1, runs: int = 10
     want = {t: i for i, t in enumerate(times)}
     team = np.arange(n) // int(robots)
     P = cs.P
-    visited = np.zeros(int(runs) * P, dtype=bool)
+    first = np.full(int(runs) * P, -1, dtype=np.int64)
     covered = np.zeros(int(runs), dtype=np.int64)
     out = np.zeros((int(runs), len(times)))
     kneed = np.array([max(1, math.ceil(x * P - 1e-9)) for x in LEVELS])
@@ -110,12 +113,12 @@ def twin_cover(env, policy, noise: TurnNoise, *, robots: int = 1, runs: int = 10
         cells, _ = batch.step(current, tw)
         ok = cells >= 0
         key = np.unique(team[ok] * P + cells[ok])
-        new = key[~visited[key]]
+        new = key[first[key] < 0]
         if new.size:
-            visited[new] = True
+            first[new] = t
             covered += np.bincount(new // P, minlength=int(runs))
             for i, k in enumerate(kneed):
                 hit = (reach[:, i] < 0) & (covered >= k)
                 reach[hit, i] = t + 1
     return TwinCover(t=np.asarray(times), covered=out, reach=reach,
-                     seconds=time.perf_counter() - t0)
+                     seconds=time.perf_counter() - t0, first=first.reshape(int(runs), P))

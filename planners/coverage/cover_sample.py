@@ -6,7 +6,8 @@ and the offset of its next step); the step is counted in the flight's cell at th
 (or in none: a dropped step); after a flight's last step (the bump step) the robot lands,
 turns by its current angle (a row of the angle's turn matrix) and picks its next flight
 (by weight). The team's visited cells are one set; what a run reports is read off it at
-given steps. Compiled with numba: a step of one robot costs a few nanoseconds.
+given steps. Compiled with numba: a step of one robot costs a few nanoseconds, and the runs
+are spread over the cores (``numba.prange``), each from its own seed.
 
 The tables are flat arrays (CSR-like) built once per chain by :class:`SampleTables`.
 """
@@ -101,66 +102,79 @@ def _pick(cum, lo, hi, u):
     return min(i, hi - 1)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, parallel=True)
 def _kernel(fptr, fidx, fcum, dst, delay, cptr, cells, tptr, tcol, tcum, acum, epoch,
             sstate, scum, P, robots, runs, horizon, times, kneed, seed):
-    np.random.seed(seed)
     G, nk = times.size, kneed.size
     counts = np.zeros((runs, G), dtype=np.int32)
     reach = np.full((runs, nk), -1, dtype=np.int64)
     idle = np.zeros(runs, dtype=np.int64)
-    first = np.empty(P, dtype=np.int64)
-    last = np.empty(P, dtype=np.int64)
+    first = np.empty((runs, P), dtype=np.int32)
+    for run in numba.prange(runs):
+        counts[run], reach[run], idle[run], first[run] = _run(
+            fptr, fidx, fcum, dst, delay, cptr, cells, tptr, tcol, tcum, acum, epoch,
+            sstate, scum, P, robots, horizon, times, kneed, seed + run)
+    return counts, reach, idle, first
+
+
+@numba.njit(cache=True)
+def _run(fptr, fidx, fcum, dst, delay, cptr, cells, tptr, tcol, tcum, acum, epoch,
+         sstate, scum, P, robots, horizon, times, kneed, seed):
+    """One run of the team from its own seed (the thread's generator is seeded for it, so a
+    run is the same whichever thread samples it).
+    """
+    np.random.seed(seed)
+    G, nk = times.size, kneed.size
+    counts = np.zeros(G, dtype=np.int32)
+    reach = np.full(nk, -1, dtype=np.int64)
+    first = np.full(P, -1, dtype=np.int64)
+    last = np.full(P, -1, dtype=np.int64)
     fl = np.empty(robots, dtype=np.int64)
     pos = np.empty(robots, dtype=np.int64)
     cur = np.zeros(robots, dtype=np.int64)
     m = acum.size
-    for run in range(runs):
-        first[:] = -1
-        last[:] = -1
-        covered, gi, ki, worst = 0, 0, 0, 0
-        for r in range(robots):
-            s = sstate[_pick(scum, 0, scum.size, np.random.random())]
-            fl[r] = fidx[_pick(fcum, fptr[s], fptr[s + 1], np.random.random())]
-            pos[r] = 0
-        for t in range(horizon):
-            while gi < G and times[gi] == t:
-                counts[run, gi] = covered
-                gi += 1
-            if m > 1 and t % epoch == 0:
-                for r in range(robots):
-                    cur[r] = _pick(acum, 0, m, np.random.random())
-            for r in range(robots):
-                f, j = fl[r], pos[r]
-                c = cells[cptr[f] + j]
-                if c >= 0:
-                    if first[c] < 0:
-                        first[c] = t
-                        covered += 1
-                        while ki < nk and covered >= kneed[ki]:
-                            reach[run, ki] = t + 1
-                            ki += 1
-                    gap = t - last[c] - 1
-                    if gap > worst:
-                        worst = gap
-                    last[c] = t
-                j += 1
-                if j == delay[f]:                      # the bump step: land, turn, fly on
-                    s = dst[f]
-                    a = cur[r]
-                    s = tcol[_pick(tcum, tptr[a, s], tptr[a, s + 1], np.random.random())]
-                    f = fidx[_pick(fcum, fptr[s], fptr[s + 1], np.random.random())]
-                    j = 0
-                fl[r], pos[r] = f, j
-        while gi < G:
-            counts[run, gi] = covered
+    covered, gi, ki, worst = 0, 0, 0, 0
+    for r in range(robots):
+        s = sstate[_pick(scum, 0, scum.size, np.random.random())]
+        fl[r] = fidx[_pick(fcum, fptr[s], fptr[s + 1], np.random.random())]
+        pos[r] = 0
+    for t in range(horizon):
+        while gi < G and times[gi] == t:
+            counts[gi] = covered
             gi += 1
-        for c in range(P):
-            gap = horizon - 1 - last[c]
-            if gap > worst:
-                worst = gap
-        idle[run] = worst
-    return counts, reach, idle
+        if m > 1 and t % epoch == 0:
+            for r in range(robots):
+                cur[r] = _pick(acum, 0, m, np.random.random())
+        for r in range(robots):
+            f, j = fl[r], pos[r]
+            c = cells[cptr[f] + j]
+            if c >= 0:
+                if first[c] < 0:
+                    first[c] = t
+                    covered += 1
+                    while ki < nk and covered >= kneed[ki]:
+                        reach[ki] = t + 1
+                        ki += 1
+                gap = t - last[c] - 1
+                if gap > worst:
+                    worst = gap
+                last[c] = t
+            j += 1
+            if j == delay[f]:                      # the bump step: land, turn, fly on
+                s = dst[f]
+                a = cur[r]
+                s = tcol[_pick(tcum, tptr[a, s], tptr[a, s + 1], np.random.random())]
+                f = fidx[_pick(fcum, fptr[s], fptr[s + 1], np.random.random())]
+                j = 0
+            fl[r], pos[r] = f, j
+    while gi < G:
+        counts[gi] = covered
+        gi += 1
+    for c in range(P):
+        gap = horizon - 1 - last[c]
+        if gap > worst:
+            worst = gap
+    return counts, reach, worst, first.astype(np.int32)
 
 
 def sample_runs(tables: SampleTables, turns, alpha, epoch: int | None, start_states,
@@ -180,7 +194,9 @@ def sample_runs(tables: SampleTables, turns, alpha, epoch: int | None, start_sta
     P : int                             position cells
     times : (G,) int, sorted            steps t ≥ 1 at which to read the visited cells
     kneed : (k,) int, non-decreasing    cell counts whose first step to record
-    seed : int                          seeds the compiled sampler's generator
+    seed : int                          run i draws from the compiled generator seeded with
+                                        ``seed + i`` (the runs are shared among the cores;
+                                        the result does not depend on how many)
 
     Returns
     -------
@@ -189,6 +205,8 @@ def sample_runs(tables: SampleTables, turns, alpha, epoch: int | None, start_sta
                                0 … t−1, −1 when not within the horizon
     idle (runs,) int64         longest stretch of steps in [0, horizon) in which some cell is
                                not visited by any robot of the team
+    first (runs, P) int32      the step at which each cell is first visited by the team
+                               (−1: not within the horizon)
     """
     tptr, tcol, tcum = turns if isinstance(turns, tuple) else turn_tables(turns)
     a = np.asarray(alpha, dtype=float)

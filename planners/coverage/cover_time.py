@@ -92,6 +92,9 @@ class CoverMetrics:
     runs : int                sampled runs (teams), for the idleness too
     seed : int                seed of the sampler
     details : dict            policy (angles, alpha, epoch), noise, start, seconds
+    cell_visited : (G, P)     the share of runs in which the team has visited cell p in
+                              steps 0 … t−1, for every t of :attr:`t` (always sampled; not in
+                              ``metrics.json``): which places a run is likely to miss
     """
 
     angle: float | None
@@ -110,6 +113,7 @@ class CoverMetrics:
     runs: int
     seed: int
     details: dict = field(default_factory=dict)
+    cell_visited: np.ndarray | None = None
 
     def covered_at(self, t: int) -> float:
         """covered_mean at a step of :attr:`t`."""
@@ -262,7 +266,7 @@ def coverage_metrics(model, policy, noise: TurnNoise | None = None, *, robots=1,
             kept[i] = (turns, turn_tables(turns))
         turns, tt = kept[i]
         seed = int(rng.integers(2 ** 31 - 1))
-        counts, reach, idle = sample_runs(prep.tables, tt, alpha, epoch, sstates, sweights,
+        counts, reach, idle, first = sample_runs(prep.tables, tt, alpha, epoch, sstates, sweights,
                                           cs.P, k, int(runs), T, times, kneed, seed)
         if exact:
             cov, Ts = _exact_stats(prep.tables, turns, alpha, epoch, sstates, sweights, cs.P,
@@ -282,8 +286,17 @@ def coverage_metrics(model, policy, noise: TurnNoise | None = None, *, robots=1,
                                 T=Ts, return_time=rt, idleness_worst=float(idle.mean()),
                                 idleness_se=float(idle.std(ddof=1) / math.sqrt(idle.size)),
                                 method="exact" if exact else "sampled", runs=int(runs),
-                                seed=seed, details=details))
+                                seed=seed, details=details,
+                                cell_visited=visited_by(first, times)))
     return out
+
+
+def visited_by(first, times) -> np.ndarray:
+    """(G, P) the share of runs whose first visit of each cell (``first`` (runs, P), −1:
+    none) falls in steps 0 … t−1, for every t of ``times``.
+    """
+    f = np.where(first < 0, np.iinfo(np.int64).max, first.astype(np.int64))
+    return np.stack([(f < int(t)).mean(axis=0) for t in times])
 
 
 def _sampled_stats(counts, reach, P: int) -> tuple[dict, dict]:
