@@ -193,7 +193,7 @@ def slanted_room(rng: np.random.Generator, orientations: int = 8,
 
 def big_two_room(orientations: int = 360) -> Environment:
     """Two rooms of 10 × 11 cells (h = 0.34 m) joined by a 0.51 m door, a pillar in each:
-    203 free cells.
+    198 free position cells.
     """
     h = 0.34
     W, H = 20 * h, 11 * h

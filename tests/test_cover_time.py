@@ -157,6 +157,26 @@ def test_a_team_of_one_is_one_robot_and_teams_are_independent_unions():
     assert a.covered_mean.tolist() == b.covered_mean.tolist()
 
 
+def _ring_sample(seed):
+    m, = coverage_metrics(model_for(CellSpace(RING), "step"), 90, TurnNoise(90, 0.8),
+                          robots=3, horizon=200, rng=seed, exact=False, runs=400)
+    return m.covered_mean.tolist(), m.idleness_worst
+
+
+def test_sampler_threads_and_forked_processes_agree_with_a_serial_call():
+    # the sampler shares its runs among the cores; calls from several Python threads at once
+    # (numba's default thread pool takes one at a time) give the serial records
+    from concurrent.futures import ThreadPoolExecutor
+    call = _ring_sample
+    serial = [call(s) for s in range(4)]
+    with ThreadPoolExecutor(4) as ex:
+        assert list(ex.map(call, range(4))) == serial
+    # and in processes forked after this one sampled (GNU OpenMP's pool would kill them)
+    import multiprocessing
+    with multiprocessing.get_context("fork").Pool(2) as pool:
+        assert pool.map_async(call, range(4)).get(timeout=120) == serial
+
+
 def test_return_times_are_kac():
     model = model_for(CellSpace(CORRIDOR), "step")
     # φ = 90° exact: q = (3, 2, 3)/8, every step counted: return times 8/3, 4, 8/3 steps

@@ -14,6 +14,8 @@ The tables are flat arrays (CSR-like) built once per chain by :class:`SampleTabl
 
 from __future__ import annotations
 
+import os
+import threading
 from dataclasses import dataclass
 
 import numba
@@ -21,6 +23,14 @@ import numpy as np
 import scipy.sparse as sp
 
 __all__ = ["SampleTables", "sample_runs", "turn_tables"]
+
+# numba's built-in thread pool unless the user chose one: GNU OpenMP (numba's "omp" layer,
+# picked first where libgomp is installed) kills every child a process forks after it ran
+# a parallel loop, and the sweeps fork worker processes. The built-in pool takes one
+# parallel call at a time, hence the lock.
+if "NUMBA_THREADING_LAYER" not in os.environ:
+    numba.config.THREADING_LAYER = "workqueue"
+_PARALLEL = threading.Lock()
 
 
 @dataclass(frozen=True, eq=False)
@@ -216,8 +226,9 @@ def sample_runs(tables: SampleTables, turns, alpha, epoch: int | None, start_sta
     scum = np.cumsum(w / w.sum())
     scum[-1] = 1.0
     ep = int(epoch) if epoch is not None and a.size > 1 else int(horizon) + 1
-    return _kernel(tables.fptr, tables.fidx, tables.fcum, tables.dst, tables.delay,
-                   tables.cptr, tables.cells, tptr, tcol, tcum, acum, ep,
-                   np.asarray(start_states, dtype=np.int64), scum, int(P), int(robots),
-                   int(runs), int(horizon), np.asarray(times, dtype=np.int64),
-                   np.asarray(kneed, dtype=np.int64), int(seed))
+    with _PARALLEL:
+        return _kernel(tables.fptr, tables.fidx, tables.fcum, tables.dst, tables.delay,
+                       tables.cptr, tables.cells, tptr, tcol, tcum, acum, ep,
+                       np.asarray(start_states, dtype=np.int64), scum, int(P), int(robots),
+                       int(runs), int(horizon), np.asarray(times, dtype=np.int64),
+                       np.asarray(kneed, dtype=np.int64), int(seed))
