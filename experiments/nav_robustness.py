@@ -349,7 +349,7 @@ def value_bound(runs: pd.DataFrame) -> pd.DataFrame:
     under its own model of the robot (bins and 7 flights per state, not an exact bound).
     """
     from planners.navigation.feedback.observe import landings
-    rows = []
+    rows, seen = [], {}
     keep = runs[(runs.planner == "feedback") & runs.condition.isin(NOISE_ONLY)
                 & (runs.condition != "sigma0")]
     for (env, seed, cond, body), grp in keep.groupby(["env", "map_seed", "condition", "body"]):
@@ -357,12 +357,16 @@ def value_bound(runs: pd.DataFrame) -> pd.DataFrame:
         sigma = float(cond.removeprefix("sigma"))
         rule = PYBULLET_CONTACT if body in ("twin-rule", "pybullet") else None
         for (s, g), pair in grp.groupby(["start", "goal"]):
-            cfg = FeedbackConfig(turn_sigma_deg=sigma, gamma=1.0, contact=rule)
-            fnav = FeedbackNavigator(cs, ANGLES, int(g), cfg)
-            x, y, th = cs.pose(int(s))
-            _, end, _, _, _ = landings(fnav.nav.caster, np.array([[x, y]]), np.array([th]),
-                                       rule, bearings=False)
-            v = float(fnav.value.values(end, np.array([th]), DEFAULT_MAX_BUMPS - 1)[0])
+            key = (env, seed, cond, rule is None, s, g)     # bodies with one rule share it
+            if key not in seen:
+                cfg = FeedbackConfig(turn_sigma_deg=sigma, gamma=1.0, contact=rule)
+                fnav = FeedbackNavigator(cs, ANGLES, int(g), cfg)
+                x, y, th = cs.pose(int(s))
+                _, end, _, _, _ = landings(fnav.nav.caster, np.array([[x, y]]),
+                                           np.array([th]), rule, bearings=False)
+                seen[key] = float(fnav.value.values(end, np.array([th]),
+                                                    DEFAULT_MAX_BUMPS - 1)[0])
+            v = seen[key]
             rows.extend((env, body, cond, v, bool(ok)) for ok in pair.success)
     t = pd.DataFrame(rows, columns=["env", "body", "condition", "bound", "success"])
     parts = [t.groupby(["body", "condition"]).agg(runs=("success", "size"),

@@ -137,7 +137,7 @@ def _run(fptr, fidx, fcum, dst, delay, cptr, cells, tptr, tcol, tcum, acum, epoc
     G, nk = times.size, kneed.size
     counts = np.zeros(G, dtype=np.int32)
     reach = np.full(nk, -1, dtype=np.int64)
-    first = np.full(P, -1, dtype=np.int64)
+    first = np.full(P, -1, dtype=np.int32)
     last = np.full(P, -1, dtype=np.int64)
     fl = np.empty(robots, dtype=np.int64)
     pos = np.empty(robots, dtype=np.int64)
@@ -184,7 +184,7 @@ def _run(fptr, fidx, fcum, dst, delay, cptr, cells, tptr, tcol, tcum, acum, epoc
         gap = horizon - 1 - last[c]
         if gap > worst:
             worst = gap
-    return counts, reach, worst, first.astype(np.int32)
+    return counts, reach, worst, first
 
 
 def sample_runs(tables: SampleTables, turns, alpha, epoch: int | None, start_states,
