@@ -6,7 +6,8 @@ model keeps the continuous geometry where it matters: the robot's state is obser
 its contacts with the walls, and the flight from one contact to the next is an exact straight
 line cast against the walls (the same caster, contact conventions and step rule as the
 kinematic twin: :mod:`envs.motion`). Only the contact *point* is binned (by arc length along
-the C-space boundary); the heading stays exact on the Δ = 360°/K grid (starts are
+the C-space boundary; a contact in a concave corner has the corner's own bin, whose flights
+start in the corner); the heading stays exact on the Δ = 360°/K grid (starts are
 cell-centre headings θ_k and every turn φ + δ is a multiple of Δ).
 
 The definition is docs/model.md §17; its measured accuracy ``docs/model_continuous.md``.
@@ -172,7 +173,7 @@ class EventModel:
         cs, st = self.cs, self.settings
         env = cs.env
         K = cs.K
-        self.boundary = bd = Boundary(env, st.bin_length)
+        self.boundary = bd = Boundary(env, st.bin_length, corners=True)
         nb = bd.n_bins
         self.n_states = n = nb * K
         caster = casters(env)[0]
@@ -216,8 +217,13 @@ class EventModel:
         pts, seg = bd.points(b, frac, return_segment=True)
         u = unit(k * cs.delta_deg + off)
         # a start heading into its own wall (u · inward normal < 0) bumps at once: the twin's
-        # cast gives ~1e-9 m there (the start sits CONTACT_GAP off the ring); skip the cast
+        # cast gives ~1e-9 m there (the start sits CONTACT_GAP off the ring); skip the cast.
+        # A corner bin's start touches two walls: into either one bumps at once.
         into = (u * bd.seg_inward[seg]).sum(axis=1) < -_INTO_TOL
+        corner = bd.corner_of_bin[b]
+        at = np.flatnonzero(corner >= 0)
+        other = bd.seg_inward[bd.corner_seg[corner[at], 1]]
+        into[at] |= (u[at] * other).sum(axis=1) < -_INTO_TOL
         dist = np.zeros(len(pts))
         dist[~into] = _cast(caster, pts[~into], u[~into])
         paths = contact_flights(caster, pts, u, dist, st.contact)   # slides below β (§9)
@@ -246,7 +252,8 @@ class EventModel:
         step table (fitted to tracemalloc peaks on lab, fig1 and complex at K = 8–72: 342 B
         per flight and 3.4 kB per bin, since the bin lookup is compiled).
         """
-        bins = bins_estimate(cells.env, float(getattr(settings, "bin_length", 0.03)))
+        bins = bins_estimate(cells.env, float(getattr(settings, "bin_length", 0.03)),
+                             corners=True)
         flights = float(bins) * cells.K * int(getattr(settings, "samples", 2))
         return pipeline(cells, MemoryEstimate("the event coverage model",
                                               flights * 350 + bins * 4_000))
