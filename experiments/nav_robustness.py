@@ -161,8 +161,10 @@ def trial(params: dict, rng: np.random.Generator) -> dict:
     """Drive one pair once: the sweep's trial function (pure in ``params`` and ``rng``).
 
     ``params``: env, map_seed, start, goal, planner, body, condition (a :data:`CONDITIONS`
-    name), feedback (``FeedbackConfig`` fields as "key=value,..."; "" for the defaults). The
-    rng drives the body's noise and faults, its random start and the navigator.
+    name), feedback (``FeedbackConfig`` fields as "key=value,..."; "" for the defaults),
+    max_bumps (the feedback run's budget, and its value table's horizon unless feedback
+    sets one). The rng drives the body's noise and faults, its random start and the
+    navigator.
     """
     env = maps_of(params["env"], int(params["map_seed"]))
     cs = _cells(params["env"], int(params["map_seed"]))
@@ -175,15 +177,19 @@ def trial(params: dict, rng: np.random.Generator) -> dict:
     t0 = time.perf_counter()
     try:
         if planner_class(name).closed_loop:
+            budget = int(params.get("max_bumps", DEFAULT_MAX_BUMPS))
+            text = params.get("feedback", "")
+            cfg = feedback_config(text)
+            if "value_horizon" not in text:
+                cfg = replace(cfg, value_horizon=budget)
             planner = make_planner(name, cs, ANGLES, noise=declared, rng=nav_rng,
-                                   contact="auto",
-                                   config=feedback_config(params.get("feedback", "")))
+                                   contact="auto", config=cfg)
             start = None
             if unknown:
                 body.place(*env.random_pose(start_rng))
             else:
                 start = s
-            run = execute(planner.policy(start, g), body, cells=cs)
+            run = execute(planner.policy(start, g, max_bumps=budget), body, cells=cs)
         else:
             spec = declared_noise(NavConfig(noise=declared, contact=rule))
             kw = {"noise": spec, "rng": nav_rng} if "rng" in planner_class(name).needs else {}
@@ -237,7 +243,8 @@ def sample_pairs(name: str, seed: int, n: int, rng: np.random.Generator) -> pd.D
 
 
 def build_trials(pairs: pd.DataFrame, planners, bodies, conditions, map_seed: int,
-                 reps: int, feedback: str = "") -> list[dict]:
+                 reps: int, feedback: str = "",
+                 max_bumps: int = DEFAULT_MAX_BUMPS) -> list[dict]:
     """Every (pair, planner, body, condition, repetition) as sweep parameters; the
     open-loop planners only under the noise conditions, and σ = 0 runs once.
     """
@@ -253,7 +260,8 @@ def build_trials(pairs: pd.DataFrame, planners, bodies, conditions, map_seed: in
                         out.append({"env": p["env"], "map_seed": int(map_seed),
                                     "pair": int(p["pair"]), "start": int(p["start"]),
                                     "goal": int(p["goal"]), "planner": name, "body": body,
-                                    "condition": cond, "rep": rep, "feedback": feedback})
+                                    "condition": cond, "rep": rep, "feedback": feedback,
+                                    "max_bumps": int(max_bumps)})
     return out
 
 
@@ -343,7 +351,8 @@ def summarise(runs: pd.DataFrame) -> pd.DataFrame:
 def value_bound(runs: pd.DataFrame) -> pd.DataFrame:
     """What a robot that knew its contact state after every bump would reach: per feedback
     run from a known start under turn noise σ (the sigma conditions), the closed-loop value
-    (docs/model.md §15, "Deciding by value"; γ = 1, the bump budget's flights) of the bump
+    (docs/model.md §15, "Deciding by value"; γ = 1, the bump budget's flights, stops from a
+    known state: ``stop_extra`` 0) of the bump
     that ends the first flight from the pair's start, beside the run's success; pooled
     (env = 'all') and per map, per body and condition. A ceiling for the value decision
     under its own model of the robot (bins and 7 flights per state, not an exact bound).
@@ -356,16 +365,17 @@ def value_bound(runs: pd.DataFrame) -> pd.DataFrame:
         cs = _cells(env, int(seed))
         sigma = float(cond.removeprefix("sigma"))
         rule = PYBULLET_CONTACT if body in ("twin-rule", "pybullet") else None
+        budget = int(grp["max_bumps"].iloc[0]) if "max_bumps" in grp else DEFAULT_MAX_BUMPS
         for (s, g), pair in grp.groupby(["start", "goal"]):
             key = (env, seed, cond, rule is None, s, g)     # bodies with one rule share it
             if key not in seen:
-                cfg = FeedbackConfig(turn_sigma_deg=sigma, gamma=1.0, contact=rule)
+                cfg = FeedbackConfig(turn_sigma_deg=sigma, gamma=1.0, contact=rule,
+                                     value_horizon=budget, stop_extra=0.0)
                 fnav = FeedbackNavigator(cs, ANGLES, int(g), cfg)
                 x, y, th = cs.pose(int(s))
                 _, end, _, _, _ = landings(fnav.nav.caster, np.array([[x, y]]),
                                            np.array([th]), rule, bearings=False)
-                seen[key] = float(fnav.value.values(end, np.array([th]),
-                                                    DEFAULT_MAX_BUMPS - 1)[0])
+                seen[key] = float(fnav.value.values(end, np.array([th]), budget - 1)[0])
             v = seen[key]
             rows.extend((env, body, cond, v, bool(ok)) for ok in pair.success)
     t = pd.DataFrame(rows, columns=["env", "body", "condition", "bound", "success"])
@@ -453,6 +463,7 @@ class Config:
     reps : int           noisy repetitions per pair (σ = 0 runs once)
     feedback : str       the feedback navigator's settings, "key=value,..." of
                          :class:`FeedbackConfig` ("" for the defaults)
+    max_bumps : int      a feedback run's bump budget
     seed : int           root seed (random maps, pairs and the sweep)
     out : Path           output folder
     restart, plot_only, quick : bool
@@ -468,6 +479,7 @@ class Config:
     pairs: int = 30
     reps: int = 1
     feedback: str = ""
+    max_bumps: int = DEFAULT_MAX_BUMPS
     seed: int = 0
     out: Path = Path("results") / "nav_robustness"
     restart: bool = False
@@ -503,11 +515,13 @@ def run(config: Config) -> Path:
     for name in config.planners:
         planner_class(name)
     feedback_config(config.feedback)
+    if config.max_bumps < 1:
+        raise envs.UserError(f"--max-bumps must be at least 1, got {config.max_bumps}.")
     pair_rng = np.random.default_rng(np.random.SeedSequence([config.seed, 27]))
     pairs = pd.concat([sample_pairs(m, config.seed, config.pairs, pair_rng)
                        for m in config.maps], ignore_index=True)
     trials = build_trials(pairs, config.planners, config.bodies, config.conditions,
-                          config.seed, config.reps, config.feedback)
+                          config.seed, config.reps, config.feedback, config.max_bumps)
     if config.restart:
         for f in ("runs.jsonl", "runs.csv", "config.json"):
             (out / f).unlink(missing_ok=True)
@@ -516,7 +530,7 @@ def run(config: Config) -> Path:
               "conditions": {c: list(CONDITIONS[c]) for c in config.conditions},
               "planners": list(config.planners), "angles": list(ANGLES),
               "pairs_per_map": config.pairs, "reps": config.reps,
-              "feedback": config.feedback,
+              "feedback": config.feedback, "max_bumps": config.max_bumps,
               "discretisation": "0.34 m cells, K = 8 on every map"}
     sweep = Sweep(trial, trials, config.seed, out, record, provenance=invocation(config.seed))
     runs = sweep.run(make_executor(config), progress=config.progress).table
@@ -556,6 +570,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--reps", type=int, default=None, help="noisy repetitions (default 1)")
     p.add_argument("--feedback", default=None, metavar="KEY=VAL,...",
                    help="the feedback navigator's FeedbackConfig settings (default: its own)")
+    p.add_argument("--max-bumps", type=int, default=None, metavar="N",
+                   help=f"a feedback run gives up after N bumps (default {DEFAULT_MAX_BUMPS})")
     p.add_argument("--restart", action="store_true", help="start the sweep again")
     p.add_argument("--plot-only", action="store_true", help="redraw from runs.csv")
     p.add_argument("--bound", action="store_true",
@@ -570,7 +586,7 @@ def main(argv: list[str] | None = None) -> int:
     config = replace(base, **{k: v for k, v in {
         "maps": args.maps, "bodies": args.bodies, "conditions": args.conditions,
         "planners": args.planners, "pairs": args.pairs, "reps": args.reps,
-        "feedback": args.feedback}.items()
+        "feedback": args.feedback, "max_bumps": args.max_bumps}.items()
         if v is not None}, seed=args.seed, out=args.out, restart=args.restart,
         plot_only=args.plot_only, bound=args.bound, quick=args.quick, workers=args.workers,
         dask_local=args.dask_local, dask=args.dask, progress=not args.no_progress)

@@ -106,6 +106,22 @@ def test_nav_robustness_quick(tmp_path):
     assert (pooled["reached"] == per["success"].sum()).all()
 
 
+def test_nav_robustness_bump_budget(tmp_path, capsys):
+    # --max-bumps caps every feedback run (the pairs are `lab`'s first two, which need more
+    # than 3 bumps at σ = 2°) and is recorded per run and in config.json
+    from experiments import nav_robustness
+    argv = ["--maps", "lab", "--bodies", "twin", "--conditions", "sigma2", "--planners",
+            "feedback", "--pairs", "2", "--max-bumps", "3", "--workers", "1", "--no-progress",
+            "--out", str(tmp_path)]
+    assert nav_robustness.main(argv) == 0
+    runs = pd.read_csv(tmp_path / "runs.csv")
+    assert len(runs) == 2 and (runs["max_bumps"] == 3).all() and (runs["bumps"] <= 3).all()
+    assert runs["reason"].str.contains("gave up after 3 bumps").any()
+    assert json.loads((tmp_path / "config.json").read_text())["max_bumps"] == 3
+    assert nav_robustness.main(["--max-bumps", "0", "--out", str(tmp_path / "x")]) == 2
+    assert "--max-bumps must be at least 1" in capsys.readouterr().err
+
+
 def test_nav_robustness_bad_feedback_setting_exits_2(tmp_path, capsys):
     from experiments import nav_robustness
     assert nav_robustness.main(["--quick", "--feedback", "particels=10",

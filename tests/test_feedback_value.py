@@ -100,6 +100,33 @@ def test_stop_values_by_hand_in_a_square_room():
     assert vt.stop[ANGLES.index(45), s].tolist() == [0.0, 0.0]     # faces 315°: heading off
 
 
+@pytest.mark.parametrize("extra", [0.0, 1.0])
+def test_stop_values_widen_the_turn_error_by_stop_extra(extra):
+    # by hand: at the west wall's contact line (x = 0.17), heading 270°, a turn by 90° faces
+    # east; the goal cell x ∈ [1.0, 1.25], y ∈ [0.25, 0.5] facing 0° lies d = 0.955 m on
+    # (its centre's x less 0.17). Node q starts at its own point (x, y_q) of the bin and
+    # turns by s·z_q, z_q the normal quantile at (q + ½)/7, s = √(1 + extra²)·σ; it ends in
+    # the cell when |y_q − 0.375 + d·sin(s·z_q)| ≤ 0.125 (its x moves by d·(1 − cos) < 1 cm)
+    sig = 4.0
+    cs = CellSpace(RECT)
+    goal = cs.config_of_pose(1.125, 0.375, 0.0)
+    fnav = FeedbackNavigator(cs, ANGLES, goal, FeedbackConfig(turn_sigma_deg=sig,
+                                                              stop_extra=extra))
+    vt = fnav.value
+    s = int(vt.tr.state(np.array([[0.17 + 1e-9, 0.375]]), np.array([270.0]))[0])
+    b = s // vt.tr.n_head
+    spread = math.hypot(sig, extra * sig)
+    z = [-1.4652338, -0.7916386, -0.3661064, 0.0, 0.3661064, 0.7916386, 1.4652338]
+    ok = [abs(vt.tr.points[q, b, 1] - 0.375 + 0.955 * math.sin(math.radians(spread * zq)))
+          <= 0.125 for q, zq in enumerate(z)]
+    assert float(vt.stop[ANGLES.index(90), s]) == pytest.approx(np.mean(ok), abs=1e-6)
+    # a known state (extra 0) stops for sure; a belief's stop (extra 1) misses on the
+    # outer node that turns left: 5.66° · 1.465 = 8.3° carries the robot 0.138 m north of
+    # its start at y = 0.378, past 0.5 (the outer node turning right starts at 0.414 and
+    # ends at 0.276, inside)
+    assert np.mean(ok) == pytest.approx(1.0 if extra == 0 else 6 / 7)
+
+
 def test_the_value_is_what_its_own_policy_achieves_in_the_twin():
     # predicted against simulated: a robot that knows its contact state after every bump
     # and follows the table's best action (stop or fly on) succeeds about as often as
@@ -107,7 +134,7 @@ def test_the_value_is_what_its_own_policy_achieves_in_the_twin():
     # value over its bin while a run starts from one point of it (measured differences
     # 0.02–0.10): every start within 0.18, the mean within 0.08
     sig, H = 3.0, 6
-    fnav = _nav(L_ROOM, 20, sig, gamma=1.0)
+    fnav = _nav(L_ROOM, 20, sig, gamma=1.0, stop_extra=0.0)     # stops from a known state
     vt, tr = fnav.value, fnav.value.tr
     body = KinematicRobot(L_ROOM, parse_noise(f"gauss:{sig}", fnav.cells.delta_deg),
                           np.random.default_rng(1))
@@ -176,6 +203,10 @@ def test_auto_decides_by_plan_without_noise_and_by_value_with_it():
         FeedbackConfig(decision="greedy")
     with pytest.raises(UserError, match="gamma"):
         FeedbackConfig(gamma=0.0)
+    with pytest.raises(UserError, match="stop_extra"):
+        FeedbackConfig(stop_extra=-1.0)
+    with pytest.raises(UserError, match="value_particles"):
+        FeedbackConfig(value_particles=2.5)
 
 
 def test_the_transitions_are_built_once_per_map_and_noise():

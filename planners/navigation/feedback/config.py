@@ -109,6 +109,14 @@ class FeedbackConfig:
     heading_step_deg : float   [deg] the value table's heading grid
     value_nodes : int          equally likely flights per state and angle, each with its own
                                turn error and start point along the bin
+    stop_extra : float         the value table's stops assume this many more turn errors
+                               of the value's σ in quadrature (√(1 + stop_extra²)·σ): at a
+                               bump the belief knows the heading only to about the last
+                               turn's spread, as a flight's length barely depends on its
+                               heading near normal incidence (0: a stop from a known state,
+                               the rule before; "Deciding by value" in docs/model.md §15)
+    value_particles : int      particles a value decision draws from the belief (0: as
+                               many as the belief has; the rule before drew 64)
     contact : ContactParams or None
         the body's contact rule (docs/model.md §9) in the filter's motion model, the plan
         search's flights and the scores: a flight whose contact lies outside the bumper arc
@@ -157,6 +165,8 @@ class FeedbackConfig:
     value_horizon: int = DEFAULT_MAX_BUMPS
     heading_step_deg: float = 1.0
     value_nodes: int = 7
+    stop_extra: float = 1.0
+    value_particles: int = 0
     contact: ContactParams | None = None
 
     def __post_init__(self) -> None:
@@ -168,10 +178,13 @@ class FeedbackConfig:
         for name in ("turn_sigma_deg", "sigma_floor_deg", "dist_sigma_m", "dist_sigma_rel", "slack",
                      "centre_zone_deg", "side_blur_deg", "reinit_sigma_deg", "margin_m",
                      "edge_guard", "jitter_deg", "jitter_m", "turn_scale", "turn_bias_deg",
-                     "clearance_m"):
+                     "clearance_m", "stop_extra"):
             v = float(getattr(self, name))
             if not (math.isfinite(v) and v >= 0):
                 raise UserError(f"feedback {name} must be a non-negative number, got {v}.")
+        if int(self.value_particles) != self.value_particles or self.value_particles < 0:
+            raise UserError(f"feedback value_particles must be a whole number >= 0, got "
+                            f"{self.value_particles}.")
         if self.dist_sigma_m <= 0:
             raise UserError("feedback dist_sigma_m must be positive.")
         if not 0 <= self.final_min <= 1:

@@ -240,7 +240,8 @@ class FeedbackNavigator:
         if self._value is None:
             cfg = self.cfg
             self._value = ValueTable(self, cfg.value_sigma_deg, cfg.value_horizon, cfg.gamma,
-                                     cfg.heading_step_deg, cfg.value_nodes)
+                                     cfg.heading_step_deg, cfg.value_nodes,
+                                     cfg.stop_extra * cfg.value_sigma_deg)
         return self._value
 
     # ------------------------------------------------------------------ planning
@@ -382,7 +383,8 @@ class FeedbackNavigator:
     def choose_value(self, belief: ParticleFilter, rng: np.random.Generator,
                      bumped: bool, left: int) -> list[Candidate]:
         """The decision by closed-loop value (§15 "Deciding by value"; QMDP): every angle
-        φ turns ``eval_particles`` drawn from the belief by φ with the declared noise; the
+        φ turns ``value_particles`` drawn from the belief by weight (default: as many as it
+        has) by φ with the declared noise; the
         final drive's mass in the goal cell (:func:`final_drive`) is the value of stopping
         after φ, γ times the mean of :attr:`value`'s V over the particles' bumps (with
         ``left`` − 1 flights left) the value of flying on; the best of the two over φ wins
@@ -392,7 +394,7 @@ class FeedbackNavigator:
         worth more than the next bump.
         """
         cfg, vt = self.cfg, self.value
-        n = cfg.eval_particles
+        n = cfg.value_particles or belief.size
         pos, head, ef, eb = belief.sample(n, turns=True)
         w = np.full(n, 1.0 / n)
         caster, contact, s = self.nav.caster, cfg.contact, cfg.turn_spread_deg

@@ -23,7 +23,11 @@ decision rule what it lacks, the value of a contact state when the robot keeps d
 - **Stop values (per goal).** Turning by φ and making the final drive succeeds with the
   probability (over the same nodes) that one drive length, the one that brings the noise-free
   heading's flight nearest the goal cell's centre, ends in the goal cell with the heading
-  within Δ/2 of the goal heading, before the bump.
+  within Δ/2 of the goal heading, before the bump. The stop's turn errors are the nodes of
+  a wider normal, √(σ² + e²) (the navigator passes e = σ, ``FeedbackConfig.stop_extra``
+  = 1; the table's own default e = 0 is a stop from a known state): a stop from a belief,
+  whose heading at a bump is known only to about the last turn's spread. The bump that
+  would cut the drive short is still the one of the node's transition flight.
 - **Values.** With t flights left, V_t(s) = max over φ of max(stop(s, φ), γ · E V_{t−1}(s'))
   and V_0(s) = max over φ of stop(s, φ): the best success probability of a robot that knows
   its contact state after every bump (value iteration on the noisy contact-state chain, a
@@ -131,12 +135,17 @@ class ValueTable:
     sigma_deg : float             turn noise σ of the transitions
     horizon : int                 the largest t kept
     gamma : float                 discount per bump
+    stop_extra_deg : float        [deg] heading error added in quadrature to σ in the stop
+                                  values (module docstring)
     """
 
     def __init__(self, fnav, sigma_deg: float, horizon: int, gamma: float,
-                 step_deg: float = 1.0, nodes: int = 7) -> None:
+                 step_deg: float = 1.0, nodes: int = 7, stop_extra_deg: float = 0.0) -> None:
         self.tr = tr = transitions(fnav.nav, sigma_deg, step_deg, nodes)
         self.gamma = float(gamma)
+        M = len(tr.offsets)
+        self.stop_offsets = math.hypot(sigma_deg, stop_extra_deg) * \
+            ndtri((np.arange(M) + 0.5) / M)
         stop = self._stops(fnav)                                # (A, S)
         self.stop = stop
         w = tr.weights.astype(np.float32)
@@ -156,7 +165,7 @@ class ValueTable:
         b = np.repeat(np.arange(tr.n_bins), tr.n_head)
         head0 = np.tile(np.arange(tr.n_head) * tr.step_deg, tr.n_bins)
         out = np.zeros((A, S), dtype=np.float32)
-        reach = cs.delta_deg / 2 + 4 * float(np.abs(tr.offsets).max()) + 1.0
+        reach = cs.delta_deg / 2 + 4 * float(np.abs(self.stop_offsets).max()) + 1.0
         for i, a in enumerate(fnav.nav.angles):
             th = head0 + float(a)
             near = heading_ok(th, fnav.goal_heading, 2 * reach)
@@ -167,7 +176,7 @@ class ValueTable:
             rad = np.radians(t)
             u = np.column_stack([np.cos(rad), np.sin(rad)])
             ok = np.zeros(idx.size)
-            for q, off in enumerate(tr.offsets):
+            for q, off in enumerate(self.stop_offsets):
                 p = tr.points[q, b[idx]]
                 d = np.maximum(((centre - p) * u).sum(1), 0.0)
                 rq = np.radians(t + off)
