@@ -100,6 +100,28 @@ def test_stop_values_by_hand_in_a_square_room():
     assert vt.stop[ANGLES.index(45), s].tolist() == [0.0, 0.0]     # faces 315°: heading off
 
 
+def test_a_stop_that_runs_into_its_bump_in_the_goal_cell():
+    # by hand: a 2.04 m room of 0.34 m = 2r cells, whose south-east cell's centre
+    # (1.87, 0.17) is the C-space corner; the goal faces 0° there. A robot on the south
+    # wall's contact line at x = 0.51, heading 270°, turns by 90° to face east: the point of
+    # its flight nearest the centre is the corner itself, 1.36 m on, where the flight bumps
+    # (CONTACT_GAP short of it). The final drive runs into that bump and stops in the cell:
+    # a success, which the table counts with stop_at_bump, from every node's start point.
+    # The rule before asked for a drive no longer than the flight, which round-off at the
+    # 1e-9 m gap decided (3 of the 7 nodes here), so a goal in a corner looked nearly
+    # unreachable (lab's 103 → 8 flew 80 bumps in 5 of 5 noisy runs)
+    env = Environment.from_dict({"boundary": [[0, 0], [2.04, 0], [2.04, 2.04], [0, 2.04]],
+                                 "robot_radius": 0.17,
+                                 "discretization": {"cell_size": 0.34, "orientations": 8}})
+    cs = CellSpace(env)
+    goal = cs.config_of_pose(1.87, 0.17, 0.0)
+    fnav = FeedbackNavigator(cs, ANGLES, goal, FeedbackConfig(decision="value"))
+    vt = fnav.value
+    s = vt.tr.state(np.array([[0.51, 0.17 + 1e-9]]), np.array([270.0]))
+    assert float(vt.stop[ANGLES.index(90), s][0]) == 1.0
+    assert float(vt.stop[ANGLES.index(45), s][0]) == 0.0          # faces 315°: heading off
+
+
 @pytest.mark.parametrize("extra", [0.0, 1.0])
 def test_stop_values_widen_the_turn_error_by_stop_extra(extra):
     # by hand: at the west wall's contact line (x = 0.17), heading 270°, a turn by 90° faces

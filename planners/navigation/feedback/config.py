@@ -117,6 +117,10 @@ class FeedbackConfig:
                                the rule before; "Deciding by value" in docs/model.md §15)
     value_particles : int      particles a value decision draws from the belief (0: as
                                many as the belief has; the rule before drew 64)
+    stop_at_bump : bool        the value table's stops also succeed when the final drive
+                               runs into its flight's bump inside the goal cell (a goal on
+                               a wall or in a corner), as the belief's final drive does
+                               (the rule before: False)
     contact : ContactParams or None
         the body's contact rule (docs/model.md §9) in the filter's motion model, the plan
         search's flights and the scores: a flight whose contact lies outside the bumper arc
@@ -167,6 +171,7 @@ class FeedbackConfig:
     value_nodes: int = 7
     stop_extra: float = 1.0
     value_particles: int = 0
+    stop_at_bump: bool = True
     contact: ContactParams | None = None
 
     def __post_init__(self) -> None:

@@ -241,7 +241,8 @@ class FeedbackNavigator:
             cfg = self.cfg
             self._value = ValueTable(self, cfg.value_sigma_deg, cfg.value_horizon, cfg.gamma,
                                      cfg.heading_step_deg, cfg.value_nodes,
-                                     cfg.stop_extra * cfg.value_sigma_deg)
+                                     cfg.stop_extra * cfg.value_sigma_deg,
+                                     cfg.stop_at_bump)
         return self._value
 
     # ------------------------------------------------------------------ planning

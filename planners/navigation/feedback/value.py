@@ -27,7 +27,10 @@ decision rule what it lacks, the value of a contact state when the robot keeps d
   a wider normal, √(σ² + e²) (the navigator passes e = σ, ``FeedbackConfig.stop_extra``
   = 1; the table's own default e = 0 is a stop from a known state): a stop from a belief,
   whose heading at a bump is known only to about the last turn's spread. The bump that
-  would cut the drive short is still the one of the node's transition flight.
+  would cut the drive short is the one of the node's transition flight; with ``at_bump``
+  (``FeedbackConfig.stop_at_bump``, default) a drive that runs into the bump succeeds when
+  the bump lies in the goal cell (a goal on a wall or in a corner; the stop's flight cast
+  anew, only from states with a flight that bumps near the cell).
 - **Values.** With t flights left, V_t(s) = max over φ of max(stop(s, φ), γ · E V_{t−1}(s'))
   and V_0(s) = max over φ of stop(s, φ): the best success probability of a robot that knows
   its contact state after every bump (value iteration on the noisy contact-state chain, a
@@ -137,15 +140,19 @@ class ValueTable:
     gamma : float                 discount per bump
     stop_extra_deg : float        [deg] heading error added in quadrature to σ in the stop
                                   values (module docstring)
+    at_bump : bool                a final drive that runs into its bump in the goal cell
+                                  succeeds (module docstring)
     """
 
     def __init__(self, fnav, sigma_deg: float, horizon: int, gamma: float,
-                 step_deg: float = 1.0, nodes: int = 7, stop_extra_deg: float = 0.0) -> None:
+                 step_deg: float = 1.0, nodes: int = 7, stop_extra_deg: float = 0.0,
+                 at_bump: bool = False) -> None:
         self.tr = tr = transitions(fnav.nav, sigma_deg, step_deg, nodes)
         self.gamma = float(gamma)
         M = len(tr.offsets)
         self.stop_offsets = math.hypot(sigma_deg, stop_extra_deg) * \
             ndtri((np.arange(M) + 0.5) / M)
+        self.at_bump = bool(at_bump)
         stop = self._stops(fnav)                                # (A, S)
         self.stop = stop
         w = tr.weights.astype(np.float32)
@@ -166,6 +173,11 @@ class ValueTable:
         head0 = np.tile(np.arange(tr.n_head) * tr.step_deg, tr.n_bins)
         out = np.zeros((A, S), dtype=np.float32)
         reach = cs.delta_deg / 2 + 4 * float(np.abs(self.stop_offsets).max()) + 1.0
+        if self.at_bump:         # states with a flight that bumps within 1.5 h of the cell
+            bd = tr.boundary
+            near_bin = np.abs(bd.points(np.arange(tr.n_bins), np.full(tr.n_bins, 0.5))
+                              - centre).max(axis=1) <= half + cs.h
+            lands_near = near_bin[tr.nxt // tr.n_head].any(axis=2)          # (A, S)
         for i, a in enumerate(fnav.nav.angles):
             th = head0 + float(a)
             near = heading_ok(th, fnav.goal_heading, 2 * reach)
@@ -185,8 +197,28 @@ class ValueTable:
                 depth = half - np.abs(end - centre).max(axis=1)
                 good = (depth >= 0) & (d <= tr.drive[i, idx, q]) & \
                     heading_ok(t + off, fnav.goal_heading, cs.delta_deg)
+                if self.at_bump:
+                    good |= self._bumps_in_cell(fnav, p, t + off, d, lands_near[i, idx])
                 ok += tr.weights[q] * good
             out[i, idx] = ok
+        return out
+
+    def _bumps_in_cell(self, fnav, p, heading, d, near) -> np.ndarray:
+        """(n,) bool: the final drive ``d`` [m] from ``p`` (n, 2) at ``heading`` (n,) [deg]
+        runs into the flight's bump (d at least its clock), and the bump lies in the goal
+        cell with the heading within Δ/2 of the goal's; only where ``near`` (the others
+        are False without a cast).
+        """
+        out = np.zeros(len(p), dtype=bool)
+        k = np.flatnonzero(near)
+        if k.size == 0:
+            return out
+        clock, end, _, _, _ = landings(fnav.nav.caster, p[k], heading[k], fnav.nav.contact,
+                                       bearings=False)
+        x0, y0, x1, y1 = fnav.box
+        inside = (end[:, 0] >= x0) & (end[:, 0] <= x1) & (end[:, 1] >= y0) & (end[:, 1] <= y1)
+        out[k] = inside & (d[k] >= clock) & heading_ok(heading[k], fnav.goal_heading,
+                                                       fnav.cells.delta_deg)
         return out
 
     def values(self, pos, heading_deg, left: int) -> np.ndarray:
