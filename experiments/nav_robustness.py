@@ -162,9 +162,8 @@ def trial(params: dict, rng: np.random.Generator) -> dict:
 
     ``params``: env, map_seed, start, goal, planner, body, condition (a :data:`CONDITIONS`
     name), feedback (``FeedbackConfig`` fields as "key=value,..."; "" for the defaults),
-    max_bumps (the feedback run's budget, and its value table's horizon unless feedback
-    sets one). The rng drives the body's noise and faults, its random start and the
-    navigator.
+    max_bumps (the feedback run's budget). The rng drives the body's noise and faults, its
+    random start and the navigator.
     """
     env = maps_of(params["env"], int(params["map_seed"]))
     cs = _cells(params["env"], int(params["map_seed"]))
@@ -178,12 +177,9 @@ def trial(params: dict, rng: np.random.Generator) -> dict:
     try:
         if planner_class(name).closed_loop:
             budget = int(params.get("max_bumps", DEFAULT_MAX_BUMPS))
-            text = params.get("feedback", "")
-            cfg = feedback_config(text)
-            if "value_horizon" not in text:
-                cfg = replace(cfg, value_horizon=budget)
             planner = make_planner(name, cs, ANGLES, noise=declared, rng=nav_rng,
-                                   contact="auto", config=cfg)
+                                   contact="auto",
+                                   config=feedback_config(params.get("feedback", "")))
             start = None
             if unknown:
                 body.place(*env.random_pose(start_rng))

@@ -139,7 +139,7 @@ class FeedbackRunner:
             self.start_pose = tuple(float(v) for v in start)
         self.back_off, self.rng = float(back_off), planner.rng
         self.contact = planner.resolved(body_contact(robot))
-        self.fnav = planner.navigator(policy.goal, self.contact)
+        self.fnav = planner.navigator(policy.goal, self.contact, policy.max_bumps)
         self.cfg = self.fnav.cfg
         if self.fnav.by_value:
             _ = self.fnav.value                 # set-up before the robot moves, not a decision

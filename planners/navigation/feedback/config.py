@@ -105,7 +105,8 @@ class FeedbackConfig:
                                :attr:`value_sigma_deg` > 0, else "plan")
     gamma : float              the value's discount per bump (in (0, 1])
     value_horizon : int        flights the value table looks ahead (more are clipped; the
-                               default: the bump budget, :data:`DEFAULT_MAX_BUMPS`)
+                               default: the bump budget, :data:`DEFAULT_MAX_BUMPS`; a run
+                               with a larger budget looks as far as its budget)
     heading_step_deg : float   [deg] the value table's heading grid
     value_nodes : int          equally likely flights per state and angle, each with its own
                                turn error and start point along the bin

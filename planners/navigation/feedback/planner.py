@@ -185,12 +185,17 @@ class FeedbackPlanner:
             return self.contact
         return self.config.contact if self.config.contact is not None else body_rule
 
-    def navigator(self, goal: int, contact: ContactParams | None) -> FeedbackNavigator:
-        """The decision rule for ``goal`` under ``contact`` (the declared σ in its config)."""
+    def navigator(self, goal: int, contact: ContactParams | None,
+                  max_bumps: int = DEFAULT_MAX_BUMPS) -> FeedbackNavigator:
+        """The decision rule for ``goal`` under ``contact`` (the declared σ in its config),
+        for a run of at most ``max_bumps`` bumps: its value table looks at least that many
+        flights ahead (a longer horizon leaves V_t of every shorter one as it was).
+        """
         t = self.turn_model
         cfg = replace(self.config, turn_sigma_deg=self.sigma, contact=contact,
                       turn_scale=t["scale"], turn_bias_deg=t["bias"],
-                      turn_factor=t["factor"], turn_offset_deg=t["offset"])
+                      turn_factor=t["factor"], turn_offset_deg=t["offset"],
+                      value_horizon=max(self.config.value_horizon, int(max_bumps)))
         return FeedbackNavigator(self.cells, self.angles, goal, cfg, self.w1, self.w2)
 
     def plan(self, start: int, goal: int) -> Route | None:
