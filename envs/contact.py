@@ -37,17 +37,20 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._contact_kernel import advance_kernel
 from .motion import (
+    APPROACH_MIN,
     BUMP_RANGE,
     CENTRE_ZONE_DEG,
+    CONTACT_GAP,
     GRAZE_TOL,
     ContactParams,
     WallCaster,
     drive_distance,
 )
 
-__all__ = ["advance", "slide_on", "front_contacts", "closes_bumper", "switches", "leg_point",
-           "leg_length", "ContactFlights", "contact_flights", "glancing"]
+__all__ = ["advance", "advance_many", "slide_on", "front_contacts", "closes_bumper", "switches",
+           "leg_point", "leg_length", "ContactFlights", "contact_flights", "glancing"]
 
 _MAX_EVENTS = 1000       # contacts handled within one drive (collinear wall pieces add events)
 _SAME_CONTACT = 1e-5     # [m] contacts closer than this are one (a side's end and its vertex)
@@ -297,7 +300,9 @@ class ContactFlights:
     straight : (n,)       the first straight drive [m]
     clock : (n,)          clock length to the bump [m] (= straight unless it slid)
     end : (n, 2)          the bump position [m]
-    legs : dict           flight index -> legs of :func:`advance` (only flights that slid)
+    legs : dict           flight index -> legs of :func:`advance` (only flights that slid;
+                          empty when made without legs)
+    slid : (n,) bool      the flights that slid
     """
 
     start: np.ndarray
@@ -306,6 +311,7 @@ class ContactFlights:
     clock: np.ndarray
     end: np.ndarray
     legs: dict
+    slid: np.ndarray
 
     def points(self, idx, s) -> np.ndarray:
         """(m, 2) points [m] of flights ``idx`` after ``s`` [m] of clock (each <= its clock)."""
@@ -324,20 +330,58 @@ class ContactFlights:
         return out
 
 
-def contact_flights(caster: WallCaster, start, u, straight, contact: ContactParams | None
-                    ) -> ContactFlights:
+def contact_flights(caster: WallCaster, start, u, straight, contact: ContactParams | None,
+                    legs: bool = True) -> ContactFlights:
     """Continue straight flights (``straight`` [m] from ``start`` along ``u``, each ending at
     a contact) under the contact rule: those whose contact lies outside the bumper arc slide
     on (:func:`advance`) until their bump. With ``contact`` None every flight ends where it
-    is (end = start + straight·u, bitwise).
+    is (end = start + straight·u, bitwise). Without ``legs`` the slides are followed by the
+    compiled :func:`envs._contact_kernel.advance_kernel` (the same ends and clocks, no legs:
+    :meth:`ContactFlights.points` then knows only straight flights).
     """
     start = np.asarray(start, dtype=float).reshape(-1, 2)
     u = np.asarray(u, dtype=float).reshape(-1, 2)
     straight = np.asarray(straight, dtype=float)
     end = start + straight[:, None] * u
     clock = straight.copy()
-    legs = {}
     slide = np.zeros(len(start), bool) if contact is None else glancing(caster, end, u, contact)
+    if not legs:
+        idx = np.flatnonzero(slide)
+        slid = np.zeros(len(start), dtype=bool)
+        if idx.size:
+            x, y, used, _ = advance_many(caster, end[idx], u[idx], contact)
+            moved = used > 0
+            k = idx[moved]
+            slid[k] = True
+            clock[k] += used[moved]
+            end[k, 0], end[k, 1] = x[moved], y[moved]
+        return ContactFlights(start=start, u=u, straight=straight, clock=clock, end=end,
+                              legs={}, slid=slid)
+    return _with_legs(caster, start, u, straight, contact, end, clock, slide)
+
+
+def advance_many(caster: WallCaster, pos, u, contact: ContactParams):
+    """:func:`advance` (no clock budget, with a contact rule) of every flight from ``pos``
+    (n, 2) along ``u`` (n, 2), compiled: (x, y, used, bumped) arrays, no legs.
+    """
+    sides = getattr(caster, "_kernel_sides", None)
+    if sides is None:
+        sides = caster._kernel_sides = (
+            np.ascontiguousarray(np.column_stack([caster.A, caster.e, caster.L]), dtype=float),
+            np.ascontiguousarray(np.asarray(caster.vertices, dtype=float).reshape(-1, 2)))
+    pos = np.asarray(pos, dtype=float).reshape(-1, 2)
+    u = np.asarray(u, dtype=float).reshape(-1, 2)
+    return advance_kernel(*sides, float(caster.r), float(caster.r2), float(caster.graze),
+                          APPROACH_MIN, BUMP_RANGE, CONTACT_GAP, GRAZE_TOL, _SAME_CONTACT,
+                          _MAX_EVENTS, 90.0 - float(contact.beta_deg),
+                          float(contact.slide_friction), math.inf,
+                          np.ascontiguousarray(pos[:, 0]), np.ascontiguousarray(pos[:, 1]),
+                          np.ascontiguousarray(u[:, 0]), np.ascontiguousarray(u[:, 1]))
+
+
+def _with_legs(caster, start, u, straight, contact, end, clock, slide) -> ContactFlights:
+    """:func:`contact_flights` with the legs of every slide (plain Python :func:`advance`)."""
+    legs = {}
     for i in np.flatnonzero(slide):
         x, y, used, _, lg = advance(caster, float(end[i, 0]), float(end[i, 1]),
                                     float(u[i, 0]), float(u[i, 1]), contact)
@@ -347,4 +391,7 @@ def contact_flights(caster: WallCaster, start, u, straight, contact: ContactPara
             legs[int(i)] = [first, *lg]
             clock[i] += used
             end[i] = (x, y)
-    return ContactFlights(start=start, u=u, straight=straight, clock=clock, end=end, legs=legs)
+    slid = np.zeros(len(start), dtype=bool)
+    slid[np.fromiter(legs, np.int64, len(legs))] = True
+    return ContactFlights(start=start, u=u, straight=straight, clock=clock, end=end, legs=legs,
+                          slid=slid)

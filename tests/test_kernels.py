@@ -69,3 +69,45 @@ def test_boundary_locate_matches_the_numpy_reference(seed):
         ring0, s0 = bd.locate_reference(pts)
         np.testing.assert_array_equal(ring, ring0)
         np.testing.assert_array_equal(s, s0)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_compiled_slides_match_advance(seed):
+    # flights into walls of rooms with slanted walls and pillars under PyBullet's rule and a
+    # wide arc with friction: glancing contacts slide along sides and wrap around corners;
+    # the compiled slides end where advance (plain Python, the reference) ends them
+    from envs.contact import advance, advance_many, contact_flights
+    from envs.motion import PYBULLET_CONTACT, ContactParams
+    rng = np.random.default_rng(seed)
+    env = generated.slanted_room(rng, orientations=8)
+    caster = ExactNavigator(CellSpace(env), [45, 90, 135]).caster
+    poses = np.array([env.random_pose(rng) for _ in range(300)])
+    # most flights head for the nearest wall at a glancing incidence (0.5°-12°, either way
+    # along it): they slide along sides and wrap around its ends' corners
+    p = poses[:, :2]
+    lam = np.clip(((p[:, None] - caster.A[None]) * caster.e[None]).sum(2), 0, caster.L[None])
+    foot = caster.A[None] + lam[..., None] * caster.e[None]
+    j = np.argmin(np.hypot(*(p[:, None] - foot).transpose(2, 0, 1)), axis=1)
+    nrm = p - foot[np.arange(len(p)), j]
+    nrm /= np.hypot(nrm[:, 0], nrm[:, 1])[:, None]
+    alpha = np.radians(rng.uniform(0.5, 12.0, len(p)))[:, None]
+    u = np.cos(alpha) * caster.e[j] * rng.choice([-1.0, 1.0], (len(p), 1)) - np.sin(alpha) * nrm
+    poses[:240, 2] = np.degrees(np.arctan2(u[:, 1], u[:, 0]))[:240]
+    D, u, _ = flights_reference(caster, poses[:, :2], poses[:, 2])
+    for contact in (PYBULLET_CONTACT, ContactParams(40.0, 0.2)):
+        fl = contact_flights(caster, poses[:, :2], u, D, contact)
+        fk = contact_flights(caster, poses[:, :2], u, D, contact, legs=False)
+        assert fl.slid.sum() >= 20                  # the case is exercised
+        np.testing.assert_array_equal(fk.slid, fl.slid)
+        np.testing.assert_allclose(fk.end, fl.end, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(fk.clock, fl.clock, rtol=0, atol=1e-9)
+        assert fk.legs == {}
+        # each flight one at a time, from its first contact, both ways
+        end = poses[:, :2] + D[:, None] * u
+        x, y, used, bumped = advance_many(caster, end, u, contact)
+        for i in range(len(end)):
+            rx, ry, rused, rb, _ = advance(caster, float(end[i, 0]), float(end[i, 1]),
+                                           float(u[i, 0]), float(u[i, 1]), contact)
+            assert bumped[i] == rb
+            assert abs(x[i] - rx) <= 1e-9 and abs(y[i] - ry) <= 1e-9
+            assert abs(used[i] - rused) <= 1e-9

@@ -111,10 +111,8 @@ def landings(caster, pos, heading_deg, contact: ContactParams | None, bearings: 
     _, first, inv = np.unique(np.column_stack([pos, head]), axis=0, return_index=True,
                               return_inverse=True)
     inv = inv.reshape(-1)
-    fl = contact_flights(caster, pos[first], u[first], D[first], contact)
-    slid = np.zeros(len(first), dtype=bool)
-    slid[np.fromiter(fl.legs, np.int64, len(fl.legs))] = True
-    clock, end, slid = fl.clock[inv], fl.end[inv], slid[inv]
+    fl = contact_flights(caster, pos[first], u[first], D[first], contact, legs=False)
+    clock, end, slid = fl.clock[inv], fl.end[inv], fl.slid[inv]
     if beta is not None:
         arc = 90.0 - contact.beta_deg
         if slid.any():
