@@ -11,7 +11,11 @@ Bodies (the robot that runs; the navigator is never told which):
 - ``twin``: the kinematic twin with the front-half bumper (docs/model.md §21);
 - ``twin-rule``: the twin with PyBullet's fitted contact rule (glancing contacts slide, §9);
 - ``nearest``: the twin whose bumper side comes from the wall point nearest its centre;
-- ``pybullet``: the PyBullet Create 2 (needs the ``sim`` extra; slow).
+- ``pybullet``: the PyBullet Create 2 (needs the ``sim`` extra; slow);
+- ``mujoco``: the MuJoCo Create 2 (needs the ``mujoco`` extra), a second engine built by
+  another team, which declares no contact rule (the navigator plans with the front-half
+  bumper);
+- ``create3``: the Create 3 adapter on its emulator of the twin.
 
 Conditions (``CONDITIONS``): Gaussian turn noise σ = 0, 2, 5°; a body that turns 8 % short or
 long while the navigator knows only 1 ± 10 % (``gauss:2,scale=0.1``); 5 % of bumper sides
@@ -72,7 +76,7 @@ __all__ = ["BODIES", "CONDITIONS", "Config", "build_trials", "draw", "draw_maps"
            "feedback_config", "main", "maps_of", "run", "sample_pairs", "summarise", "trial"]
 
 ANGLES = (45.0, 90.0, 135.0)
-BODIES = ("twin", "twin-rule", "nearest", "pybullet", "create3")
+BODIES = ("twin", "twin-rule", "nearest", "pybullet", "mujoco", "create3")
 CONDITIONS = {
     # name: (body's turn noise, the navigator's declared noise, p_side, p_miss, unknown start)
     "sigma0": ("gauss:0", "gauss:0", 0.0, 0.0, False),
@@ -127,9 +131,9 @@ def _body(kind: str, env, noise, rng, p_side: float, p_miss: float):
         body = KinematicRobot(env, noise, rng, contact=PYBULLET_CONTACT)
     elif kind == "nearest":
         body = KinematicRobot(env, noise, rng, side_rule="nearest")
-    elif kind == "pybullet":
+    elif kind in ("pybullet", "mujoco"):
         from bouncesim.robots import make_robot
-        body = make_robot("pybullet", env, noise=noise, rng=rng)
+        body = make_robot(kind, env, noise=noise, rng=rng)
     elif kind == "create3":             # the Create 3 adapter on its emulator of the twin
         from bouncesim.robots import make_robot
         body = make_robot("create3-emulator", env, noise=noise, rng=rng, glance_deg=None)
@@ -398,7 +402,7 @@ def draw(summary: pd.DataFrame, path: Path) -> Path:
     fig, ax = plt.subplots(figsize=(6.8, 4.4), layout="constrained")
     colours = {"exact": "C0", "reliable": "C1", "feedback": "C2"}
     styles = {"twin": "-", "nearest": "--", "twin-rule": ":", "pybullet": "-.",
-              "create3": (0, (1, 1))}
+              "mujoco": (0, (5, 1)), "create3": (0, (1, 1))}
     bodies = sorted(s.body.unique(), key=lambda b: list(styles).index(b) if b in styles else 9)
     for (planner, body), d in s.groupby(["planner", "body"], sort=True):
         d = d.sort_values("sigma")
