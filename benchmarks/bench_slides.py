@@ -32,6 +32,7 @@ def _best(fn, repeat: int) -> tuple[float, object]:
 
 
 def main(argv=None) -> None:
+    """Time both paths on the same flights and print the table."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--env", default="lab", help="catalogue map (default lab)")

@@ -317,6 +317,9 @@ class ContactFlights:
         """(m, 2) points [m] of flights ``idx`` after ``s`` [m] of clock (each <= its clock)."""
         idx = np.asarray(idx, dtype=np.int64)
         s = np.asarray(s, dtype=float)
+        if not self.legs and self.slid[idx].any():
+            raise ValueError("these flights slid and were made without their legs "
+                             "(contact_flights(legs=False)): no point along them is known.")
         out = self.start[idx] + s[:, None] * self.u[idx]
         for m in np.flatnonzero(np.isin(idx, np.fromiter(self.legs, np.int64,
                                                           len(self.legs)))):

@@ -102,6 +102,8 @@ def test_compiled_slides_match_advance(seed):
         np.testing.assert_allclose(fk.end, fl.end, rtol=0, atol=1e-9)
         np.testing.assert_allclose(fk.clock, fl.clock, rtol=0, atol=1e-9)
         assert fk.legs == {}
+        with pytest.raises(ValueError, match="without their legs"):
+            fk.points(np.flatnonzero(fk.slid)[:1], np.zeros(1))
         # each flight one at a time, from its first contact, both ways
         end = poses[:, :2] + D[:, None] * u
         x, y, used, bumped = advance_many(caster, end, u, contact)
