@@ -22,40 +22,62 @@ __all__ = ["advance_kernel"]
 
 
 @numba.njit(cache=True)
+def _side_t(S, i, r, approach_min, x, y, ux, uy):
+    """The contact distance [m] of the disk at (x, y) moving along (ux, uy) with side ``i``
+    (:func:`envs.motion.cast_scalar`'s side formula), −1 when it does not meet the side.
+    """
+    Ax, Ay, ex, ey, L = S[i, 0], S[i, 1], S[i, 2], S[i, 3], S[i, 4]
+    rx = x - Ax
+    ry = y - Ay
+    s0 = ry * ex - rx * ey
+    un = uy * ex - ux * ey
+    a = -un if s0 >= 0 else un
+    if not a > approach_min:
+        return -1.0
+    t = (abs(s0) - r) / a
+    if t < 0.0:
+        t = 0.0
+    lam = rx * ex + ry * ey + t * (ux * ex + uy * ey)
+    return t if 0.0 <= lam <= L else -1.0
+
+
+@numba.njit(cache=True)
+def _corner_t(V, j, r2, graze, x, y, ux, uy):
+    """The contact distance [m] with corner ``j`` (``cast_scalar``'s corner formula), −1 when
+    the disk does not meet it.
+    """
+    vx = x - V[j, 0]
+    vy = y - V[j, 1]
+    b = vx * ux + vy * uy
+    if not b < 0.0:
+        return -1.0
+    disc = r2 - (vx * vx + vy * vy - b * b)
+    if not disc > graze:
+        return -1.0
+    t = -b - math.sqrt(disc)
+    return t if t > 0.0 else 0.0
+
+
+@numba.njit(cache=True)
 def _cast(S, V, r, r2, graze, approach_min, x, y, ux, uy):
     """:func:`envs.motion.cast_scalar` without ``within``: the contact distance [m]."""
     best = math.inf
     for i in range(S.shape[0]):
-        Ax, Ay, ex, ey, L = S[i, 0], S[i, 1], S[i, 2], S[i, 3], S[i, 4]
-        rx = x - Ax
-        ry = y - Ay
-        s0 = ry * ex - rx * ey
-        un = uy * ex - ux * ey
-        a = -un if s0 >= 0 else un
-        if not a > approach_min:
-            continue
-        t = (abs(s0) - r) / a
-        if t < 0.0:
-            t = 0.0
-        lam = rx * ex + ry * ey + t * (ux * ex + uy * ey)
-        if 0.0 <= lam <= L:
-            if t < best:
-                best = t
+        t = _side_t(S, i, r, approach_min, x, y, ux, uy)
+        if t >= 0.0 and t < best:
+            best = t
     for j in range(V.shape[0]):
-        vx = x - V[j, 0]
-        vy = y - V[j, 1]
-        b = vx * ux + vy * uy
-        if not b < 0.0:
-            continue
-        disc = r2 - (vx * vx + vy * vy - b * b)
-        if not disc > graze:
-            continue
-        t = -b - math.sqrt(disc)
-        if t < 0.0:
-            t = 0.0
-        if t < best:
+        t = _corner_t(V, j, r2, graze, x, y, ux, uy)
+        if t >= 0.0 and t < best:
             best = t
     return best
+
+
+@numba.njit(cache=True)
+def _bearing(x, y, ux, uy, px, py):
+    """[deg] the bearing of the point (px, py) from the heading (ux, uy) at (x, y)."""
+    wx, wy = px - x, py - y
+    return math.degrees(math.atan2(ux * wy - uy * wx, ux * wx + uy * wy))
 
 
 @numba.njit(cache=True)
@@ -63,50 +85,29 @@ def _front(S, V, r, r2, graze, approach_min, within, x, y, ux, uy, hx, hy, hb, h
     """:func:`envs.contact.front_contacts`: the wall points touched within ``within`` [m]
     ahead with |bearing| < 90°, sides first, then corners (``cast_scalar``'s order), into
     hx, hy, hb (bearing [deg]) and hs (the side's index, −1 for a corner). Returns their
-    count.
+    count (at most len(S) + len(V), the arrays' length).
     """
     n = 0
     for i in range(S.shape[0]):
+        t = _side_t(S, i, r, approach_min, x, y, ux, uy)
+        if t < 0.0 or t > within:
+            continue
         Ax, Ay, ex, ey, L = S[i, 0], S[i, 1], S[i, 2], S[i, 3], S[i, 4]
-        rx = x - Ax
-        ry = y - Ay
-        s0 = ry * ex - rx * ey
-        un = uy * ex - ux * ey
-        a = -un if s0 >= 0 else un
-        if not a > approach_min:
-            continue
-        t = (abs(s0) - r) / a
-        if t < 0.0:
-            t = 0.0
-        lam = rx * ex + ry * ey + t * (ux * ex + uy * ey)
-        if 0.0 <= lam <= L and t <= within:
-            cx, cy = x + t * ux - Ax, y + t * uy - Ay
-            k = min(max(cx * ex + cy * ey, 0.0), L)
-            px, py = Ax + k * ex, Ay + k * ey
-            wx, wy = px - x, py - y
-            b = math.degrees(math.atan2(ux * wy - uy * wx, ux * wx + uy * wy))
-            if abs(b) < 90.0 and n < hx.shape[0]:
-                hx[n], hy[n], hb[n], hs[n] = px, py, b, i
-                n += 1
+        cx, cy = x + t * ux - Ax, y + t * uy - Ay
+        k = min(max(cx * ex + cy * ey, 0.0), L)
+        px, py = Ax + k * ex, Ay + k * ey
+        b = _bearing(x, y, ux, uy, px, py)
+        if abs(b) < 90.0:
+            hx[n], hy[n], hb[n], hs[n] = px, py, b, i
+            n += 1
     for j in range(V.shape[0]):
-        Vx, Vy = V[j, 0], V[j, 1]
-        vx = x - Vx
-        vy = y - Vy
-        b = vx * ux + vy * uy
-        if not b < 0.0:
+        t = _corner_t(V, j, r2, graze, x, y, ux, uy)
+        if t < 0.0 or t > within:
             continue
-        disc = r2 - (vx * vx + vy * vy - b * b)
-        if not disc > graze:
-            continue
-        t = -b - math.sqrt(disc)
-        if t < 0.0:
-            t = 0.0
-        if t <= within:
-            wx, wy = Vx - x, Vy - y
-            bb = math.degrees(math.atan2(ux * wy - uy * wx, ux * wx + uy * wy))
-            if abs(bb) < 90.0 and n < hx.shape[0]:
-                hx[n], hy[n], hb[n], hs[n] = Vx, Vy, bb, -1
-                n += 1
+        b = _bearing(x, y, ux, uy, V[j, 0], V[j, 1])
+        if abs(b) < 90.0:
+            hx[n], hy[n], hb[n], hs[n] = V[j, 0], V[j, 1], b, -1
+            n += 1
     return n
 
 

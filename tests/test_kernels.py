@@ -22,12 +22,19 @@ from planners.navigation.feedback.observe import (
 )
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2])
-def test_flights_and_side_probabilities_match_the_numpy_reference(seed):
+def _room(seed: int, n: int):
+    """(rng, caster, poses (n, 3)): a generated room with slanted walls and pillars, its
+    full caster and n random free poses.
+    """
     rng = np.random.default_rng(seed)
     env = generated.slanted_room(rng, orientations=8)
     caster = ExactNavigator(CellSpace(env), [45, 90, 135]).caster
-    poses = np.array([env.random_pose(rng) for _ in range(400)])
+    return rng, caster, np.array([env.random_pose(rng) for _ in range(n)])
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_flights_and_side_probabilities_match_the_numpy_reference(seed):
+    rng, caster, poses = _room(seed, 400)
     # poses at contact too: every pose flown to its bump, then turned (features touched at
     # once, corners, the knife edges of the bearings' ±90° cut)
     D, u, _ = flights_reference(caster, poses[:, :2], poses[:, 2])
@@ -78,10 +85,7 @@ def test_compiled_slides_match_advance(seed):
     # the compiled slides end where advance (plain Python, the reference) ends them
     from envs.contact import advance, advance_many, contact_flights
     from envs.motion import PYBULLET_CONTACT, ContactParams
-    rng = np.random.default_rng(seed)
-    env = generated.slanted_room(rng, orientations=8)
-    caster = ExactNavigator(CellSpace(env), [45, 90, 135]).caster
-    poses = np.array([env.random_pose(rng) for _ in range(300)])
+    rng, caster, poses = _room(seed, 300)
     # most flights head for the nearest wall at a glancing incidence (0.5°-12°, either way
     # along it): they slide along sides and wrap around its ends' corners
     p = poses[:, :2]
