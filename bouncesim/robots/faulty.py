@@ -81,6 +81,11 @@ class FaultyRobot(Robot):
         """The wrapped body's declared contact rule (docs/model.md §9), if any."""
         return getattr(self.body, "contact", None)
 
+    @property
+    def turn_errors(self):
+        """The wrapped body's declared turn errors (a noise spec), if any."""
+        return getattr(self.body, "turn_errors", None)
+
     def drive(self, speed: float) -> None:
         """The wrapped body's ``drive``."""
         self.body.drive(speed)

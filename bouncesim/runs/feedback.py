@@ -36,7 +36,7 @@ from .results import PlanRun
 from .runners import place_if_simulated, plan_result, side_text
 from .trace import Trace
 
-__all__ = ["FeedbackRun", "FeedbackRunner", "body_contact"]
+__all__ = ["FeedbackRun", "FeedbackRunner", "body_contact", "body_turns"]
 
 
 @dataclass(frozen=True)
@@ -61,6 +61,9 @@ class FeedbackRun(PlanRun):
                                    and offset: (factor, its std, offset [deg], its std)
     stop_mass : float              the belief's mass in the goal cell when the final drive
                                    was chosen (nan: the run ended without one)
+    assumed_turns : dict           the turn model the filter assumed: the declared noise
+                                   with the body's own errors added (:func:`body_turns`):
+                                   sigma [deg], scale, bias [deg], factor, offset [deg]
     """
 
     decision_ms: tuple = ()
@@ -71,6 +74,7 @@ class FeedbackRun(PlanRun):
     bumps_to_localize: int | None = 0
     turn_estimate: tuple = (1.0, 0.0, 0.0, 0.0)
     stop_mass: float = math.nan
+    assumed_turns: dict | None = None
 
     @property
     def reinits(self) -> int:
@@ -95,7 +99,8 @@ class FeedbackRun(PlanRun):
                     "lost": sum(1 for u in self.updates if u.lost),
                     "stop_mass": None if math.isnan(self.stop_mass)
                     else round(float(self.stop_mass), 4),
-                    "p_success": [round(float(v), 4) for v in self.p_success]})
+                    "p_success": [round(float(v), 4) for v in self.p_success],
+                    "assumed_turns": self.assumed_turns})
         return out
 
 
@@ -109,6 +114,18 @@ def body_contact(robot) -> ContactParams | None:
     """
     rule = getattr(robot, "contact", None)
     return rule if isinstance(rule, ContactParams) else None
+
+
+def body_turns(robot) -> str | None:
+    """The turn errors a body declares of itself (docs/model.md §15, "A body's own turns"):
+    its ``turn_errors`` attribute, a noise spec in the one grammar
+    (:func:`planners.noise.parse_noise_spec`), e.g. ``"gauss:0.6,offset=-1.26"`` for a body
+    whose turns are measured 1.26° short with a scatter of 0.6°
+    (``python -m experiments.body_turns``). The filter adds them to the declared noise. None
+    (a body that declares nothing: the twin, a real robot): exact turns of its own.
+    """
+    errors = getattr(robot, "turn_errors", None)
+    return errors if isinstance(errors, str) else None
 
 
 class FeedbackRunner:
@@ -139,7 +156,8 @@ class FeedbackRunner:
             self.start_pose = tuple(float(v) for v in start)
         self.back_off, self.rng = float(back_off), planner.rng
         self.contact = planner.resolved(body_contact(robot))
-        self.fnav = planner.navigator(policy.goal, self.contact, policy.max_bumps)
+        self.fnav = planner.navigator(policy.goal, self.contact, policy.max_bumps,
+                                      body_turns(robot) if planner.config.body_turns else None)
         self.cfg = self.fnav.cfg
         if self.fnav.by_value:
             _ = self.fnav.value                 # set-up before the robot moves, not a decision
@@ -275,4 +293,8 @@ class FeedbackRunner:
                            updates=tuple(self.updates), p_success=tuple(self.p_succ),
                            no_plan=self.no_plan, bumps_to_localize=self.bumps_to_localize,
                            turn_estimate=self.belief.turn_estimate(),
-                           stop_mass=self.stop_mass)
+                           stop_mass=self.stop_mass, assumed_turns={
+                               "sigma": round(self.cfg.turn_sigma_deg, 6),
+                               "scale": self.cfg.turn_scale, "bias": self.cfg.turn_bias_deg,
+                               "factor": self.cfg.turn_factor,
+                               "offset": round(self.cfg.turn_offset_deg, 6)})

@@ -36,13 +36,22 @@ from ..noise import NoiseModel, noise_and_rng
 from ..stepped import SETTLE_STEPS, SteppedWheels
 from .world import CONTACT_MARGIN, BodyParams, world_xml
 
-__all__ = ["MuJoCoRobot", "DEFAULT_TIME_STEP", "DEFAULT_TURN_SPEED", "import_mujoco",
-           "SETTLE_STEPS", "Bodies"]
+__all__ = ["MuJoCoRobot", "DECLARED_TURNS", "DEFAULT_TIME_STEP", "DEFAULT_TURN_SPEED",
+           "import_mujoco", "SETTLE_STEPS", "Bodies"]
 
 DEFAULT_TIME_STEP = 1 / 200
 """Physics step [s]: 5 ms, as in PyBullet (the 15 ms sensor period is 3 steps)."""
 DEFAULT_TURN_SPEED = 0.1
 """Wheel speed while turning in place [m/s], as in PyBullet."""
+
+DECLARED_TURNS = "gauss:0.6,offset=-1.26"
+"""The default body's own turn errors as it declares them to a feedback filter
+(:func:`bouncesim.runs.feedback.body_turns`; docs/readme_feedback.md, "MuJoCo"), measured
+by ``python -m experiments.body_turns --bodies mujoco --trials 150`` (seed 0, lab): its
+turns end 1.26° short of the command (45°: −1.07°, 90°: −1.35°, 135°: −1.31°: an offset,
+not a factor) with a scatter of 0.38°, and a flight with its bump turns it by 0.46° (sd, up
+to 4.1°); the scatter declared is the two in quadrature (tests/test_body_turns.py keeps
+both measured)."""
 
 
 def import_mujoco():
@@ -178,6 +187,12 @@ class MuJoCoRobot(SteppedWheels, Robot):
     """No fitted contact rule is declared: the MuJoCo body's bump/slide behaviour is measured
     (``experiments.contact_calibration --backend mujoco``), not assumed to be PyBullet's."""
 
+    turn_errors = None
+    """The body's own turn errors, a noise spec (:func:`bouncesim.runs.feedback.body_turns`):
+    at the default ``time_step``, ``turn_speed``, ``wheel_torque`` and ``wheel_gain``,
+    :data:`DECLARED_TURNS`; None (nothing declared) with any other setting, which turns
+    differently."""
+
     def __init__(self, env: Environment | str, noise: NoiseModel | None = None,
                  rng: np.random.Generator | int | None = None, *,
                  time_step: float = DEFAULT_TIME_STEP,
@@ -205,6 +220,9 @@ class MuJoCoRobot(SteppedWheels, Robot):
         if cone not in ("elliptic", "pyramidal"):
             raise UserError(f"cone must be 'elliptic' or 'pyramidal', got {cone!r}.")
         self.cone = cone
+        if (time_step, turn_speed, wheel_torque, wheel_gain) == \
+                (DEFAULT_TIME_STEP, DEFAULT_TURN_SPEED, 2.0, 2.0):
+            self.turn_errors = DECLARED_TURNS
         self.solver_iterations = int(solver_iterations)
         self.noise, self.rng = noise_and_rng(noise, rng)
         self.time_step = float(time_step)

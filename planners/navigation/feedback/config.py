@@ -122,6 +122,10 @@ class FeedbackConfig:
                                runs into its flight's bump inside the goal cell (a goal on
                                a wall or in a corner), as the belief's final drive does
                                (the rule before: False)
+    body_turns : bool          add the executing body's declared turn errors (its
+                               ``turn_errors`` noise spec,
+                               :func:`bouncesim.runs.feedback.body_turns`) to the declared
+                               noise (False: ignore them)
     contact : ContactParams or None
         the body's contact rule (docs/model.md §9) in the filter's motion model, the plan
         search's flights and the scores: a flight whose contact lies outside the bumper arc
@@ -173,6 +177,7 @@ class FeedbackConfig:
     stop_extra: float = 1.0
     value_particles: int = 0
     stop_at_bump: bool = True
+    body_turns: bool = True
     contact: ContactParams | None = None
 
     def __post_init__(self) -> None:

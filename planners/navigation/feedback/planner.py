@@ -40,7 +40,7 @@ from .config import DEFAULT_MAX_BUMPS
 from .filter import FeedbackConfig
 from .navigator import FeedbackNavigator
 
-__all__ = ["FeedbackPlanner", "FeedbackPolicy", "declared_sigma", "declared_turn"]
+__all__ = ["FeedbackPlanner", "FeedbackPolicy", "combined_turn", "declared_sigma", "declared_turn"]
 
 
 
@@ -73,6 +73,23 @@ def declared_turn(noise) -> dict:
     base = getattr(noise, "base", None)
     out["sigma"] = declared_sigma(base if base is not None else noise)
     return out
+
+
+def combined_turn(cmd: dict, body: dict) -> dict:
+    """The turn model (:func:`declared_turn`'s keys) of a body whose own turn errors
+    ``body`` act on the turn the declared model ``cmd`` makes of a command: f_b·(f_c·φ + b_c)
+    + b_b, so the factors multiply and the offsets add (b_c scaled by f_b); independent
+    scatter adds in quadrature, and the half-ranges of unknown factors and offsets add.
+
+    >>> t = combined_turn(declared_turn("gauss:2,offset=1"),
+    ...                   declared_turn("gauss:1.5,offset=-1.25"))
+    >>> t["sigma"], t["offset"], t["factor"]
+    (2.5, -0.25, 1.0)
+    """
+    fb = body["factor"]
+    return {"sigma": math.hypot(fb * cmd["sigma"], body["sigma"]),
+            "scale": cmd["scale"] + body["scale"], "bias": cmd["bias"] + body["bias"],
+            "factor": cmd["factor"] * fb, "offset": fb * cmd["offset"] + body["offset"]}
 
 
 def declared_sigma(noise) -> float:
@@ -186,13 +203,18 @@ class FeedbackPlanner:
         return self.config.contact if self.config.contact is not None else body_rule
 
     def navigator(self, goal: int, contact: ContactParams | None,
-                  max_bumps: int = DEFAULT_MAX_BUMPS) -> FeedbackNavigator:
+                  max_bumps: int = DEFAULT_MAX_BUMPS, body_turns=None) -> FeedbackNavigator:
         """The decision rule for ``goal`` under ``contact`` (the declared σ in its config),
         for a run of at most ``max_bumps`` bumps: its value table looks at least that many
         flights ahead (a longer horizon leaves V_t of every shorter one as it was).
+        ``body_turns``: the executing body's own turn errors, a noise spec it declares
+        (:func:`bouncesim.runs.feedback.body_turns`), on top of the declared noise
+        (:func:`combined_turn`).
         """
         t = self.turn_model
-        cfg = replace(self.config, turn_sigma_deg=self.sigma, contact=contact,
+        if body_turns is not None:
+            t = combined_turn(t, declared_turn(body_turns))
+        cfg = replace(self.config, turn_sigma_deg=t["sigma"], contact=contact,
                       turn_scale=t["scale"], turn_bias_deg=t["bias"],
                       turn_factor=t["factor"], turn_offset_deg=t["offset"],
                       value_horizon=max(self.config.value_horizon, int(max_bumps)))
