@@ -367,14 +367,10 @@ def advance_many(caster: WallCaster, pos, u, contact: ContactParams):
     """:func:`advance` (no clock budget, with a contact rule) of every flight from ``pos``
     (n, 2) along ``u`` (n, 2), compiled: (x, y, used, bumped) arrays, no legs.
     """
-    sides = getattr(caster, "_kernel_sides", None)
-    if sides is None:
-        sides = caster._kernel_sides = (
-            np.ascontiguousarray(np.column_stack([caster.A, caster.e, caster.L]), dtype=float),
-            np.ascontiguousarray(np.asarray(caster.vertices, dtype=float).reshape(-1, 2)))
     pos = np.asarray(pos, dtype=float).reshape(-1, 2)
     u = np.asarray(u, dtype=float).reshape(-1, 2)
-    return advance_kernel(*sides, float(caster.r), float(caster.r2), float(caster.graze),
+    return advance_kernel(caster.kernel_sides, caster.kernel_corners, float(caster.r),
+                          float(caster.r2), float(caster.graze),
                           APPROACH_MIN, BUMP_RANGE, CONTACT_GAP, GRAZE_TOL, _SAME_CONTACT,
                           _MAX_EVENTS, 90.0 - float(contact.beta_deg),
                           float(contact.slide_friction), math.inf,

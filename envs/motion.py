@@ -249,6 +249,10 @@ class WallCaster:
         self.e = d / length[:, None]
         self.n = np.column_stack([-self.e[:, 1], self.e[:, 0]])
         self.vertices = np.unique(seg.reshape(-1, 2), axis=0)
+        # the walls as the compiled kernels read them (envs/_contact_kernel.py, the feedback
+        # filter's flights): one row (Ax, Ay, ex, ey, L) per side, one (x, y) per corner
+        self.kernel_sides = np.ascontiguousarray(np.column_stack([self.A, self.e, self.L]))
+        self.kernel_corners = np.ascontiguousarray(self.vertices, dtype=float)
         # Row vectors for broadcasting against (n_rays, 1) columns.
         self._Ax, self._Ay = self.A[:, 0][None], self.A[:, 1][None]
         self._ex, self._ey = self.e[:, 0][None], self.e[:, 1][None]

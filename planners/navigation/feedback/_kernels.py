@@ -20,15 +20,18 @@ __all__ = ["flights_kernel", "side_probs_kernel"]
 
 
 @numba.njit(cache=True)
-def flights_kernel(px, py, ux, uy, Ax, Ay, ex, ey, nx, ny, L, Vx, Vy, r, r2, graze,
-                   approach_min, bump_range, gap, want_bearings):
-    """Per pose: the drive D to the first contact [m] (``drive_distance`` of the contact
-    distance, 0 within ``bump_range``, 1e6 when nothing is ahead) and, with
-    ``want_bearings``, the bearing [deg] of every feature (sides, then corners) it touches
-    at the contact (within ``bump_range`` of the first, |bearing| < 90°), NaN elsewhere:
-    :meth:`envs.motion.WallCaster.feature_distances`' formulas.
+def flights_kernel(px, py, ux, uy, S, V, r, r2, graze, approach_min, bump_range, gap,
+                   want_bearings):
+    """Per pose (``px``, ``py``, ``ux``, ``uy``), against the sides ``S`` (ns, 5: Ax, Ay, ex,
+    ey, L; the normal is (−ey, ex)) and corners ``V`` (nv, 2) of
+    :attr:`envs.motion.WallCaster.kernel_sides` and ``kernel_corners``: the drive D to the
+    first contact [m] (``drive_distance`` of the contact distance, 0 within ``bump_range``,
+    1e6 when nothing is ahead) and, with ``want_bearings``, the bearing [deg] of every
+    feature (sides, then corners) it touches at the contact (within ``bump_range`` of the
+    first, |bearing| < 90°), NaN elsewhere: :meth:`envs.motion.WallCaster.feature_distances`'
+    formulas.
     """
-    n, ns, nv = px.size, Ax.size, Vx.size
+    n, ns, nv = px.size, S.shape[0], V.shape[0]
     D = np.empty(n)
     beta = np.full((n if want_bearings else 0, ns + nv), np.nan)
     fd = np.empty(ns + nv)
@@ -36,21 +39,23 @@ def flights_kernel(px, py, ux, uy, Ax, Ay, ex, ey, nx, ny, L, Vx, Vy, r, r2, gra
         x, y, u, v = px[i], py[i], ux[i], uy[i]
         t = np.inf
         for j in range(ns):
-            rx = x - Ax[j]
-            ry = y - Ay[j]
-            s0 = rx * nx[j] + ry * ny[j]
-            un = u * nx[j] + v * ny[j]
+            ex, ey = S[j, 2], S[j, 3]
+            nx, ny = -ey, ex
+            rx = x - S[j, 0]
+            ry = y - S[j, 1]
+            s0 = rx * nx + ry * ny
+            un = u * nx + v * ny
             a = -un if s0 >= 0 else un
             fd[j] = np.inf
             if a > approach_min:
                 tj = max((abs(s0) - r) / a, 0.0)
-                lam = rx * ex[j] + ry * ey[j] + tj * (u * ex[j] + v * ey[j])
-                if lam >= 0.0 and lam <= L[j]:
+                lam = rx * ex + ry * ey + tj * (u * ex + v * ey)
+                if lam >= 0.0 and lam <= S[j, 4]:
                     fd[j] = tj
                     t = min(t, tj)
         for k in range(nv):
-            vx = x - Vx[k]
-            vy = y - Vy[k]
+            vx = x - V[k, 0]
+            vy = y - V[k, 1]
             b = vx * u + vy * v
             disc = r2 - (vx * vx + vy * vy - b * b)
             fd[ns + k] = np.inf
@@ -66,12 +71,13 @@ def flights_kernel(px, py, ux, uy, Ax, Ay, ex, ey, nx, ny, L, Vx, Vy, r, r2, gra
             for j in range(ns + nv):
                 if fd[j] <= t + bump_range:
                     if j < ns:
-                        lam = min(max((cx - Ax[j]) * ex[j] + (cy - Ay[j]) * ey[j], 0.0), L[j])
-                        wx = Ax[j] + lam * ex[j] - cx
-                        wy = Ay[j] + lam * ey[j] - cy
+                        Ax, Ay, ex, ey = S[j, 0], S[j, 1], S[j, 2], S[j, 3]
+                        lam = min(max((cx - Ax) * ex + (cy - Ay) * ey, 0.0), S[j, 4])
+                        wx = Ax + lam * ex - cx
+                        wy = Ay + lam * ey - cy
                     else:
-                        wx = Vx[j - ns] - cx
-                        wy = Vy[j - ns] - cy
+                        wx = V[j - ns, 0] - cx
+                        wy = V[j - ns, 1] - cy
                     bj = math.degrees(math.atan2(u * wy - v * wx, u * wx + v * wy))
                     if abs(bj) < 90.0:
                         beta[i, j] = bj

@@ -35,20 +35,6 @@ def side_of(left: bool, right: bool) -> int:
     raise UserError("a bump needs at least one closed bumper switch.")
 
 
-def _walls(caster) -> tuple:
-    """The caster's walls as contiguous arrays for the kernels (built once per caster)."""
-    w = getattr(caster, "_kernel_walls", None)
-    if w is None:
-        c = lambda a: np.ascontiguousarray(a, dtype=float)  # noqa: E731
-        w = (c(caster.A[:, 0]), c(caster.A[:, 1]), c(caster.e[:, 0]), c(caster.e[:, 1]),
-             c(caster.n[:, 0]), c(caster.n[:, 1]), c(caster.L),
-             c(np.asarray(caster.vertices).reshape(-1, 2)[:, 0]),
-             c(np.asarray(caster.vertices).reshape(-1, 2)[:, 1]),
-             float(caster.r), float(caster.r2), float(caster.graze))
-        caster._kernel_walls = w
-    return w
-
-
 def flights(caster, pos, heading_deg, bearings: bool = True):
     """Exact flights of poses: (drive [m], unit headings, contact bearings [deg] or None).
 
@@ -61,7 +47,9 @@ def flights(caster, pos, heading_deg, bearings: bool = True):
     u = unit(heading_deg)
     D, beta = flights_kernel(np.ascontiguousarray(pos[:, 0]), np.ascontiguousarray(pos[:, 1]),
                              np.ascontiguousarray(u[:, 0]), np.ascontiguousarray(u[:, 1]),
-                             *_walls(caster), APPROACH_MIN, BUMP_RANGE, CONTACT_GAP,
+                             caster.kernel_sides, caster.kernel_corners, float(caster.r),
+                             float(caster.r2), float(caster.graze), APPROACH_MIN, BUMP_RANGE,
+                             CONTACT_GAP,
                              bool(bearings))
     return D, u, (beta if bearings else None)
 
