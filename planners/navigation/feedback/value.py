@@ -18,19 +18,19 @@ decision rule what it lacks, the value of a contact state when the robot keeps d
   order that does not pair with n_q). So a state's value is averaged over where in its bin
   the robot is, as the belief, a few cm wide, does not know it either: a value from the
   bin's centre alone promised 0.52 where every flight from the true point of `lab`'s
-  corridor gave 0.06 (a development measurement of that variant). The flights are stored
-  with their straight drive for the stop values.
+  corridor gave 0.06 (a development measurement of that variant).
 - **Stop values (per goal).** Turning by φ and making the final drive succeeds with the
   probability (over the same nodes) that one drive length, the one that brings the noise-free
   heading's flight nearest the goal cell's centre, ends in the goal cell with the heading
   within Δ/2 of the goal heading, before the bump. The stop's turn errors are the nodes of
   a wider normal, √(σ² + e²) (the navigator passes e = σ, ``FeedbackConfig.stop_extra``
   = 1; the table's own default e = 0 is a stop from a known state): a stop from a belief,
-  whose heading at a bump is known only to about the last turn's spread. The bump that
-  would cut the drive short is the one of the node's transition flight; with ``at_bump``
-  (``FeedbackConfig.stop_at_bump``, default) a drive that runs into the bump succeeds when
-  the bump lies in the goal cell (a goal on a wall or in a corner; the stop's flight cast
-  anew, only from states with a flight that bumps near the cell).
+  whose heading at a bump is known only to about the last turn's spread. The contact that
+  would cut the drive short is the first one of the stop's own flight (the node's point,
+  the heading with the stop's turn error), cast only where the drive could succeed; with
+  ``at_bump`` (``FeedbackConfig.stop_at_bump``, default) a drive that runs into that
+  flight's bump succeeds when the bump lies in the goal cell (a goal on a wall or in a
+  corner; cast too from states with a flight that bumps near the cell).
 - **Values.** With t flights left, V_t(s) = max over φ of max(stop(s, φ), γ · E V_{t−1}(s'))
   and V_0(s) = max over φ of stop(s, φ): the best success probability of a robot that knows
   its contact state after every bump (value iteration on the noisy contact-state chain, a
@@ -72,8 +72,6 @@ class Transitions:
                                     (q + ½)/M of N(0, σ²)
     fracs : (M,)                    where along its bin each node's flight starts
     nxt : (A, S, M) int32           the state each flight lands in
-    drive : (A, S, M) float32       its straight drive to the first contact [m] (a final
-                                    drive must stop before it, slide or not)
     points : (M, n_bins, 2)         the nodes' start points [m]
     """
 
@@ -96,7 +94,6 @@ class Transitions:
         angles = np.asarray(nav.angles, dtype=float)
         S = self.n_bins * self.n_head
         self.nxt = np.empty((len(angles), S, M), dtype=np.int32)
-        self.drive = np.empty((len(angles), S, M), dtype=np.float32)
         b = np.repeat(np.arange(self.n_bins), self.n_head)
         head0 = np.tile(np.arange(self.n_head) * self.step_deg, self.n_bins)
         for i, a in enumerate(angles):
@@ -104,10 +101,9 @@ class Transitions:
                 th = head0 + a + off
                 for lo in range(0, S, _CHUNK):
                     sl = slice(lo, min(lo + _CHUNK, S))
-                    _, end, _, _, straight = landings(caster, self.points[q, b[sl]],
-                                                      th[sl], contact, bearings=False)
+                    _, end, _, _, _ = landings(caster, self.points[q, b[sl]], th[sl],
+                                               contact, bearings=False)
                     self.nxt[i, sl, q] = self.state(end, th[sl])
-                    self.drive[i, sl, q] = straight
 
     def state(self, pos, heading_deg) -> np.ndarray:
         """The contact state of bump poses (pos (n, 2) [m], heading (n,) [deg])."""
@@ -163,7 +159,13 @@ class ValueTable:
         self.V = np.stack(V)                                    # (horizon + 1, S)
 
     def _stops(self, fnav) -> np.ndarray:
-        """(A, S) the probability that turning by φ and the final drive end in the goal."""
+        """(A, S) the probability that turning by φ and the final drive end in the goal.
+
+        Each node's drive is checked against the stop's own flight (its point, the heading
+        with the stop's turn error), cast only where it can matter: where the drive ends in
+        the goal cell with the heading in range, and (``at_bump``) where a flight of the
+        state bumps near the cell.
+        """
         tr, cs = self.tr, fnav.cells
         x0, y0, x1, y1 = fnav.box
         centre = np.array([(x0 + x1) / 2, (y0 + y1) / 2])
@@ -192,33 +194,34 @@ class ValueTable:
                 p = tr.points[q, b[idx]]
                 d = np.maximum(((centre - p) * u).sum(1), 0.0)
                 rq = np.radians(t + off)
-                uq = np.column_stack([np.cos(rq), np.sin(rq)])
-                end = p + d[:, None] * uq
+                end = p + d[:, None] * np.column_stack([np.cos(rq), np.sin(rq)])
                 depth = half - np.abs(end - centre).max(axis=1)
-                good = (depth >= 0) & (d <= tr.drive[i, idx, q]) & \
-                    heading_ok(t + off, fnav.goal_heading, cs.delta_deg)
-                if self.at_bump:
-                    good |= self._bumps_in_cell(fnav, p, t + off, d, lands_near[i, idx])
-                ok += tr.weights[q] * good
+                aimed = heading_ok(t + off, fnav.goal_heading, cs.delta_deg)
+                cast = aimed & ((depth >= 0) | (lands_near[i, idx] if self.at_bump else False))
+                ok += tr.weights[q] * self._good(fnav, p, t + off, d, depth, cast)
             out[i, idx] = ok
         return out
 
-    def _bumps_in_cell(self, fnav, p, heading, d, near) -> np.ndarray:
+    def _good(self, fnav, p, heading, d, depth, cast) -> np.ndarray:
         """(n,) bool: the final drive ``d`` [m] from ``p`` (n, 2) at ``heading`` (n,) [deg]
-        runs into the flight's bump (d at least its clock), and the bump lies in the goal
-        cell with the heading within Δ/2 of the goal's; only where ``near`` (the others
-        are False without a cast).
+        ends in the goal cell (``depth`` >= 0) before its flight's first contact, or
+        (``at_bump``) runs into the flight's bump (d at least its clock) and the bump lies
+        in the goal cell; only where ``cast`` (heading in range; the others are False
+        without a cast).
         """
         out = np.zeros(len(p), dtype=bool)
-        k = np.flatnonzero(near)
+        k = np.flatnonzero(cast)
         if k.size == 0:
             return out
-        clock, end, _, _, _ = landings(fnav.nav.caster, p[k], heading[k], fnav.nav.contact,
-                                       bearings=False)
-        x0, y0, x1, y1 = fnav.box
-        inside = (end[:, 0] >= x0) & (end[:, 0] <= x1) & (end[:, 1] >= y0) & (end[:, 1] <= y1)
-        out[k] = inside & (d[k] >= clock) & heading_ok(heading[k], fnav.goal_heading,
-                                                       fnav.cells.delta_deg)
+        clock, end, _, _, straight = landings(fnav.nav.caster, p[k], heading[k],
+                                              fnav.nav.contact, bearings=False)
+        good = (depth[k] >= 0) & (d[k] <= straight)
+        if self.at_bump:
+            x0, y0, x1, y1 = fnav.box
+            inside = (end[:, 0] >= x0) & (end[:, 0] <= x1) & (end[:, 1] >= y0) & \
+                (end[:, 1] <= y1)
+            good |= inside & (d[k] >= clock)
+        out[k] = good
         return out
 
     def values(self, pos, heading_deg, left: int) -> np.ndarray:
