@@ -81,3 +81,13 @@ def test_a_biased_body_that_declares_its_bias_reaches_its_goals():
     assert declared >= 9
     assert ignored <= declared - 3
     assert _runs(False) == ignored                     # ignoring = declaring nothing
+
+
+@pytest.mark.parametrize("kind", ["emulator", "create3-emulator"])
+def test_the_create_adapters_pass_on_their_emulated_body_s_turns(kind):
+    from bouncesim.robots import make_robot
+    with make_robot(kind, PILLAR) as robot:
+        assert body_turns(robot) is None            # the emulated wheel body declares none
+        emulator = robot.emulator if kind == "emulator" else robot.backend.emulator
+        emulator.body.turn_errors = "gauss:0.5,offset=1"
+        assert body_turns(robot) == "gauss:0.5,offset=1"

@@ -442,6 +442,14 @@ class Create2Robot(SigtermStop, SensingMixin, TurningMixin, Robot):
         """
         return None if self.emulator is None else self.emulator.body.contact
 
+    @property
+    def turn_errors(self):
+        """The emulated body's declared turn errors (simulation only; None on a real robot,
+        whose errors a user declares with ``--noise``).
+        """
+        return None if self.emulator is None else getattr(self.emulator.body, "turn_errors",
+                                                          None)
+
     def true_pose(self) -> tuple[float, float, float] | None:
         """The emulator's true pose (x [m], y [m], heading [deg]); None on hardware."""
         return None if self.emulator is None else self.emulator.true_pose()

@@ -275,6 +275,14 @@ class Create3Robot(SigtermStop, Robot):
         emulator = getattr(self.backend, "emulator", None)
         return None if emulator is None else emulator.body.contact
 
+    @property
+    def turn_errors(self):
+        """The emulated body's declared turn errors (simulation only; None on a real robot,
+        whose errors a user declares with ``--noise``).
+        """
+        emulator = getattr(self.backend, "emulator", None)
+        return None if emulator is None else getattr(emulator.body, "turn_errors", None)
+
     def true_pose(self) -> tuple[float, float, float] | None:
         """The emulated body's pose; None on a real robot."""
         pose = getattr(self.backend, "true_pose", None)
