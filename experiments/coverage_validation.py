@@ -10,9 +10,11 @@ step-sampled visit histogram q̂ of simulated runs:
   after a burn-in (``--twin-burn-in``) so that the histogram estimates the *limiting*
   distribution the models predict;
 - PyBullet (:class:`bouncesim.robots.pybullet.PyBulletRobot` through
-  :func:`bouncesim.runs.execute.execute`): shorter runs (``--pybullet-runs`` runs of
-  ``--pybullet-steps`` steps per estimate), each from its own uniform random start, so one
-  run trapped in a small persistent group does not stand for the whole estimate.
+  :func:`bouncesim.runs.execute.execute`), or MuJoCo with ``--physics mujoco``
+  (:class:`bouncesim.robots.mujoco.MuJoCoRobot`, the second engine): shorter runs
+  (``--pybullet-runs`` runs of ``--pybullet-steps`` steps per estimate), each from its own
+  uniform random start, so one run trapped in a small persistent group does not stand for
+  the whole estimate.
 
 The same simulation is run twice with independent seeds (replicates 0 and 1); the TV between
 the two is the noise floor of the estimate at that step count. A mix is run by time-sharing
@@ -74,8 +76,8 @@ from planners.coverage import TurnNoise, design_mix, model_for, timeshared_cover
 from planners.metrics import tv_distance
 from planners.plan import PolicyMix
 
-__all__ = ["ANGLES", "EPS", "R", "Config", "draw_figures", "env_label", "main", "predict", "run",
-           "simulate", "tv_table"]
+__all__ = ["ANGLES", "EPS", "PHYSICS", "R", "Config", "draw_figures", "env_label", "main",
+           "predict", "run", "simulate", "tv_table"]
 
 NAME = "coverage_validation"
 ANGLES = (30.0, 75.0, 315.0)
@@ -104,12 +106,16 @@ def parse_policy(label: str) -> PolicyMix:
     return PolicyMix((float(label),), (1.0,), EPS, R)
 
 
+PHYSICS = ("pybullet", "mujoco")
+"""The physics engines of the short runs (``--physics``)."""
+
+
 # ----------------------------------------------------------------------------- one trial
 def simulate(params: dict, rng: np.random.Generator) -> dict:
     """One simulated estimate of the visit histogram (a sweep trial; pure in params + rng).
 
-    params: env, orientations, policy (label), backend ("twin" | "pybullet"), steps,
-    robots (twin batch size), epoch, speed (PyBullet drive speed [m/s]) and optionally
+    params: env, orientations, policy (label), backend ("twin", "pybullet" or "mujoco"),
+    steps, robots (twin batch size), epoch, speed (physics drive speed [m/s]) and optionally
     cell_size [m] (default: the catalogue's) and burn_in (twin steps per robot run first and
     not counted, default 0). Other keys are carried along untouched.
     Returns the run's row; ``counts`` is the histogram over position cells as a
@@ -129,8 +135,8 @@ def simulate(params: dict, rng: np.random.Generator) -> dict:
         res = KinematicBatch(env, n, rng, cells=cs).run(
             mix, per, epoch=epoch, noise=noise, burn_in=int(params.get("burn_in", 0)))
         counts, dropped, bumps = res.counts, res.dropped, res.bumps
-    elif params["backend"] == "pybullet":
-        with make_robot("pybullet", env, noise=noise, rng=rng) as robot:
+    elif params["backend"] in PHYSICS:
+        with make_robot(params["backend"], env, noise=noise, rng=rng) as robot:
             run = execute(mix, robot, steps=steps, epoch=epoch, rng=rng, cells=cs,
                           speed=float(params["speed"]), record_trace=False)
         counts, dropped, bumps = run.counts, run.dropped, run.bumps
@@ -273,10 +279,12 @@ class Config(SweepOptions):
     orientations : int        K
     twin_steps : int          twin steps per estimate
     twin_robots : int         robots in one twin batch
-    pybullet_steps : int      steps of one PyBullet run, 0 to skip
-    pybullet_runs : int       PyBullet runs per estimate, each from its own random start
+    physics : str             the physics engine of the short runs: "pybullet" or "mujoco"
+                              (the ``pybullet_*`` settings apply to either)
+    pybullet_steps : int      steps of one physics run, 0 to skip
+    pybullet_runs : int       physics runs per estimate, each from its own random start
     twin_burn_in : int        twin steps per robot run before counting starts
-    pybullet_envs : tuple     environments run in PyBullet
+    pybullet_envs : tuple     environments run in physics
     epoch : int               steps per epoch when a mix is time-shared
     speed : float             PyBullet drive speed [m/s]
     quick : bool              CI budget; ``run`` then sends only 75° to PyBullet
@@ -291,6 +299,7 @@ class Config(SweepOptions):
     orientations: int = 360
     twin_steps: int = 2_000_000
     twin_robots: int = 200
+    physics: str = "pybullet"
     pybullet_steps: int = 1000
     pybullet_runs: int = 4
     twin_burn_in: int = 40_000
@@ -333,7 +342,7 @@ def run(config: Config) -> Path:
                                "burn_in": config.twin_burn_in})
                 if (config.pybullet_steps > 0 and name in config.pybullet_envs
                         and (not q or label == "75")):
-                    trials += [{**trials[-1], "backend": "pybullet",
+                    trials += [{**trials[-1], "backend": config.physics,
                                 "steps": config.pybullet_steps, "run": i, "burn_in": 0}
                                for i in range(config.pybullet_runs)]
     preds = pd.concat(pred_rows, ignore_index=True)
@@ -374,6 +383,9 @@ def main(argv=None) -> int:
                    help="twin steps per estimate (default 2e6; quick 1e5)")
     p.add_argument("--twin-robots", type=int, default=200,
                    help="robots in one twin batch (default 200)")
+    p.add_argument("--physics", choices=PHYSICS, default="pybullet",
+                   help="the physics engine of the short runs (default pybullet; mujoco "
+                   "needs the mujoco extra); the --pybullet-* options apply to either")
     p.add_argument("--pybullet-steps", type=int, default=None,
                    help="steps of one PyBullet run, 0 to skip (default 1000; quick 60)")
     p.add_argument("--pybullet-runs", type=int, default=None,
@@ -402,6 +414,7 @@ def main(argv=None) -> int:
         orientations=args.orientations or (72 if q else 360),
         twin_steps=args.twin_steps or (100_000 if q else 2_000_000),
         twin_robots=args.twin_robots,
+        physics=args.physics,
         pybullet_steps=(args.pybullet_steps if args.pybullet_steps is not None
                         else (60 if q else 1000)),
         pybullet_runs=args.pybullet_runs or (1 if q else 4),

@@ -91,3 +91,19 @@ def test_envs_accepts_an_env_file_path(tmp_path):
     b = preds[preds.env == str(room)].sort_values(["policy", "p"]).q.to_numpy()
     assert len(a) == len(b) > 0 and abs(a - b).max() <= 1e-12
     assert (out / "heatmaps_mylab_step.png").exists()
+
+
+@pytest.mark.physics
+def test_a_mujoco_run_counts_its_steps(tmp_path):
+    # --physics mujoco: the short runs on the second engine, one trial by hand through the
+    # sweep's trial function (60 steps at 75° in lab, every step counted or dropped), and
+    # the CLI refuses an engine it does not know in one line
+    pytest.importorskip("mujoco")
+    row = cv.simulate({"env": "lab", "orientations": 72, "policy": "75", "backend": "mujoco",
+                       "steps": 60, "robots": 1, "epoch": 1000, "speed": 0.3},
+                      np.random.default_rng(2))
+    counts = np.array(row["counts"].split(), dtype=int)
+    assert row["counted"] == counts.sum() and row["counted"] + row["dropped"] == 60
+    assert row["bumps"] > 0
+    with pytest.raises(SystemExit):
+        cv.main(["--physics", "gazebo", "--out", str(tmp_path)])
