@@ -5,7 +5,10 @@ drives it to its bump, turns it by a bouncing angle and reads its true pose (doc
     python -m experiments.body_turns [--bodies mujoco,pybullet] [--env lab] [--trials 90]
 
 Prints, per body and angle, the signed turn error (true turn − commanded) [deg], and the
-heading change over each flight with its bump (0 for a body that keeps its heading).
+heading change over each flight with its bump (0 for a body that keeps its heading); then,
+per body, the turn errors it would declare to a feedback navigator (docs/model.md §15, "A
+body's own turns"): the mean turn error as a known offset, and the scatter of the turns and
+of the flights' rotations in quadrature (:func:`declaration`).
 """
 
 from __future__ import annotations
@@ -57,6 +60,24 @@ def table(runs: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(out)
 
 
+def declaration(runs: pd.DataFrame) -> str:
+    """The noise spec a body with these trials (one body's rows of :func:`measure`) would
+    declare as its ``turn_errors``: ``gauss:S,offset=O`` with O the mean turn error and S the
+    standard deviations of the turn errors and of the flights' rotations in quadrature
+    (rounded to 0.01°; "none" for a body whose errors round to zero).
+
+    >>> declaration(pd.DataFrame({"turn_error_deg": [-1.0, -1.5],
+    ...                           "flight_rotation_deg": [0.0, 0.0]}))
+    'gauss:0.25,offset=-1.25'
+    """
+    off = round(float(runs.turn_error_deg.mean()), 2)
+    sd = round(float(np.hypot(runs.turn_error_deg.std(ddof=0),
+                              runs.flight_rotation_deg.std(ddof=0))), 2)
+    if sd == 0 and off == 0:
+        return "none"
+    return f"gauss:{sd:g}" + (f",offset={off:g}" if off else "")
+
+
 def main(argv: list[str] | None = None) -> int:
     """Measure every body and print the table."""
     p = experiment_parser("body_turns", __doc__.split("\n\n")[0])
@@ -70,6 +91,8 @@ def main(argv: list[str] | None = None) -> int:
     runs = pd.concat([measure(k, env, trials, np.random.default_rng(args.seed))
                       for k in args.bodies], ignore_index=True)
     print(table(runs).round(2).to_string(index=False))
+    for body, d in runs.groupby("body", sort=False):
+        print(f"{body} declares turn_errors = {declaration(d)!r}")
     return 0
 
 
