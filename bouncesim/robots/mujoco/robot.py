@@ -50,8 +50,8 @@ DECLARED_TURNS = "gauss:0.6,offset=-1.26"
 by ``python -m experiments.body_turns --bodies mujoco --trials 150`` (seed 0, lab): its
 turns end 1.26° short of the command (45°: −1.07°, 90°: −1.35°, 135°: −1.31°: an offset,
 not a factor) with a scatter of 0.38°, and a flight with its bump turns it by 0.46° (sd, up
-to 4.1°); the scatter declared is the two in quadrature (tests/test_body_turns.py keeps
-both measured)."""
+to 4.1°); the scatter declared is the two in quadrature. It is what that command prints as
+the body's declaration (tests/test_body_turns.py keeps it so, and checks it on fig1)."""
 
 
 def import_mujoco():
