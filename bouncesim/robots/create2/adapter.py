@@ -440,15 +440,18 @@ class Create2Robot(SigtermStop, SensingMixin, TurningMixin, Robot):
         """The emulated body's contact rule (simulation only; None on a real robot, whose
         rule a user declares with ``--contact``): what the feedback filter assumes.
         """
-        return None if self.emulator is None else self.emulator.body.contact
+        return self._emulated("contact")
 
     @property
     def turn_errors(self):
         """The emulated body's declared turn errors (simulation only; None on a real robot,
         whose errors a user declares with ``--noise``).
         """
-        return None if self.emulator is None else getattr(self.emulator.body, "turn_errors",
-                                                          None)
+        return self._emulated("turn_errors")
+
+    def _emulated(self, name: str):
+        """The emulated body's attribute ``name`` (None on hardware or when it has none)."""
+        return None if self.emulator is None else getattr(self.emulator.body, name, None)
 
     def true_pose(self) -> tuple[float, float, float] | None:
         """The emulator's true pose (x [m], y [m], heading [deg]); None on hardware."""

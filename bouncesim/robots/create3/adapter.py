@@ -272,16 +272,19 @@ class Create3Robot(SigtermStop, Robot):
         """The emulated body's contact rule (simulation only; None on a real robot, whose
         rule a user declares with ``--contact``): what the feedback filter assumes.
         """
-        emulator = getattr(self.backend, "emulator", None)
-        return None if emulator is None else emulator.body.contact
+        return self._emulated("contact")
 
     @property
     def turn_errors(self):
         """The emulated body's declared turn errors (simulation only; None on a real robot,
         whose errors a user declares with ``--noise``).
         """
+        return self._emulated("turn_errors")
+
+    def _emulated(self, name: str):
+        """The emulated body's attribute ``name`` (None on a real robot or when it has none)."""
         emulator = getattr(self.backend, "emulator", None)
-        return None if emulator is None else getattr(emulator.body, "turn_errors", None)
+        return None if emulator is None else getattr(emulator.body, name, None)
 
     def true_pose(self) -> tuple[float, float, float] | None:
         """The emulated body's pose; None on a real robot."""
