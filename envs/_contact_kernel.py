@@ -168,27 +168,28 @@ def _gd_inv(x):
 
 @numba.njit(cache=True)
 def _advance_one(S, V, r, r2, graze, approach_min, bump_range, gap, graze_tol, same,
-                 max_events, arc, mu, budget, x, y, ux, uy, hx, hy, hb, hs, gid, first):
+                 max_events, arc, mu, ta, tl, budget, x, y, ux, uy, hx, hy, hb, hs, gid,
+                 first):
     """One flight of :func:`envs.contact.advance` (with a contact rule): (x, y, used,
-    bumped).
+    bumped, ux, uy).
     """
     used = 0.0
     for _ in range(max_events):
         left = budget - used
         d = max(_cast(S, V, r, r2, graze, approach_min, x, y, ux, uy) - gap, 0.0)
         if d >= left:
-            return x + left * ux, y + left * uy, budget, False
+            return x + left * ux, y + left * uy, budget, False, ux, uy
         if d > 0:
             x, y, used = x + d * ux, y + d * uy, used + d
             left = budget - used
         n = _front(S, V, r, r2, graze, approach_min, bump_range, x, y, ux, uy, hx, hy, hb, hs)
         if n == 0:
-            return x, y, used, True
+            return x, y, used, True, ux, uy
         for c in range(n):
             if abs(hb[c]) <= arc:
-                return x, y, used, True
+                return x, y, used, True, ux, uy
         if _groups(S, n, hx, hy, hs, same, gid, first) != 1:
-            return x, y, used, True
+            return x, y, used, True, ux, uy
         px, py, si = hx[0], hy[0], hs[0]
         if si >= 0:
             nx, ny = -S[si, 3], S[si, 2]
@@ -203,7 +204,7 @@ def _advance_one(S, V, r, r2, graze, approach_min, bump_range, gap, graze_tol, s
         ts = math.hypot(tx, ty)
         f = ts + mu * un
         if ts < 1e-12 or f <= 0:
-            return x, y, used, True
+            return x, y, used, True, ux, uy
         tx, ty = tx / ts, ty / ts
         if si >= 0:
             Ax, Ay, ex, ey, L = S[si, 0], S[si, 1], S[si, 2], S[si, 3], S[si, 4]
@@ -215,13 +216,22 @@ def _advance_one(S, V, r, r2, graze, approach_min, bump_range, gap, graze_tol, s
             along = tx * ex + ty * ey
             to_end = (L - lam if along > 0 else lam) / abs(along) + 1e-9
             block = max(_cast(S, V, r, r2, graze, approach_min, x, y, tx, ty) - gap, 0.0)
-            d = min(to_end, block, left * f)
+            turn = _slide_left(ta, tl, math.degrees(math.asin(min(max(-un, 0.0), 1.0))))
+            if turn < math.inf:
+                bt = math.radians(ta[ta.shape[0] - 1])
+                f = math.cos(bt) - mu * math.sin(bt)
+            d = min(to_end, block, left * f, turn)
             if d <= 0:
-                return x, y, used, True
+                return x, y, used, True, ux, uy
             x, y = x + d * tx, y + d * ty
+            if turn < math.inf:
+                a = math.radians(np.interp(turn - d, tl[::-1], ta[::-1]))
+                ux, uy = tx * math.cos(a) - nx * math.sin(a), ty * math.cos(a) - ny * math.sin(a)
             if d == left * f:
-                return x, y, budget, False
+                return x, y, budget, False, ux, uy
             used += d / f
+            if d == turn:
+                return x, y, used, True, ux, uy
             continue
         g0 = math.asin(min(max(-un, 0.0), 1.0))
         c = math.atan(mu)
@@ -235,30 +245,41 @@ def _advance_one(S, V, r, r2, graze, approach_min, bump_range, gap, graze_tol, s
         mx, my = math.cos(a) * nx - math.sin(a) * ny, math.sin(a) * nx + math.cos(a) * ny
         qx, qy = px + r * mx, py + r * my
         if not _clear(S, qx, qy, r - graze_tol):
-            return x, y, used, True
+            return x, y, used, True, ux, uy
         x, y = qx, qy
         if part:
-            return x, y, budget, False
+            return x, y, budget, False, ux, uy
         used += full
-    return x, y, used, True
+    return x, y, used, True, ux, uy
+
+
+@numba.njit(cache=True)
+def _slide_left(ta, tl, incidence):
+    """``ContactParams.slide_left`` from its ``turn_table`` (ta, tl)."""
+    if ta.shape[0] == 0 or incidence < ta[0]:
+        return math.inf
+    return np.interp(incidence, ta, tl)
 
 
 @numba.njit(cache=True)
 def advance_kernel(S, V, r, r2, graze, approach_min, bump_range, gap, graze_tol, same,
-                   max_events, arc, mu, budget, xs, ys, uxs, uys):
+                   max_events, arc, mu, ta, tl, budget, xs, ys, uxs, uys):
     """:func:`envs.contact.advance` (with a contact rule) of every flight (xs, ys, uxs,
-    uys): (x, y, used, bumped) arrays. ``S`` (ns, 5): the sides (Ax, Ay, ex, ey, L); ``V``
-    (nv, 2): the corners; ``arc`` [deg]: the bumper arc 90° − β; ``mu``: the slide friction.
+    uys): (x, y, used, bumped, ux, uy) arrays. ``S`` (ns, 5): the sides (Ax, Ay, ex, ey,
+    L); ``V`` (nv, 2): the corners; ``arc`` [deg]: the bumper arc 90° − β; ``mu``: the slide
+    friction; ``ta``, ``tl``: the rule's ``turn_table`` (empty: slides keep their heading).
     """
     m = xs.shape[0]
     ox, oy, used = np.empty(m), np.empty(m), np.empty(m)
+    vx, vy = np.empty(m), np.empty(m)
     bumped = np.empty(m, dtype=np.bool_)
     cap = S.shape[0] + V.shape[0]
     hx, hy, hb = np.empty(cap), np.empty(cap), np.empty(cap)
     hs, gid, first = (np.empty(cap, dtype=np.int64), np.empty(cap, dtype=np.int64),
                       np.empty(cap, dtype=np.int64))
     for i in range(m):
-        ox[i], oy[i], used[i], bumped[i] = _advance_one(
+        ox[i], oy[i], used[i], bumped[i], vx[i], vy[i] = _advance_one(
             S, V, r, r2, graze, approach_min, bump_range, gap, graze_tol, same, max_events,
-            arc, mu, budget, xs[i], ys[i], uxs[i], uys[i], hx, hy, hb, hs, gid, first)
-    return ox, oy, used, bumped
+            arc, mu, ta, tl, budget, xs[i], ys[i], uxs[i], uys[i], hx, hy, hb, hs, gid,
+            first)
+    return ox, oy, used, bumped, vx, vy

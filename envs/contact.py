@@ -8,11 +8,15 @@ and the batch) and by the event coverage model, so that their flights are the sa
   α = 90° − |b|. With ``contact`` = None every front contact closes the bumper (the paper's
   front-half bumper, docs/model.md §8). With a :class:`~envs.motion.ContactParams` only
   contacts with α ≥ β do (the bumper arc ±(90° − β)).
-- A contact outside the arc is a **slide**: the heading is kept and the body moves along the
-  wall with its velocity projected on the wall's tangent, reduced by friction: speed factor
-  f = cos α − μ sin α. Along a straight wall that is a straight leg; around a convex wall
-  corner the body wraps on the corner's circle of radius r until the corner is abeam
-  (bearing 90°), then drives straight on. A slide ends in a bump when a contact inside the
+- A contact outside the arc is a **slide**: the body moves along the wall with its velocity
+  projected on the wall's tangent, reduced by friction: speed factor f = cos α − μ sin α.
+  The heading is kept, except under a rule with a turn-in table (``ContactParams.turn_in``):
+  along a straight wall the incidence then grows as the table says and the body bumps when
+  it reaches β, after L(α) of slide, at the speed factor of β throughout (a constant rate,
+  so a slide cut into clock ticks ends where one drive ends). Along a straight wall the
+  path is a straight leg; around a convex wall corner the body wraps on the corner's circle
+  of radius r (its heading kept) until the corner is abeam (bearing 90°), then drives
+  straight on. A slide ends in a bump when a contact inside the
   arc appears (a concave corner), and it continues on the next wall when the new contact is
   again outside the arc.
 - Time is counted as clock length ℓ = v · time [m]: a straight metre costs 1 m of clock, a
@@ -24,8 +28,8 @@ and the batch) and by the event coverage model, so that their flights are the sa
 >>> from envs.motion import ContactParams, casters
 >>> caster = casters(envs.load("lab"))[0]
 >>> # 5° into lab's south wall (C-space y = 0.17): slides east along the bottom row
->>> x, y, used, bumped, legs = advance(caster, 0.51, 0.18, math.cos(math.radians(-5)),
-...                                    math.sin(math.radians(-5)), ContactParams(10.0, 0.0))
+>>> x, y, used, bumped, legs, _ = advance(caster, 0.51, 0.18, math.cos(math.radians(-5)),
+...                                       math.sin(math.radians(-5)), ContactParams(10.0, 0.0))
 >>> bumped, round(x, 4), round(y, 4), len(legs)
 (True, 2.89, 0.17, 3)
 """
@@ -144,6 +148,7 @@ def advance(caster: WallCaster, x: float, y: float, ux: float, uy: float,
                          per metre, and ("arc", Vx, Vy, mx, my, sign, γ0, μ, r, clock) for a
                          wrap around the corner V from the outward normal (mx, my) at
                          incidence γ0 [rad]; see :func:`leg_point`
+    u : (ux, uy)         the heading at the end (the start's, unless a slide turned in)
     """
     used = 0.0
     legs: list[tuple] = []
@@ -155,17 +160,17 @@ def advance(caster: WallCaster, x: float, y: float, ux: float, uy: float,
         if d >= left:                                  # the clock runs out first
             if left > 0:
                 legs.append(("line", x, y, ux, uy, left, 1.0))
-            return x + left * ux, y + left * uy, budget, False, legs
+            return x + left * ux, y + left * uy, budget, False, legs, (ux, uy)
         if d > 0:
             legs.append(("line", x, y, ux, uy, d, 1.0))
             x, y, used = x + d * ux, y + d * uy, used + d
             left = budget - used
         cs = front_contacts(caster, x, y, ux, uy)
         if contact is None or not cs or any(closes_bumper(b, contact) for b, *_ in cs):
-            return x, y, used, True, legs
+            return x, y, used, True, legs, (ux, uy)
         groups = _group(cs)
         if len(groups) != 1:                           # a pocket: counted as a bump
-            return x, y, used, True, legs
+            return x, y, used, True, legs, (ux, uy)
         _, px, py, side = groups[0][0]
         if side is not None:                           # the side's own normal, exactly
             nx, ny = -side[3], side[2]
@@ -180,7 +185,7 @@ def advance(caster: WallCaster, x: float, y: float, ux: float, uy: float,
         ts = math.hypot(tx, ty)                        # cos α
         f = ts + mu * un                               # speed factor cos α − μ sin α
         if ts < 1e-12 or f <= 0:
-            return x, y, used, True, legs
+            return x, y, used, True, legs, (ux, uy)
         tx, ty = tx / ts, ty / ts
         if side is not None:                           # slide along a straight wall
             Ax, Ay, ex, ey, L = side
@@ -189,14 +194,23 @@ def advance(caster: WallCaster, x: float, y: float, ux: float, uy: float,
             along = tx * ex + ty * ey
             to_end = (L - lam if along > 0 else lam) / abs(along) + 1e-9
             block = drive_distance(caster.cast_one(x, y, tx, ty))
-            d = min(to_end, block, left * f)
+            turn = contact.slide_left(math.degrees(math.asin(min(max(-un, 0.0), 1.0))))
+            if turn < math.inf:                        # turning in: the speed factor at β
+                bt = math.radians(contact.beta_deg)
+                f = math.cos(bt) - mu * math.sin(bt)
+            d = min(to_end, block, left * f, turn)
             if d <= 0:                                 # blocked at once: a bump
-                return x, y, used, True, legs
+                return x, y, used, True, legs, (ux, uy)
             legs.append(("line", x, y, tx, ty, d, 1.0 / f))
             x, y = x + d * tx, y + d * ty
+            if turn < math.inf:                        # turned in: the incidence it reached
+                a = math.radians(contact.incidence_after(turn - d))
+                ux, uy = tx * math.cos(a) - nx * math.sin(a), ty * math.cos(a) - ny * math.sin(a)
             if d == left * f:
-                return x, y, budget, False, legs
+                return x, y, budget, False, legs, (ux, uy)
             used += d / f
+            if d == turn:                              # turned in up to β: a bump
+                return x, y, used, True, legs, (ux, uy)
             continue
         # wrap around the corner V = (px, py) until it is abeam; γ: incidence on the circle
         g0 = math.asin(min(max(-un, 0.0), 1.0))
@@ -211,13 +225,13 @@ def advance(caster: WallCaster, x: float, y: float, ux: float, uy: float,
         mx, my = math.cos(a) * nx - math.sin(a) * ny, math.sin(a) * nx + math.cos(a) * ny
         qx, qy = px + r * mx, py + r * my
         if not _clear(caster, qx, qy):                 # another wall in the way: a bump
-            return x, y, used, True, legs
+            return x, y, used, True, legs, (ux, uy)
         legs.append(("arc", px, py, nx, ny, sgn, g0, mu, r, clock))
         x, y = qx, qy
         if part:
-            return x, y, budget, False, legs
+            return x, y, budget, False, legs, (ux, uy)
         used += full
-    return x, y, used, True, legs
+    return x, y, used, True, legs, (ux, uy)
 
 
 def slide_on(caster: WallCaster, contact: ContactParams | None, lx: float, ly: float,
@@ -231,7 +245,7 @@ def slide_on(caster: WallCaster, contact: ContactParams | None, lx: float, ly: f
     if contact is None or any(closes_bumper(b, contact)
                               for b, *_ in front_contacts(caster, lx, ly, ux, uy)):
         return lx, ly, 0.0
-    sx, sy, extra, _, _ = advance(caster, lx, ly, ux, uy, contact)
+    sx, sy, extra, _, _, _ = advance(caster, lx, ly, ux, uy, contact)
     return (sx, sy, extra) if extra > 0 else (lx, ly, 0.0)
 
 
@@ -300,6 +314,8 @@ class ContactFlights:
     straight : (n,)       the first straight drive [m]
     clock : (n,)          clock length to the bump [m] (= straight unless it slid)
     end : (n, 2)          the bump position [m]
+    u_end : (n, 2)        the heading at the bump (= u unless a slide turned in,
+                          ``ContactParams.turn_in``)
     legs : dict           flight index -> legs of :func:`advance` (only flights that slid;
                           empty when made without legs)
     slid : (n,) bool      the flights that slid
@@ -310,6 +326,7 @@ class ContactFlights:
     straight: np.ndarray
     clock: np.ndarray
     end: np.ndarray
+    u_end: np.ndarray
     legs: dict
     slid: np.ndarray
 
@@ -348,49 +365,55 @@ def contact_flights(caster: WallCaster, start, u, straight, contact: ContactPara
     end = start + straight[:, None] * u
     clock = straight.copy()
     slide = np.zeros(len(start), bool) if contact is None else glancing(caster, end, u, contact)
+    u_end = u.copy()
     if not legs:
         idx = np.flatnonzero(slide)
         slid = np.zeros(len(start), dtype=bool)
         if idx.size:
-            x, y, used, _ = advance_many(caster, end[idx], u[idx], contact)
+            x, y, used, _, vx, vy = advance_many(caster, end[idx], u[idx], contact)
             moved = used > 0
             k = idx[moved]
             slid[k] = True
             clock[k] += used[moved]
             end[k, 0], end[k, 1] = x[moved], y[moved]
+            u_end[k, 0], u_end[k, 1] = vx[moved], vy[moved]
         return ContactFlights(start=start, u=u, straight=straight, clock=clock, end=end,
-                              legs={}, slid=slid)
-    return _with_legs(caster, start, u, straight, contact, end, clock, slide)
+                              u_end=u_end, legs={}, slid=slid)
+    return _with_legs(caster, start, u, straight, contact, end, clock, slide, u_end)
 
 
 def advance_many(caster: WallCaster, pos, u, contact: ContactParams):
     """:func:`advance` (no clock budget, with a contact rule) of every flight from ``pos``
-    (n, 2) along ``u`` (n, 2), compiled: (x, y, used, bumped) arrays, no legs.
+    (n, 2) along ``u`` (n, 2), compiled: (x, y, used, bumped, ux, uy) arrays (the end's
+    heading last), no legs.
     """
+    ta, tl = contact.turn_table
     pos = np.asarray(pos, dtype=float).reshape(-1, 2)
     u = np.asarray(u, dtype=float).reshape(-1, 2)
     return advance_kernel(caster.kernel_sides, caster.kernel_corners, float(caster.r),
                           float(caster.r2), float(caster.graze),
                           APPROACH_MIN, BUMP_RANGE, CONTACT_GAP, GRAZE_TOL, _SAME_CONTACT,
                           _MAX_EVENTS, 90.0 - float(contact.beta_deg),
-                          float(contact.slide_friction), math.inf,
+                          float(contact.slide_friction), ta, tl, math.inf,
                           np.ascontiguousarray(pos[:, 0]), np.ascontiguousarray(pos[:, 1]),
                           np.ascontiguousarray(u[:, 0]), np.ascontiguousarray(u[:, 1]))
 
 
-def _with_legs(caster, start, u, straight, contact, end, clock, slide) -> ContactFlights:
+def _with_legs(caster, start, u, straight, contact, end, clock, slide, u_end
+               ) -> ContactFlights:
     """:func:`contact_flights` with the legs of every slide (plain Python :func:`advance`)."""
     legs = {}
     for i in np.flatnonzero(slide):
-        x, y, used, _, lg = advance(caster, float(end[i, 0]), float(end[i, 1]),
-                                    float(u[i, 0]), float(u[i, 1]), contact)
+        x, y, used, _, lg, v = advance(caster, float(end[i, 0]), float(end[i, 1]),
+                                       float(u[i, 0]), float(u[i, 1]), contact)
         if used > 0:
             first = ("line", float(start[i, 0]), float(start[i, 1]), float(u[i, 0]),
                      float(u[i, 1]), float(straight[i]), 1.0)
             legs[int(i)] = [first, *lg]
             clock[i] += used
             end[i] = (x, y)
+            u_end[i] = v
     slid = np.zeros(len(start), dtype=bool)
     slid[np.fromiter(legs, np.int64, len(legs))] = True
-    return ContactFlights(start=start, u=u, straight=straight, clock=clock, end=end, legs=legs,
-                          slid=slid)
+    return ContactFlights(start=start, u=u, straight=straight, clock=clock, end=end,
+                          u_end=u_end, legs=legs, slid=slid)

@@ -469,9 +469,9 @@ def casters(env: Environment, step: float | None = None) -> tuple[WallCaster, Lo
 # ---------------------------------------------------------------------------- contact data
 @dataclass(frozen=True)
 class ContactParams:
-    """How a disk robot meets a straight wall (data only; docs/model.md Appendix B, "Contact
-    calibration (PyBullet)"). Fitted to the PyBullet Create 2 by
-    ``experiments/contact_calibration.py``; the rule that uses it is :mod:`envs.contact` (§9).
+    """How a disk robot meets a straight wall (data only; docs/model.md §9 and Appendix B,
+    "Contact calibration"). Fitted to a physics Create 2 by
+    ``experiments/contact_calibration.py``; the rule that uses it is :mod:`envs.contact`.
 
     Attributes
     ----------
@@ -481,11 +481,20 @@ class ContactParams:
         robot slides along the wall instead of bumping.
     slide_friction : float
         μ of the slide rule: while sliding, the speed along the wall is
-        v · max(cos α − μ sin α, 0) and the heading is kept.
+        v · max(cos α − μ sin α, 0).
+    turn_in : tuple of (incidence [deg], slide [m]) pairs
+        A body that turns into the wall while it slides (MuJoCo's wheeled Create 2): from
+        incidence α it slides L(α) along a straight wall while its incidence grows, and bumps
+        when it reaches β. The pairs sample L (incidences increasing below β, slides
+        decreasing and positive; L(β) = 0 is implied, linear in between). Incidences below
+        the first pair's keep their heading while they slide; empty (the default): every
+        slide keeps its heading. Since L depends on the incidence alone, a slide cut short
+        (a wall's end, a clock budget) goes on from the incidence it reached.
     """
 
     beta_deg: float = 9.6
     slide_friction: float = 0.006
+    turn_in: tuple = ()
 
     def __post_init__(self) -> None:
         b, mu = float(self.beta_deg), float(self.slide_friction)
@@ -493,6 +502,68 @@ class ContactParams:
                 > mu * math.sin(math.radians(b))):
             raise UserError(f"a contact rule needs 0 <= beta < 90 degrees and a friction "
                             f"0 <= mu < 1/tan(beta), got beta {b:g}, mu {mu:g}.")
+        pairs = tuple((float(a), float(ell)) for a, ell in self.turn_in)
+        object.__setattr__(self, "turn_in", pairs)
+        a = np.array([p[0] for p in pairs] + [b])
+        ell = np.array([p[1] for p in pairs] + [0.0])
+        if pairs and not (a[0] >= 0 and np.all(np.diff(a) > 0) and np.all(np.diff(ell) < 0)):
+            raise UserError(f"a turn-in table needs incidences rising from >= 0 to below beta "
+                            f"({b:g}) and slide lengths falling to above 0, got {pairs}.")
+
+    @property
+    def turn_table(self) -> tuple[np.ndarray, np.ndarray]:
+        """(incidences [deg], slides [m]) of :attr:`turn_in` with (β, 0) appended; both
+        empty when the rule has no turn-in.
+        """
+        if not self.turn_in:
+            return np.zeros(0), np.zeros(0)
+        return (np.array([p[0] for p in self.turn_in] + [float(self.beta_deg)]),
+                np.array([p[1] for p in self.turn_in] + [0.0]))
+
+    @property
+    def text(self) -> str:
+        """The rule as text, "β μ" then "α:L,α:L,…" for a turn-in table (:meth:`from_text`
+        reads it back exactly).
+
+        >>> rule = ContactParams(10.0, 0.0, turn_in=((2.0, 2.0),))
+        >>> rule.text, ContactParams.from_text(rule.text) == rule
+        ('10.0 0.0 2.0:2.0', True)
+        """
+        out = f"{float(self.beta_deg)!r} {float(self.slide_friction)!r}"
+        if self.turn_in:
+            out += " " + ",".join(f"{a!r}:{ell!r}" for a, ell in self.turn_in)
+        return out
+
+    @classmethod
+    def from_text(cls, text: str) -> "ContactParams":
+        """The rule of :attr:`text`."""
+        parts = text.split()
+        turn = () if len(parts) < 3 else tuple(
+            tuple(float(v) for v in pair.split(":")) for pair in parts[2].split(","))
+        return cls(float(parts[0]), float(parts[1]), turn_in=turn)
+
+    def slide_left(self, incidence_deg: float) -> float:
+        """[m] how far a body sliding at ``incidence_deg`` goes on before it bumps by turning
+        in (:attr:`turn_in`): inf without turn-in or below its first incidence.
+
+        >>> rule = ContactParams(10.0, 0.0, turn_in=((2.0, 2.0), (6.0, 0.5)))
+        >>> rule.slide_left(1.0), rule.slide_left(4.0), rule.slide_left(8.0)
+        (inf, 1.25, 0.25)
+        """
+        a, ell = self.turn_table
+        if a.size == 0 or incidence_deg < a[0]:
+            return math.inf
+        return float(np.interp(incidence_deg, a, ell))
+
+    def incidence_after(self, left_m: float) -> float:
+        """[deg] the incidence of a turning-in slide with ``left_m`` [m] still to go (the
+        inverse of :meth:`slide_left`).
+
+        >>> ContactParams(10.0, 0.0, turn_in=((2.0, 2.0), (6.0, 0.5))).incidence_after(1.25)
+        4.0
+        """
+        a, ell = self.turn_table
+        return float(np.interp(left_m, ell[::-1], a[::-1]))
 
 
 PYBULLET_CONTACT = ContactParams()
@@ -500,4 +571,18 @@ PYBULLET_CONTACT = ContactParams()
 144 trials at 0.3 m/s: β = 9.62°, μ = 0.0062, rounded). While sliding, its heading drifts
 into the wall by about 0.1°/m, so a slide near β ends in a bump after 0.6–2.7 m."""
 
-__all__ += ["ContactParams", "PYBULLET_CONTACT"]
+MUJOCO_CONTACT = ContactParams(
+    beta_deg=10.44, slide_friction=0.14,
+    turn_in=((2.0, 2.798), (3.0, 1.721), (5.0, 0.919), (7.0, 0.476), (8.0, 0.318),
+             (9.0, 0.159), (9.5, 0.104), (9.75, 0.078), (9.9, 0.057), (10.0, 0.049),
+             (10.1, 0.033), (10.25, 0.019)))
+"""The MuJoCo Create 2's fitted contact rule (``python -m experiments.contact_calibration
+--backend mujoco``, 144 trials at 0.3 m/s; the fit's ``turn_in`` and ``turn_in_beta_deg``
+rounded): its wheels resist the wall's sideways push, so below the bumper arc it turns into
+the wall while it slides and bumps when the incidence reaches 10.44° (every trial from 2° to
+10.25°: start + turn = 10.43–10.45°), after the mean slides of the table (2.80 m from 2°,
+0.92 m from 5°, 0.16 m from 9°). μ = 0.14 is the fit to its slides below 2°, which ran the
+whole 3 m budget without a bump; at β it gives the speed factor 0.96 of every turn-in slide
+(measured 0.93–0.98)."""
+
+__all__ += ["ContactParams", "PYBULLET_CONTACT", "MUJOCO_CONTACT"]

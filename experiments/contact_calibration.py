@@ -42,7 +42,7 @@ import numpy as np
 import pandas as pd
 
 import envs
-from envs.motion import PYBULLET_CONTACT
+from envs.motion import MUJOCO_CONTACT, PYBULLET_CONTACT
 from experiments.common import experiment_parser, output_dir, write_config
 
 __all__ = ["BACKENDS", "INCIDENCES", "QUICK_INCIDENCES", "Config", "draw_figure", "fit", "main",
@@ -134,7 +134,26 @@ def fit(trials: pd.DataFrame) -> dict:
             "slide_speed_factor_rms_error": (float(np.sqrt(np.mean((k - (c - mu * s)) ** 2)))
                                              if len(k) else math.nan),
             "bumps_all_above_deg": float(a[r < 1].max()) if (r < 1).any() else math.nan,
-            "no_bump_below_deg": float(a[r > 0].min()) if (r > 0).any() else math.nan}
+            "no_bump_below_deg": float(a[r > 0].min()) if (r > 0).any() else math.nan,
+            **fit_turn_in(trials)}
+
+
+def fit_turn_in(trials: pd.DataFrame) -> dict:
+    """The turn-in table of ``ContactParams.turn_in`` (docs/model.md §9): the incidences
+    below the bumper arc where every trial slid, turned into the wall and then bumped, each
+    with its mean slide [m]; ``turn_in_beta_deg`` the incidence they bumped at (the median
+    of start + turn). Empty when no incidence does (PyBullet within its 3 m budget, but for
+    a few near β whose 0.1°/m drift ends a slide).
+    """
+    g = trials[trials.contact == 1].groupby("incidence_deg")
+    rows = [(float(a), float(t.slide_m.mean()), t) for a, t in g
+            if (t.bump == 1).all() and (t.slide_m > 0).all()
+            and (t.heading_change_deg < 0).all()]
+    if not rows:
+        return {"turn_in_beta_deg": math.nan, "turn_in": []}
+    ends = np.concatenate([a - t.heading_change_deg.to_numpy(float) for a, _, t in rows])
+    return {"turn_in_beta_deg": float(np.median(ends)),
+            "turn_in": [[a, round(ell, 4)] for a, ell, _ in rows]}
 
 
 def draw_figure(out: Path) -> Path:
@@ -241,14 +260,15 @@ def run(config: Config) -> Path:
     result = fit(trials)
     cfg = asdict(config)
     cfg.update(experiment=NAME, out=str(config.out), fit=result,
-               defaults_in_code=asdict(PYBULLET_CONTACT),
+               defaults_in_code=asdict({"pybullet": PYBULLET_CONTACT,
+                                        "mujoco": MUJOCO_CONTACT}[config.backend]),
                create2_facts="one spring-loaded front bumper over the front half (±90°), "
                "read by two switches at 11 and 1 o'clock; trip angle not published")
     write_config(out, cfg)
     draw_figure(out)
     with pd.option_context("display.width", 140):
         print(summary.to_string(index=False, float_format=lambda v: f"{v:.3f}"))
-    print("fit:", {k: round(v, 4) for k, v in result.items()})
+    print("fit:", {k: v if isinstance(v, list) else round(v, 4) for k, v in result.items()})
     print(f"wrote {out}")
     return out
 

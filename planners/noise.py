@@ -58,7 +58,7 @@ navigation (got gauss:2,scale=0.1).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -115,6 +115,12 @@ class TurnNoise:
                       whole run (default 0: f = 1); S in [0, 0.5)
     bias_deg : float  half-range B [deg] of the turn's constant offset b, unknown within ±B for
                       a whole run (default 0: b = 0); B >= 0
+    body_sigma_deg, body_offset_deg : float
+                      the executing body's own turn errors, known (docs/model.md §11b): every
+                      turn also adds N(body_offset, body_sigma²) [deg], e.g. MuJoCo's
+                      measured 1.26° short with 0.6° of scatter (:meth:`with_body`). Default
+                      0: none. The coverage models use them; with either set, headings
+                      leave the Δ grid as under Gaussian noise (:attr:`gaussian`).
 
     A run turns by f·φ + b plus the scatter (ε, r or σ). Scale and bias are what a planner or
     filter declares (navigation); the coverage models assume an unbiased turn and refuse them
@@ -131,6 +137,8 @@ class TurnNoise:
     sigma_deg: float = 0.0
     scale: float = 0.0
     bias_deg: float = 0.0
+    body_sigma_deg: float = 0.0
+    body_offset_deg: float = 0.0
 
     @classmethod
     def gauss(cls, sigma_deg: float) -> "TurnNoise":
@@ -159,7 +167,8 @@ class TurnNoise:
     def __post_init__(self) -> None:
         for name, what in (("eps_deg", "error range eps"), ("r", "reliability r"),
                            ("sigma_deg", "Gaussian noise sigma"), ("scale", "turn scale"),
-                           ("bias_deg", "turn bias")):
+                           ("bias_deg", "turn bias"), ("body_sigma_deg", "the body's turn sigma"),
+                           ("body_offset_deg", "the body's turn offset")):
             v = getattr(self, name)
             try:
                 v = float(v)
@@ -189,9 +198,35 @@ class TurnNoise:
         if self.bias_deg < 0:
             raise UserError(f"turn bias B (the offset's unknown half-range) must be "
                             f"non-negative, got {_fmt(self.bias_deg)}°.")
+        if self.body_sigma_deg < 0:
+            raise UserError(f"the body's turn sigma must be non-negative, got "
+                            f"{_fmt(self.body_sigma_deg)}°.")
+
+    def with_body(self, errors: str | None) -> "TurnNoise":
+        """The noise with a body's own turn errors added (:attr:`body_sigma_deg`,
+        :attr:`body_offset_deg`), from the spec the body declares (its ``turn_errors``,
+        ``gauss:S,offset=O``; :func:`bouncesim.runs.feedback.body_turns`); None: unchanged.
+
+        >>> TurnNoise(5, 0.8).with_body("gauss:0.6,offset=-1.26")
+        TurnNoise(eps_deg=5.0, r=0.8, sigma_deg=0.0, body_sigma_deg=0.6, body_offset_deg=-1.26)
+        """
+        if errors is None:
+            return self
+        spec = parse_noise_spec(errors)
+        if spec.kind == "model" or not spec.noise.unbiased or spec.factor not in (None, 1.0):
+            raise UserError(f"a body declares its turn errors as gauss:S,offset=O, got "
+                            f"{errors!r}.")
+        return replace(self, body_sigma_deg=float(spec.noise.sigma_deg),
+                       body_offset_deg=float(spec.offset_deg or 0.0))
+
+    @property
+    def has_body(self) -> bool:
+        """True when a body's own turn errors are added (:meth:`with_body`)."""
+        return self.body_sigma_deg > 0 or self.body_offset_deg != 0
 
     def __repr__(self) -> str:
-        extra = "".join(f", {name}={getattr(self, name)!r}" for name in ("scale", "bias_deg")
+        extra = "".join(f", {name}={getattr(self, name)!r}" for name in
+                        ("scale", "bias_deg", "body_sigma_deg", "body_offset_deg")
                         if getattr(self, name) != 0)
         return (f"TurnNoise(eps_deg={self.eps_deg!r}, r={self.r!r}, "
                 f"sigma_deg={self.sigma_deg!r}{extra})")
@@ -208,7 +243,7 @@ class TurnNoise:
         >>> TurnNoise(5, 0.8, scale=0.1, bias_deg=2).scatter
         TurnNoise(eps_deg=5.0, r=0.8, sigma_deg=0.0)
         """
-        return self if self.unbiased else TurnNoise(self.eps_deg, self.r, self.sigma_deg)
+        return self if self.unbiased else replace(self, scale=0.0, bias_deg=0.0)
 
     @property
     def exact(self) -> bool:
@@ -217,7 +252,7 @@ class TurnNoise:
 
     @property
     def _scatter_exact(self) -> bool:
-        return self.sigma_deg == 0 and (self.eps_deg == 0 or self.r == 1.0)
+        return self.sigma_deg == 0 and (self.eps_deg == 0 or self.r == 1.0) and not self.has_body
 
     def _refuse_bias(self) -> None:
         if not self.unbiased:
@@ -226,16 +261,20 @@ class TurnNoise:
 
     @property
     def gaussian(self) -> bool:
-        """True for Gaussian noise (σ > 0): headings leave the Δ grid (docs/model.md §11a)."""
-        return self.sigma_deg > 0
+        """True for Gaussian noise (σ > 0) or a body's own turn errors: headings leave the Δ
+        grid (docs/model.md §11a, §11b).
+        """
+        return self.sigma_deg > 0 or self.has_body
 
     def __str__(self) -> str:
-        if self.gaussian:
+        if self.sigma_deg > 0:
             base = f"gauss:{_fmt(self.sigma_deg)}"
         else:
-            base = ("none" if self._scatter_exact
+            base = ("none" if self.eps_deg == 0 or self.r == 1.0
                     else f"model:eps={_fmt(self.eps_deg)},r={_fmt(self.r)}")
-        return spec_text(base, scale=self.scale, bias_deg=self.bias_deg)
+        body = (f" + body gauss:{_fmt(self.body_sigma_deg)},offset={_fmt(self.body_offset_deg)}"
+                if self.has_body else "")
+        return spec_text(base, scale=self.scale, bias_deg=self.bias_deg) + body
 
     # ------------------------------------------------------------------ support over K
     def quanta(self, K: int | None = None, *, delta_deg: float | None = None) -> int:
@@ -261,12 +300,21 @@ class TurnNoise:
         refused (UserError): the coverage models assume an unbiased turn.
         """
         self._refuse_bias()
-        if self.gaussian:
-            delta = 360.0 / K if K is not None else delta_deg
+        delta = 360.0 / K if K is not None else delta_deg
+        if self.sigma_deg > 0:
             if delta is None:
                 raise TypeError("support() needs K or delta_deg.")
-            return _gauss_support(self.sigma_deg, float(delta))
-        return _support(self.quanta(K, delta_deg=delta_deg), self.r)
+            d, p = _gauss_support(self.sigma_deg, float(delta))
+        else:
+            d, p = _support(self.quanta(K, delta_deg=delta_deg), self.r)
+        if not self.has_body:
+            return d, p
+        db, pb = _gauss_support(self.body_sigma_deg, float(delta), self.body_offset_deg)
+        total = d[:, None] + db[None, :]
+        m = int(np.abs(total).max())
+        out = np.zeros(2 * m + 1)
+        np.add.at(out, (total + m).ravel(), (p[:, None] * pb[None, :]).ravel())
+        return np.arange(-m, m + 1), out
 
     def turns(self, K: int, angle_deg: float, positive: bool = False
               ) -> tuple[np.ndarray, np.ndarray]:
@@ -300,16 +348,19 @@ class TurnNoise:
                             f"scale and bias (got {self}); sample the scatter or the body's "
                             f"noise model (bouncesim.robots.noise.parse_noise).")
         c = as_commands(commanded_deg, n)
-        if self.gaussian:
-            return c + rng.normal(0.0, self.sigma_deg, size=c.shape)
+        body = 0.0
+        if self.has_body:
+            body = rng.normal(self.body_offset_deg, self.body_sigma_deg, size=c.shape)
+        if self.sigma_deg > 0:
+            return c + rng.normal(0.0, self.sigma_deg, size=c.shape) + body
         m = self.quanta(delta_deg=delta_deg)
         if m == 0 or self.r == 1.0:
-            return c
+            return c + body
         size = c.shape
         wrong = rng.random(size) >= self.r
         k = rng.integers(1, m + 1, size=size)
         sign = np.where(rng.random(size) < 0.5, -1, 1)
-        return c + np.where(wrong, sign * k * delta_deg, 0.0)
+        return c + np.where(wrong, sign * k * delta_deg, 0.0) + body
 
 
 def _support(m: int, r: float) -> tuple[np.ndarray, np.ndarray]:
@@ -319,15 +370,24 @@ def _support(m: int, r: float) -> tuple[np.ndarray, np.ndarray]:
     return d, np.where(d == 0, r, (1.0 - r) / (2 * m))
 
 
-def _gauss_support(sigma: float, delta: float) -> tuple[np.ndarray, np.ndarray]:
-    """Offsets −M … M [quanta] and Φ((j + ½)Δ/σ) − Φ((j − ½)Δ/σ), renormalised (§11a)."""
+def _gauss_support(sigma: float, delta: float, mean: float = 0.0
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """Offsets −M … M [quanta] and Φ(((j + ½)Δ − μ)/σ) − Φ(((j − ½)Δ − μ)/σ), renormalised
+    (§11a; μ = ``mean``, 0 but for a body's own offset, §11b); σ = 0: all of it on the
+    offset nearest μ (ties: the lower).
+    """
     if not (math.isfinite(delta) and delta > 0):
         raise UserError(f"the noise quantum delta must be positive, got {delta:g}°.")
+    if sigma == 0:
+        j = math.ceil(mean / delta - 0.5)
+        m = abs(j)
+        d = np.arange(-m, m + 1)
+        return d, (d == j).astype(float)
     z = -float(ndtri(GAUSS_TAIL / 2))                    # 2·(1 − Φ(z)) = GAUSS_TAIL
-    m = max(0, math.ceil(z * sigma / delta - 0.5))
+    m = max(0, math.ceil((z * sigma + abs(mean)) / delta - 0.5))
     m = min(m, 1_000_000)                                # wraps the circle many times
     d = np.arange(-m, m + 1)
-    p = ndtr((d + 0.5) * delta / sigma) - ndtr((d - 0.5) * delta / sigma)
+    p = ndtr(((d + 0.5) * delta - mean) / sigma) - ndtr(((d - 0.5) * delta - mean) / sigma)
     return d, p / p.sum()
 
 

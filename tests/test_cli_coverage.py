@@ -187,7 +187,8 @@ def test_contact_rule_reaches_the_event_model(tmp_path, capsys):
     summary = json.loads((tmp_path / "pybullet" / "alpha.json").read_text())
     assert summary["model_settings"]["contact"] == {"beta_deg": PYBULLET_CONTACT.beta_deg,
                                                     "slide_friction":
-                                                    PYBULLET_CONTACT.slide_friction}
+                                                    PYBULLET_CONTACT.slide_friction,
+                                                    "turn_in": []}
     cs = CellSpace(envs.load("lab", orientations=72))
     want = model_for(cs, "event", {"contact": PYBULLET_CONTACT}).analyse(
         30, TurnNoise(5, 0.8)).q

@@ -77,7 +77,8 @@ def test_quick_run_writes_outputs_and_agrees_with_the_defaults(tmp_path):
         assert (out / name).exists()
     cfg = json.loads((out / "config.json").read_text())
     assert cfg["defaults_in_code"] == {"beta_deg": PYBULLET_CONTACT.beta_deg,
-                                       "slide_friction": PYBULLET_CONTACT.slide_friction}
+                                       "slide_friction": PYBULLET_CONTACT.slide_friction,
+                                       "turn_in": []}
     assert abs(cfg["fit"]["beta_deg"] - PYBULLET_CONTACT.beta_deg) <= 1.5
     assert abs(cfg["fit"]["slide_friction"] - PYBULLET_CONTACT.slide_friction) <= 0.01
     trials = pd.read_csv(out / "trials.csv")

@@ -275,3 +275,31 @@ def test_krylov_failure_falls_back_to_the_aggregation(monkeypatch):
     res = stationary.analyse_contact_chain(T, np.full(n, 1.0 / n), np.arange(n) // 10)
     direct = stationary_distributions(T, [np.arange(n)])
     assert np.abs(res.stationary - direct).sum() < 1e-5
+
+
+def test_a_bodys_own_turn_errors_on_the_grid_by_hand_and_by_sampling():
+    """docs/model.md §11b: a body that adds N(μ, σ²) to every turn. By hand (no scatter of
+    its own, Δ = 1°, μ = −1°, σ = 1°): offset −1 holds Φ(½) − Φ(−½) = 0.3829 and 0 holds
+    Φ(1.5) − Φ(½) = 0.2417. On top of ε = 5°, r = 0.8 (the convolution): the support against
+    the sampled turns of the same noise and of the simulated body (body_noise), binned to the
+    grid, within 5 standard errors of 200 000 draws each.
+    """
+    from bouncesim.robots.noise import BodyErrors, body_noise
+    d, p = TurnNoise().with_body("gauss:1,offset=-1").support(360)
+    assert p[d == -1][0] == pytest.approx(0.382925, abs=1e-6)
+    assert p[d == 0][0] == pytest.approx(0.241730, abs=1e-6)
+    noise = TurnNoise(5, 0.8).with_body("gauss:0.6,offset=-1.26")
+    assert noise.gaussian and not noise.exact and str(noise).endswith(
+        "+ body gauss:0.6,offset=-1.26")
+    d, p = noise.support(360)
+    assert p.sum() == pytest.approx(1.0, abs=1e-12)
+    body = body_noise(noise, 1.0)
+    assert isinstance(body, BodyErrors)
+    n = 200_000
+    for draws in (noise.sample(np.random.default_rng(1), 0.0, n, delta_deg=1.0),
+                  body.sample_many(np.random.default_rng(2), 0.0, n)):
+        j = np.floor(draws + 0.5).astype(int)
+        freq = np.array([(j == v).mean() for v in d])
+        assert np.all(np.abs(freq - p) <= 5 * np.sqrt(p * (1 - p) / n) + 1e-4)
+    with pytest.raises(UserError, match="gauss:S,offset=O"):
+        TurnNoise().with_body("model:eps=5,r=0.8")

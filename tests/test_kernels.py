@@ -84,7 +84,7 @@ def test_compiled_slides_match_advance(seed):
     # wide arc with friction: glancing contacts slide along sides and wrap around corners;
     # the compiled slides end where advance (plain Python, the reference) ends them
     from envs.contact import advance, advance_many, contact_flights
-    from envs.motion import PYBULLET_CONTACT, ContactParams
+    from envs.motion import MUJOCO_CONTACT, PYBULLET_CONTACT, ContactParams
     rng, caster, poses = _room(seed, 300)
     # most flights head for the nearest wall at a glancing incidence (0.5°-12°, either way
     # along it): they slide along sides and wrap around its ends' corners
@@ -98,22 +98,26 @@ def test_compiled_slides_match_advance(seed):
     u = np.cos(alpha) * caster.e[j] * rng.choice([-1.0, 1.0], (len(p), 1)) - np.sin(alpha) * nrm
     poses[:240, 2] = np.degrees(np.arctan2(u[:, 1], u[:, 0]))[:240]
     D, u, _ = flights_reference(caster, poses[:, :2], poses[:, 2])
-    for contact in (PYBULLET_CONTACT, ContactParams(40.0, 0.2)):
+    for contact in (PYBULLET_CONTACT, ContactParams(40.0, 0.2), MUJOCO_CONTACT):
         fl = contact_flights(caster, poses[:, :2], u, D, contact)
         fk = contact_flights(caster, poses[:, :2], u, D, contact, legs=False)
         assert fl.slid.sum() >= 20                  # the case is exercised
         np.testing.assert_array_equal(fk.slid, fl.slid)
         np.testing.assert_allclose(fk.end, fl.end, rtol=0, atol=1e-9)
         np.testing.assert_allclose(fk.clock, fl.clock, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(fk.u_end, fl.u_end, rtol=0, atol=1e-9)
         assert fk.legs == {}
         with pytest.raises(ValueError, match="without their legs"):
             fk.points(np.flatnonzero(fk.slid)[:1], np.zeros(1))
         # each flight one at a time, from its first contact, both ways
         end = poses[:, :2] + D[:, None] * u
-        x, y, used, bumped = advance_many(caster, end, u, contact)
+        x, y, used, bumped, vx, vy = advance_many(caster, end, u, contact)
         for i in range(len(end)):
-            rx, ry, rused, rb, _ = advance(caster, float(end[i, 0]), float(end[i, 1]),
-                                           float(u[i, 0]), float(u[i, 1]), contact)
+            rx, ry, rused, rb, _, rv = advance(caster, float(end[i, 0]), float(end[i, 1]),
+                                               float(u[i, 0]), float(u[i, 1]), contact)
             assert bumped[i] == rb
             assert abs(x[i] - rx) <= 1e-9 and abs(y[i] - ry) <= 1e-9
             assert abs(used[i] - rused) <= 1e-9
+            assert abs(vx[i] - rv[0]) <= 1e-9 and abs(vy[i] - rv[1]) <= 1e-9
+        if contact.turn_in:                         # the turn-in case is exercised
+            assert (np.hypot(vx - u[:, 0], vy - u[:, 1]) > 1e-3).sum() >= 20

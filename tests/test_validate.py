@@ -203,3 +203,20 @@ def test_short_runs_are_compared_with_the_models_prediction_of_them(capsys):
     (row,) = [json.loads(line) for line in io.out.splitlines() if line.strip()]
     assert row["runs_to_limit"] < 0.5 * row["floor"] and "too short" not in io.err
     assert abs(row["tv_runs"] - row["tv"]) <= row["runs_to_limit"] + 1e-12   # triangle
+
+
+def test_validate_takes_the_mujoco_bodys_contact_rule_and_turn_errors():
+    """--contact auto and --body-turns auto follow --backend: MuJoCo's turn-in rule and its
+    declared turn errors (docs/model.md §9, §11b); the twin declares neither.
+    """
+    import argparse
+
+    from bouncesim.commands.common import contact_rule
+    from bouncesim.commands.validate import body_turn_errors
+    from bouncesim.robots.mujoco.robot import DECLARED_TURNS
+    from envs.motion import MUJOCO_CONTACT, PYBULLET_CONTACT
+    rule = {b: contact_rule(argparse.Namespace(contact="auto", backend=b, model="event"))
+            for b in ("kinematic", "pybullet", "mujoco")}
+    assert rule == {"kinematic": None, "pybullet": PYBULLET_CONTACT, "mujoco": MUJOCO_CONTACT}
+    assert body_turn_errors("mujoco") == DECLARED_TURNS
+    assert body_turn_errors("kinematic") is None and body_turn_errors("pybullet") is None

@@ -24,7 +24,7 @@ from bouncesim.runs.metadata import write_config as save_config
 from bouncesim.runs.options import parse_angles
 from envs import UserError
 from envs.diagnostics import diagnose
-from envs.motion import PYBULLET_CONTACT, ContactParams
+from envs.motion import MUJOCO_CONTACT, PYBULLET_CONTACT, ContactParams
 from planners.cells import CellSpace
 from planners.coverage import MODELS
 from planners.resources import (
@@ -35,9 +35,9 @@ from planners.resources import (
     parse_memory,
 )
 
-__all__ = ["FIGURE_FORMATS", "add_angle_noise_args", "add_contact_arg", "add_env_args",
-           "add_figures_arg", "add_output", "check_fits", "check_outputs",
-           "cli_provenance", "contact_rule", "discard_warnings", "flush_warnings",
+__all__ = ["CONTACT_RULES", "FIGURE_FORMATS", "add_angle_noise_args", "add_contact_arg",
+           "add_env_args", "add_figures_arg", "add_output", "check_fits", "check_outputs",
+           "cli_provenance", "contact_name", "contact_rule", "discard_warnings", "flush_warnings",
            "load_env", "make_cells", "make_rng", "max_memory", "parse_angles",
            "print_json", "progress", "remove_created", "report_written", "warn",
            "writable_path", "write_config"]
@@ -69,16 +69,22 @@ def add_angle_noise_args(p: argparse.ArgumentParser) -> None:
                    "(default 1)")
 
 
+CONTACT_RULES = {"off": None, "pybullet": PYBULLET_CONTACT, "mujoco": MUJOCO_CONTACT}
+"""The contact rules of ``--contact`` (docs/model.md §9)."""
+
+
 def add_contact_arg(p: argparse.ArgumentParser, auto: bool = False, what: str = "") -> None:
     """--contact: the executing robot's contact rule (docs/model.md §9) for a model or a
     planner; with ``auto`` also the choice "auto" (on with --backend pybullet) as default.
     """
-    choices = ("auto", "off", "pybullet") if auto else ("off", "pybullet")
+    choices = ("auto", *CONTACT_RULES) if auto else tuple(CONTACT_RULES)
     p.add_argument("--contact", choices=choices, default=choices[0],
                    help=f"contact rule{what} (docs/model.md section 9): off = every front "
-                   "contact bumps, pybullet = the fitted bumper arc: glancing contacts slide "
-                   "on" + ("; auto (default) = pybullet with --backend pybullet, else off"
-                           if auto else " (default off)"))
+                   "contact bumps, pybullet = PyBullet's fitted bumper arc: glancing contacts "
+                   "slide on, mujoco = MuJoCo's: glancing contacts slide while turning into "
+                   "the wall, then bump" + (
+                       "; auto (default) = the rule of --backend pybullet or mujoco, else off"
+                       if auto else " (default off)"))
 
 
 def contact_rule(args: argparse.Namespace) -> ContactParams | None:
@@ -88,7 +94,8 @@ def contact_rule(args: argparse.Namespace) -> ContactParams | None:
     """
     choice = getattr(args, "contact", "off")
     if choice == "auto":
-        choice = "pybullet" if getattr(args, "backend", None) == "pybullet" else "off"
+        backend = getattr(args, "backend", None)
+        choice = backend if backend in CONTACT_RULES else "off"
     if choice == "off":
         return None
     model = getattr(args, "model", None)
@@ -98,7 +105,15 @@ def contact_rule(args: argparse.Namespace) -> ContactParams | None:
         users = ", ".join(n for n, c in MODELS.items() if c.contact_rule)
         raise UserError(f"the contact rule is part of the {users} model only, not the "
                         f"{model} model.")
-    return PYBULLET_CONTACT
+    return CONTACT_RULES[choice]
+
+
+def contact_name(contact: ContactParams | None) -> str:
+    """The ``--contact`` name of a rule ("off", "pybullet", "mujoco"), else its text."""
+    for name, rule in CONTACT_RULES.items():
+        if rule == contact:
+            return name
+    return contact.text
 
 
 def max_memory(args: argparse.Namespace) -> int:

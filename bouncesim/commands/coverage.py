@@ -504,9 +504,11 @@ def write_outputs(result: MixDesign, cs: CellSpace, out_dir, summary: dict,
 
 def _noise_label(noise: TurnNoise) -> str:
     """The rotation noise for a figure title."""
-    if noise.gaussian:
-        return f"Gaussian σ {_num(noise.sigma_deg)}°"
-    return f"eps {_num(noise.eps_deg)}°, r {noise.r:g}"
+    base = (f"Gaussian σ {_num(noise.sigma_deg)}°" if noise.sigma_deg > 0
+            else f"eps {_num(noise.eps_deg)}°, r {noise.r:g}")
+    if noise.has_body:
+        base += (f", body {_num(noise.body_offset_deg)}° ± {_num(noise.body_sigma_deg)}°")
+    return base
 
 
 def _num(x):

@@ -47,6 +47,7 @@ from .common import (
     add_contact_arg,
     add_env_args,
     cli_provenance,
+    contact_name,
     contact_rule,
     load_env,
     make_cells,
@@ -162,6 +163,11 @@ def register(sub) -> None:
     p.add_argument("--speed", type=float, default=0.3, metavar="M/S",
                    help="PyBullet and MuJoCo drive speed [m/s] (default 0.3)")
     add_contact_arg(p, auto=True, what=" of the event model and the twin")
+    p.add_argument("--body-turns", choices=("auto", "off"), default="auto",
+                   help="auto (default): the model adds the simulated body's own declared "
+                   "turn errors to --eps/--r (docs/model.md section 11b; MuJoCo's: "
+                   "gauss:0.6,offset=-1.26, its turns by clock 1.26 deg short); off: the model "
+                   "assumes the body turns exactly as --eps/--r say")
     p.add_argument("--seed", type=int, default=0, help="root seed (default 0)")
     p.add_argument("--out", type=Path, default=None, metavar="DIR",
                    help="keep the sweep's journal, runs.csv and config.json here (a re-run "
@@ -187,7 +193,7 @@ def simulate_trial(params: dict, rng: np.random.Generator) -> dict:
                     float(params["eps"]), float(params["r"]))
     n, steps = int(params["robots"]), int(params["steps"])
     contact = params.get("contact", "off")
-    contact = None if contact == "off" else ContactParams(*map(float, contact.split()))
+    contact = None if contact == "off" else ContactParams.from_text(contact)
     epoch, burn_in = int(params["epoch"]), int(params["burn_in"])
     t0 = time.perf_counter()
     meetings = None
@@ -329,6 +335,17 @@ def _check(args) -> None:
     args.interact = args.interact or "bump"
 
 
+def body_turn_errors(backend: str) -> str | None:
+    """The turn errors a simulated body of ``backend`` declares of itself (a noise spec,
+    docs/model.md §11b): MuJoCo's ``DECLARED_TURNS``; None for the twin and PyBullet, whose
+    turns are exact or nearly (PyBullet: −0.23° ± 0.28°).
+    """
+    if backend == "mujoco":
+        from ..robots.mujoco.robot import DECLARED_TURNS
+        return DECLARED_TURNS
+    return None
+
+
 def run(args) -> int:
     """Run ``bouncesim validate``: predict, simulate, compare; print the table; exit status."""
     _check(args)
@@ -336,6 +353,8 @@ def run(args) -> int:
     cs = make_cells(args, env)
     noise = TurnNoise(args.eps, args.r)
     angles = check_angles(cs.K, parse_angles(args.angles), noise)
+    body_turns = body_turn_errors(args.backend) if args.body_turns == "auto" else None
+    noise = noise.with_body(body_turns)      # the model's: the body's own errors added
     out = writable_path(args.out, folder=True) if args.out is not None else None
     backend = args.backend
     team = args.robots is not None
@@ -354,8 +373,7 @@ def run(args) -> int:
         import_mujoco()                        # one sentence when mujoco is missing
     t0 = time.perf_counter()
     contact = contact_rule(args)
-    contact_text = ("off" if contact is None else
-                    f"{contact.beta_deg!r} {contact.slide_friction!r}")
+    contact_text = "off" if contact is None else contact.text
 
     def trial(lab, angs, al, j) -> dict:
         return {"policy": lab, "half": j % 2, "env": args.env, "cell_size": args.cell_size,
@@ -463,7 +481,7 @@ def run(args) -> int:
                      "bumps_per_step_sim": float(sub.bumps.sum()) / steps if steps else math.nan,
                      "model": args.model, "backend": backend, "env": env.name,
                      "predict_s": round(predict_s, 3),
-                     "contact": "off" if contact is None else "pybullet",
+                     "contact": contact_name(contact), "body_turns": body_turns,
                      **({"robots": robots, "interact": args.interact,
                          "meetings_per_1000_steps": 1000 * float(sub.meetings.sum()) / steps}
                         if team else {}),

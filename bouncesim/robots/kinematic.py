@@ -293,9 +293,12 @@ class KinematicRobot(Robot):
             self._advance(dist)
             return dist / speed, 0.0
         # the contact rule (envs.contact), shared with the event model
-        x, y, used, bumped, legs = advance(self.caster, self._x, self._y, self._ux, self._uy,
-                                           self.contact, reach)
+        x, y, used, bumped, legs, (vx, vy) = advance(self.caster, self._x, self._y, self._ux,
+                                                     self._uy, self.contact, reach)
         self._x, self._y = x, y
+        if (vx, vy) != (self._ux, self._uy):          # a slide that turned in (§9)
+            self._heading = math.degrees(math.atan2(vy, vx)) % 360.0
+            self._ux, self._uy = vx, vy
         travel = sum(leg_length(leg) for leg in legs)
         self._wheel[0] += travel
         self._wheel[1] += travel
@@ -512,9 +515,13 @@ class KinematicBatch:
         idx = np.flatnonzero(bumped)
         idx = idx[glancing(self.caster, self.pos[idx], u[idx], self.contact)]
         for i in idx.tolist():
-            x, y, used, bump, _ = advance(self.caster, *self.pos[i].tolist(), *u[i].tolist(),
-                                          self.contact, self.h - float(move[i]))
+            x, y, used, bump, _, v = advance(self.caster, *self.pos[i].tolist(),
+                                             *u[i].tolist(), self.contact,
+                                             self.h - float(move[i]))
             self.pos[i] = (x, y)
+            if v != tuple(u[i].tolist()):                 # a slide that turned in (§9)
+                u[i] = v
+                self.heading[i] = math.degrees(math.atan2(v[1], v[0])) % 360.0
             bumped[i] = bump and float(move[i]) + used < self.h - STEP_TOL
 
     def run(self, policy, steps: int, *, epoch: int | None = None,

@@ -42,7 +42,7 @@ bias_deg=0.0), 97.2)
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -54,7 +54,7 @@ from planners.noise import as_commands as _commands
 if TYPE_CHECKING:
     from planners.plan import PolicyMix
 
-__all__ = ["NoiseModel", "NoNoise", "SteppedNoise", "GaussianNoise", "ScaledNoise",
+__all__ = ["NoiseModel", "NoNoise", "SteppedNoise", "GaussianNoise", "BodyErrors", "ScaledNoise",
            "body_noise", "parse_noise", "noise_for_mix", "noise_and_rng"]
 
 
@@ -199,6 +199,25 @@ class GaussianNoise(NoiseModel):
 
     def __str__(self) -> str:
         return f"gauss:{self.sigma_deg:g}"
+
+
+@dataclass(frozen=True)
+class BodyErrors(NoiseModel):
+    """A body's own turn errors on top of a base model (docs/model.md §11b): every turn is
+    the base's draw plus N(``offset_deg``, ``sigma_deg``²) [deg], drawn after the base's.
+    """
+
+    base: NoiseModel
+    sigma_deg: float
+    offset_deg: float
+
+    def sample_many(self, rng, commanded, n=None) -> np.ndarray:
+        """The base's executed turns [deg] plus the body's error."""
+        t = self.base.sample_many(rng, commanded, n)
+        return t + rng.normal(self.offset_deg, self.sigma_deg, size=np.shape(t))
+
+    def __str__(self) -> str:
+        return f"{self.base} + body gauss:{self.sigma_deg:g},offset={self.offset_deg:g}"
 
 
 @dataclass(frozen=True)
@@ -404,6 +423,9 @@ def body_noise(noise: TurnNoise, delta_deg: float | None) -> NoiseModel:
     ScaledNoise(base=GaussianNoise(sigma_deg=2.0), factor=None, offset_deg=None, scale=0.1, \
 bias_deg=0.0)
     """
+    if noise.has_body:
+        return BodyErrors(body_noise(replace(noise, body_sigma_deg=0.0, body_offset_deg=0.0),
+                                     delta_deg), noise.body_sigma_deg, noise.body_offset_deg)
     if not noise.unbiased:
         return _with_turn_error(body_noise(noise.scatter, delta_deg), scale=noise.scale,
                                 bias_deg=noise.bias_deg)

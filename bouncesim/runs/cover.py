@@ -78,15 +78,14 @@ def twin_cover(env, policy, noise: TurnNoise, *, robots: int = 1, runs: int = 10
     start : int, optional         start configuration of every robot (default uniform)
     """
     from ..robots.kinematic import KinematicBatch
-    from ..robots.noise import GaussianNoise, SteppedNoise
+    from ..robots.noise import body_noise
     t0 = time.perf_counter()
     cs = cells if cells is not None else CellSpace(env)
     rng = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
     n = int(runs) * int(robots)
     starts = None if start is None else np.full(n, int(start))
     batch = KinematicBatch(env, n, rng, cells=cs, starts=starts)
-    tw = GaussianNoise(noise.sigma_deg) if noise.gaussian else SteppedNoise(
-        noise.eps_deg, noise.r, cs.delta_deg)
+    tw = body_noise(noise, cs.delta_deg)
     if isinstance(policy, PolicyMix):
         angles = np.asarray(policy.angles, dtype=float)
         alpha = np.asarray(policy.alpha, dtype=float) / sum(policy.alpha)

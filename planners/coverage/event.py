@@ -112,6 +112,45 @@ def _cast(caster, pos, u) -> np.ndarray:
     return drive_distance(out)
 
 
+def _landing_heading(paths, k: np.ndarray, delta_deg: float, K: int):
+    """The heading each flight lands with, on the grid: (lo, hi, t), the flight landing with
+    heading index lo with probability 1 − t and hi = lo + 1 with t. A flight keeps its own
+    ``k`` (t = 0) unless it slid into the wall (a rule with ``turn_in``, docs/model.md §9):
+    its bump heading θ then lies between two grid headings, θ/Δ = lo + t, and is split
+    between them linearly.
+    """
+    k = np.asarray(k, dtype=np.int64)
+    lo, t = k.copy(), np.zeros(k.size)
+    turned = np.flatnonzero(np.any(paths.u_end != paths.u, axis=1))
+    if turned.size:
+        x = np.degrees(np.arctan2(paths.u_end[turned, 1], paths.u_end[turned, 0])) / delta_deg
+        lo[turned] = np.floor(x).astype(np.int64) % K
+        t[turned] = x - np.floor(x)
+    return lo, (lo + 1) % K, t
+
+
+def _split_landings(state, lb, K, w, n_fwd, steps, heading):
+    """The flights with a split landing heading (:func:`_landing_heading`) as two flights
+    each: (src, dst, n_fwd, weight, steps) with the second halves appended (their counted
+    steps repeated under the new flight indices).
+    """
+    lo, hi, t = heading
+    two = np.flatnonzero(t > 0)
+    src = np.concatenate([state, state[two]])
+    dst = np.concatenate([lb * K + lo, lb[two] * K + hi[two]])
+    wt = np.concatenate([w * (1.0 - t), w[two] * t[two]])
+    if two.size == 0:
+        return src, dst, n_fwd, wt, steps
+    new = np.full(state.size, -1, dtype=np.int64)
+    new[two] = state.size + np.arange(two.size)
+    rows = np.flatnonzero(new[steps.flight] >= 0)
+    steps = StepTable(flight=np.concatenate([steps.flight, new[steps.flight[rows]]]
+                                            ).astype(np.int32),
+                      offset=np.concatenate([steps.offset, steps.offset[rows]]),
+                      cell=np.concatenate([steps.cell, steps.cell[rows]]))
+    return src, dst, np.concatenate([n_fwd, n_fwd[two]]), wt, steps
+
+
 @dataclass(frozen=True, eq=False)
 class _Flights:
     """One set of sampled flights of an :class:`EventModel` (see its attributes)."""
@@ -187,8 +226,10 @@ class EventModel:
         d0 = _cast(caster, c0, uk[k0])
         paths0 = contact_flights(caster, c0, uk[k0], d0, st.contact)
         lb0 = bd.bin_of(paths0.end)
-        self.start_pre = np.bincount(lb0 * K + k0, minlength=n) / float(p0.size)
-        self._start = (paths0, lb0 * K + k0)       # for flight_cells
+        lo, hi, t = _landing_heading(paths0, k0, cs.delta_deg, K)
+        s0 = lb0 * K + np.where(t < 0.5, lo, hi)     # a first flight: the nearest heading
+        self.start_pre = np.bincount(s0, minlength=n) / float(p0.size)
+        self._start = (paths0, s0)                  # for flight_cells
         self.build_seconds = time.perf_counter() - t0
 
     def _use(self, fs: "_Flights") -> None:
@@ -232,14 +273,15 @@ class EventModel:
         lb[~into] = bd.bin_of(land[~into])
         # flights into another part of C-space thread a knife edge exactly on its axis (§10)
         self.knife_edge_flights = int((bd.part_of_bin[lb] != bd.part_of_bin[b]).sum())
-        w = np.full(state.size, 1.0 / (S * nt))
-        flight = sp.csr_matrix((w, (state, lb * K + k)), shape=(n, n))
-        flight.sum_duplicates()
         n_fwd = flight_steps(dist, cs.h)
-        steps = step_table(cs, n_fwd, paths)
-        fs = _Flights(flight=flight, flights=(state, lb * K + k, n_fwd + 1, w),
-                      reward=steps.reward(state, w, n, cs.P),
-                      length=np.bincount(state, weights=w * (n_fwd + 1), minlength=n),
+        src, to, n_fwd, w, steps = _split_landings(
+            state, lb, K, np.full(state.size, 1.0 / (S * nt)), n_fwd,
+            step_table(cs, n_fwd, paths), _landing_heading(paths, k, cs.delta_deg, K))
+        flight = sp.csr_matrix((w, (src, to)), shape=(n, n))
+        flight.sum_duplicates()
+        fs = _Flights(flight=flight, flights=(src, to, n_fwd + 1, w),
+                      reward=steps.reward(src, w, n, cs.P),
+                      length=np.bincount(src, weights=w * (n_fwd + 1), minlength=n),
                       mean_flight=float(np.mean(dist)), steps=steps)
         self._flight_sets[continuous] = fs
         return fs

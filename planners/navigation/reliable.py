@@ -262,8 +262,9 @@ def _ruled_final(caster, pos, u, D, budget, alive, contact):
     if idx.size:
         idx = idx[glancing(caster, pos[idx], u[idx], contact)]
     for i in idx.tolist():
-        x, y, _, _, _ = advance(caster, float(pos[i, 0]), float(pos[i, 1]), float(u[i, 0]),
-                                float(u[i, 1]), contact, budget - float(D[i]))
+        x, y, _, _, _, _ = advance(caster, float(pos[i, 0]), float(pos[i, 1]),
+                                   float(u[i, 0]), float(u[i, 1]), contact,
+                                   budget - float(D[i]))
         pos[i] = (x, y)
     return pos
 

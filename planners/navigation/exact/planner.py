@@ -136,6 +136,10 @@ class ExactNavigator:
         self.bin_length = cells.h / 4 if bin_length is None else float(bin_length)
         self.min_depth = float(min_depth)
         self.caster = casters(cells.env)[0]
+        if contact is not None and contact.turn_in:
+            raise UserError("the navigation planners do not follow a contact rule that turns "
+                            "the body into the wall (turn_in) yet; it is for the coverage "
+                            "models and the twin.")
         self.contact = contact
 
     @property
