@@ -585,4 +585,16 @@ the wall while it slides and bumps when the incidence reaches 10.44° (every tri
 whole 3 m budget without a bump; at β it gives the speed factor 0.96 of every turn-in slide
 (measured 0.93–0.98)."""
 
-__all__ += ["ContactParams", "PYBULLET_CONTACT", "MUJOCO_CONTACT"]
+MUJOCO_CONTACTS = {
+    0.3: MUJOCO_CONTACT,
+    0.2: ContactParams(
+        beta_deg=10.28, slide_friction=0.136,
+        turn_in=((2.0, 2.255), (3.0, 1.550), (5.0, 0.734), (7.0, 0.382), (8.0, 0.237),
+                 (9.0, 0.145), (9.5, 0.082), (9.75, 0.048), (9.9, 0.037), (10.0, 0.025),
+                 (10.1, 0.0145))),
+}
+"""The MuJoCo body's rule by drive speed [m/s]: it turns in over shorter slides when it drives
+slower (``--speed 0.2``: 2.25 m from 2°, 0.73 m from 5°, bump at 10.28°). 0.3 m/s is
+``validate``'s speed, 0.2 m/s navigation's."""
+
+__all__ += ["ContactParams", "PYBULLET_CONTACT", "MUJOCO_CONTACT", "MUJOCO_CONTACTS"]

@@ -373,9 +373,9 @@ def value_bound(runs: pd.DataFrame) -> pd.DataFrame:
                                      value_horizon=budget, stop_extra=0.0)
                 fnav = FeedbackNavigator(cs, ANGLES, int(g), cfg)
                 x, y, th = cs.pose(int(s))
-                _, end, _, _, _ = landings(fnav.nav.caster, np.array([[x, y]]),
-                                           np.array([th]), rule, bearings=False)
-                seen[key] = float(fnav.value.values(end, np.array([th]), budget - 1)[0])
+                _, end, _, _, _, th_end = landings(fnav.nav.caster, np.array([[x, y]]),
+                                                   np.array([th]), rule, bearings=False)
+                seen[key] = float(fnav.value.values(end, th_end, budget - 1)[0])
             v = seen[key]
             rows.extend((env, body, cond, v, bool(ok)) for ok in pair.success)
     t = pd.DataFrame(rows, columns=["env", "body", "condition", "bound", "success"])

@@ -147,11 +147,13 @@ def test_nav_montecarlo_exact_driver_plans_for_the_twins_bumper_arc():
     assert res["deviations"] == 0 and res["plan"] != old.plan.exact_text()
 
 
-def test_the_planners_refuse_a_rule_that_turns_the_body():
+def test_the_exact_search_refuses_a_rule_that_turns_the_body():
     """A turn-in contact rule (MuJoCo's, docs/model.md §9) changes the heading at a bump,
-    which the navigation planners do not follow yet: refused in one sentence.
+    which the exact search does not follow yet: refused in one sentence when it searches
+    (a feedback navigator deciding by value may use the rule).
     """
     from envs import UserError, load
     from envs.motion import MUJOCO_CONTACT
+    nav = ExactNavigator(CellSpace(load("lab")), ANGLES, contact=MUJOCO_CONTACT)
     with pytest.raises(UserError, match="turns the body into the wall"):
-        ExactNavigator(CellSpace(load("lab")), ANGLES, contact=MUJOCO_CONTACT)
+        nav.plan(0, 100)

@@ -163,3 +163,47 @@ def test_filter_holds_the_true_pose_of_a_sliding_twin():
         px, py, ph = (np.array(v) for v in zip(*before))
         slid += int(landings(caster, np.column_stack([px, py]), ph, PYBULLET_CONTACT)[3].sum())
     assert slid >= 1
+
+
+def test_the_filter_follows_a_body_that_turns_in():
+    """MuJoCo's contact rule turns a sliding body into the wall (docs/model.md §9). The
+    flights the filter casts (compiled) end where the twin's drive (plain Python) ends and
+    with its heading, for glancing starts; and a feedback run on that twin, told the rule by
+    the body (contact "auto", so it decides by value: the plan search does not follow a
+    turn-in), keeps a particle within 1 cm and 1° of the twin after every flight.
+    """
+    from envs.motion import MUJOCO_CONTACT, casters
+    from planners.navigation.feedback.filter import landings
+    caster = casters(SLOPE)[0]
+    rng = np.random.default_rng(3)
+    turned = 0
+    for i in range(40):                 # half of them 2°-9° into the south wall
+        bot = KinematicRobot(SLOPE, contact=MUJOCO_CONTACT)
+        x, y, th = SLOPE.random_pose(rng)
+        if i % 2:
+            x, y, th = rng.uniform(0.3, 1.0), 0.3, -rng.uniform(2.0, 9.0)
+        bot.place(x, y, th)
+        bot.drive_until_bump(0.2, 600.0)
+        bx, by, bth = bot.true_pose()
+        _, end, _, slid, _, head = landings(caster, np.array([[x, y]]), np.array([th]),
+                                             MUJOCO_CONTACT)
+        assert end[0] == pytest.approx((bx, by), abs=1e-6)
+        assert abs((head[0] - bth + 180) % 360 - 180) <= 1e-6
+        turned += int(slid[0] and abs((bth - th + 180) % 360 - 180) > 0.1)
+    assert turned >= 15
+    cells = CellSpace(SLOPE)
+    bot = KinematicRobot(SLOPE, contact=MUJOCO_CONTACT)
+    near = []
+
+    def check(event, belief):
+        if event == "turn":
+            return
+        x, y, th = bot.true_pose()
+        dpos = np.hypot(belief.pos[:, 0] - x, belief.pos[:, 1] - y)
+        dth = np.abs((belief.heading - th + 180) % 360 - 180)
+        near.append(bool(((dpos <= 0.01) & (dth <= 1.0) & (belief.weights > 0)).any()))
+
+    run = navigate_feedback(bot, SLOPE, 5, cells.N - 20, None, np.random.default_rng(1),
+                            cells=cells, on_belief=check)
+    assert near and all(near), near
+    assert run.reinits == 0

@@ -226,3 +226,29 @@ def test_contact_calibration_quick_mujoco(tmp_path):
     assert (t[t.incidence_deg >= 11].slide_m <= 1e-3).all()
     turned = t[(t.incidence_deg >= 3) & (t.incidence_deg <= 9)]
     assert (turned.heading_change_deg < -1.0).all()          # into the wall
+
+
+def test_the_declared_turn_in_rule_is_what_the_engine_does():
+    """The MuJoCo body declares its contact rule per drive speed (docs/model.md §9, §15a):
+    at 0.2 and 0.3 m/s, default settings only. Driven into a wall at 4° and 7° the engine
+    slides, turns in and bumps where the declared rule says: the slide within 20 % of L(α)
+    and the bump heading within 0.3° of β (fitted from other trials: 144 at 2°-90°).
+    """
+    from bouncesim.robots.mujoco import MuJoCoRobot
+    from bouncesim.runs.feedback import body_contact
+    from envs.motion import MUJOCO_CONTACT, MUJOCO_CONTACTS
+    from experiments.contact_calibration import trial, wall_room
+    with MuJoCoRobot(wall_room()) as bot:
+        assert body_contact(bot, 0.3) == MUJOCO_CONTACT and body_contact(bot) is None
+        assert bot.contact_at(0.25) is None
+        for speed in (0.2, 0.3):
+            rule = bot.contact_at(speed)
+            assert rule is MUJOCO_CONTACTS[speed]
+            for alpha in (4.0, 7.0):
+                rec = trial(bot, alpha, 0.002, speed, 3.0)
+                assert rec["bump"] == 1
+                assert rec["slide_m"] == pytest.approx(rule.slide_left(alpha), rel=0.2)
+                assert alpha - rec["heading_change_deg"] == pytest.approx(rule.beta_deg,
+                                                                          abs=0.3)
+    with MuJoCoRobot(wall_room(), time_step=0.004) as bot:
+        assert bot.contact_at(0.2) is None

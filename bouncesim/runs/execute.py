@@ -165,7 +165,7 @@ def execute(policy, robot: Robot, *, start=None, cells: CellSpace | None = None,
     if back_off < 0 or not math.isfinite(back_off):
         raise UserError(f"back-off must be a non-negative distance in metres, got {back_off:g}.")
     runner = _runner(policy, robot, start, cells, goal, back_off, max_factor, steps, epoch, rng,
-                     max_stuck, record_trace, on_segment, max_time)
+                     max_stuck, record_trace, on_segment, max_time, speed)
     trace = Trace()
     t0 = robot.clock()
     trace.add(0.0, robot.true_pose(), "start", runner.label)
@@ -189,13 +189,13 @@ def execute(policy, robot: Robot, *, start=None, cells: CellSpace | None = None,
 
 
 def _runner(policy, robot, start, cells, goal, back_off, max_factor, steps, epoch, rng,
-            max_stuck, record_trace, on_segment, max_time):
+            max_stuck, record_trace, on_segment, max_time, speed=None):
     """The runner of a policy: a plan's, a mix's or a feedback policy's."""
     if isinstance(policy, FeedbackPolicy):                   # closed loop (§15)
         if steps is not None or epoch is not None or max_stuck is not None:
             raise UserError("steps, epoch and max_stuck are for policy mixes.")
         return FeedbackRunner(policy, robot, start=start, goal=goal, cells=cells,
-                              back_off=back_off)
+                              back_off=back_off, speed=speed)
     cells = _cells_of(robot, cells)
     if isinstance(policy, (PolicyMix, int, float, np.integer, np.floating)):
         if goal is not None:

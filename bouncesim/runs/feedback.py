@@ -104,15 +104,17 @@ class FeedbackRun(PlanRun):
         return out
 
 
-def body_contact(robot) -> ContactParams | None:
-    """The contact rule (docs/model.md §9) a body declares, as ``validate --contact auto``
-    takes it: its ``contact`` attribute when that is a :class:`~envs.motion.ContactParams`
-    (PyBullet's fitted ``envs.motion.PYBULLET_CONTACT``, the twin made with ``contact=`` or
-    ``glance_deg=``, a wrapper's body's, the Create 2 and Create 3 adapters on an emulator: the
-    emulated body's); for any other body (the twin by default, a real Create 2 or Create 3, a
-    user's own) the front-half bumper (None).
+def body_contact(robot, speed: float | None = None) -> ContactParams | None:
+    """The contact rule (docs/model.md §9) a body declares: for a body whose rule depends on
+    its drive speed [m/s] (MuJoCo's, whose turn-in slides shorten as it slows) its
+    ``contact_at(speed)``; else its ``contact`` attribute when that is a
+    :class:`~envs.motion.ContactParams` (PyBullet's fitted ``envs.motion.PYBULLET_CONTACT``,
+    the twin made with ``contact=`` or ``glance_deg=``, a wrapper's body's, the Create 2 and
+    Create 3 adapters on an emulator: the emulated body's); for any other body (the twin by
+    default, a real Create 2 or Create 3, a user's own) the front-half bumper (None).
     """
-    rule = getattr(robot, "contact", None)
+    at = getattr(robot, "contact_at", None)
+    rule = at(speed) if callable(at) and speed is not None else getattr(robot, "contact", None)
     return rule if isinstance(rule, ContactParams) else None
 
 
@@ -136,7 +138,8 @@ class FeedbackRunner:
     finished = "plan finished"
 
     def __init__(self, policy, robot: Robot, *, start=None, goal=None,
-                 cells: CellSpace | None = None, back_off: float = 0.0) -> None:
+                 cells: CellSpace | None = None, back_off: float = 0.0,
+                 speed: float | None = None) -> None:
         planner = policy.planner
         self.policy, self.planner = policy, planner
         if cells is not None and cells is not planner.cells and \
@@ -155,7 +158,7 @@ class FeedbackRunner:
         else:
             self.start_pose = tuple(float(v) for v in start)
         self.back_off, self.rng = float(back_off), planner.rng
-        self.contact = planner.resolved(body_contact(robot))
+        self.contact = planner.resolved(body_contact(robot, speed))
         self.fnav = planner.navigator(policy.goal, self.contact, policy.max_bumps,
                                       body_turns(robot) if planner.config.body_turns else None)
         self.cfg = self.fnav.cfg

@@ -29,6 +29,7 @@ import shapely
 
 from envs import Environment, UserError
 from envs.contact import switches
+from envs.motion import MUJOCO_CONTACTS, ContactParams
 from planners.measures import wrap180
 
 from ..base import CREATE2, Robot, RobotSpec
@@ -184,14 +185,27 @@ class MuJoCoRobot(SteppedWheels, Robot):
     """
 
     contact = None
-    """No fitted contact rule is declared: the MuJoCo body's bump/slide behaviour is measured
-    (``experiments.contact_calibration --backend mujoco``), not assumed to be PyBullet's."""
+    """No speed-free contact rule: the MuJoCo body's turn-in slides depend on its drive speed
+    (:meth:`contact_at`)."""
 
     turn_errors = None
     """The body's own turn errors, a noise spec (:func:`bouncesim.runs.feedback.body_turns`):
     at the default ``time_step``, ``turn_speed``, ``wheel_torque`` and ``wheel_gain``,
     :data:`DECLARED_TURNS`; None (nothing declared) with any other setting, which turns
     differently."""
+
+    def contact_at(self, speed: float | None) -> ContactParams | None:
+        """The contact rule (docs/model.md §9) this body declares at drive ``speed`` [m/s]:
+        its turn-in rule fitted at that speed (``envs.motion.MUJOCO_CONTACTS``, 0.2 and
+        0.3 m/s, within 0.01 m/s) at the default settings (:attr:`turn_errors`' condition);
+        else None, nothing declared.
+        """
+        if self.turn_errors is None or speed is None:
+            return None
+        for v, rule in MUJOCO_CONTACTS.items():
+            if abs(float(speed) - v) <= 0.01:
+                return rule
+        return None
 
     def __init__(self, env: Environment | str, noise: NoiseModel | None = None,
                  rng: np.random.Generator | int | None = None, *,

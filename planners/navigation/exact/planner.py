@@ -64,7 +64,7 @@ from ._batch import FlightTable, SearchArrays, search_many
 from ._cast import HeadingCaster
 from ._chords import chords
 
-__all__ = ["ExactNavigator", "ExactAllPairs", "ExactSearch"]
+__all__ = ["ExactNavigator", "ExactAllPairs", "ExactSearch", "refuse_turn_in"]
 
 _IMPROVE = 1e-9          # a new arrival replaces a state's pose when cheaper by this
 _BATCH_BYTES = 4e8       # all pairs: the search arrays of one batch of starts [bytes]
@@ -102,6 +102,16 @@ class ExactSearch:
     arrivals: list
 
 
+def refuse_turn_in(contact) -> None:
+    """The exact search (§13) follows the heading kept along a slide; a contact rule that
+    turns the body into the wall (``ContactParams.turn_in``, §9) is refused in one sentence.
+    """
+    if contact is not None and contact.turn_in:
+        raise UserError("the exact plan search does not follow a contact rule that turns the "
+                        "body into the wall (turn_in) yet; decide by value under turn noise "
+                        "(feedback), or use the rule for coverage.")
+
+
 class ExactNavigator:
     """Plans over exact bump poses (docs/model.md §13), with the shape of
     :class:`planners.navigation.Navigator`.
@@ -136,10 +146,6 @@ class ExactNavigator:
         self.bin_length = cells.h / 4 if bin_length is None else float(bin_length)
         self.min_depth = float(min_depth)
         self.caster = casters(cells.env)[0]
-        if contact is not None and contact.turn_in:
-            raise UserError("the navigation planners do not follow a contact rule that turns "
-                            "the body into the wall (turn_in) yet; it is for the coverage "
-                            "models and the twin.")
         self.contact = contact
 
     @property
@@ -211,6 +217,7 @@ class ExactNavigator:
         records every arrival at the goal within ``slack`` of the best; without it, settles
         every reachable state and records the best arrival at every goal configuration.
         """
+        refuse_turn_in(self.contact)
         if goal is not None:
             return self._search_one(int(start), int(goal), float(slack))
         out = self.search_from(np.array([int(start)]))
@@ -306,6 +313,7 @@ class ExactNavigator:
         unsettled cost plus the smallest edge weight is final); every distinct flight is
         cast once, in a table shared by the trees (``_batch.search_many``).
         """
+        refuse_turn_in(self.contact)
         return search_many(self, starts, table, tree)
 
     # ------------------------------------------------------------------ routes
@@ -368,6 +376,7 @@ class ExactNavigator:
         :meth:`memory_estimate` exceeds ``max_memory`` bytes (or a size such as ``"2G"``;
         None: no limit); ``progress(done, total)`` is called after every batch.
         """
+        refuse_turn_in(self.contact)
         check(self.memory_estimate(self.cells, self.angles, task="allpairs"), max_memory,
               f"exact all pairs in {self.cells.env.name} with N = {self.cells.N} "
               "configurations")

@@ -102,7 +102,8 @@ class FeedbackConfig:
                                closed-loop value of the noisy contact-state chain weighed over
                                the belief, :mod:`planners.navigation.feedback.value`) or
                                "auto" (default: "value" when a turn error is declared,
-                               :attr:`value_sigma_deg` > 0, else "plan")
+                               :attr:`value_sigma_deg` > 0, or the contact rule turns the
+                               body into the wall, which plans do not follow; else "plan")
     gamma : float              the value's discount per bump (in (0, 1])
     value_horizon : int        flights the value table looks ahead (more are clipped; the
                                default: the bump budget, :data:`DEFAULT_MAX_BUMPS`; a run

@@ -261,7 +261,8 @@ class ParticleFilter:
         side = side_of(left, right) if (left or right) else None
         if self.fresh:                  # an unknown start: propose poses the reading explains
             self._propose_contacts(d)
-        D, end, beta, _, _ = landings(self.caster, self.pos, self.heading, self.cfg.contact)
+        D, end, beta, _, _, h_end = landings(self.caster, self.pos, self.heading,
+                                             self.cfg.contact)
         ll, ghost, ok = self._loglik(d, side, D, beta)
         ok &= self.w > 0
         stop = self.pos + np.minimum(d, D)[:, None] * unit(self.heading)
@@ -269,7 +270,8 @@ class ParticleFilter:
         with np.errstate(invalid="ignore"):
             phantom = np.log(self.rng.random(self.n)) < ghost - ll
         pos = np.where(phantom[:, None], stop, end)
-        return self._posterior(d, "none" if side is None else SIDES[side], ll, pos,
+        head = np.where(phantom, self.heading, h_end)
+        return self._posterior(d, "none" if side is None else SIDES[side], ll, pos, head,
                                int(ok.sum()),
                                lambda p, h: self._loglik(d, side, *self._cast(p, h))[0])
 
@@ -280,11 +282,12 @@ class ParticleFilter:
         does. The reading is nearly uninformative; it never zeroes the belief.
         """
         d, self.fresh = float(distance), False
-        D, end, _, _, _ = landings(self.caster, self.pos, self.heading, self.cfg.contact,
-                                   bearings=False)
+        D, end, _, _, _, h_end = landings(self.caster, self.pos, self.heading,
+                                          self.cfg.contact, bearings=False)
         ll = self._missed_loglik(d, D)
         pos = np.where((D <= d)[:, None], end, self.pos + d * unit(self.heading))
-        return self._posterior(d, "missed", ll, pos, self.n,
+        head = np.where(D <= d, h_end, self.heading)
+        return self._posterior(d, "missed", ll, pos, head, self.n,
                                lambda p, h: self._missed_loglik(d, self._cast(p, h)[0]))
 
     def _missed_loglik(self, d: float, D) -> np.ndarray:
@@ -293,18 +296,19 @@ class ParticleFilter:
                         math.log1p(-(cfg.p_phantom + cfg.p_miss)))
 
     def _cast(self, pos, head):
-        D, _, beta, _, _ = landings(self.caster, pos, head, self.cfg.contact)
+        D, _, beta, _, _, _ = landings(self.caster, pos, head, self.cfg.contact)
         return D, beta
 
-    def _posterior(self, d: float, side: str, ll, pos, consistent: int, recovery_ll):
-        """Weigh by ``ll``, mix in a re-initialised component when the reading is surprising,
+    def _posterior(self, d: float, side: str, ll, pos, head, consistent: int, recovery_ll):
+        """Weigh by ``ll`` the particles that flew to ``pos`` with the headings ``head``
+        they bumped with, mix in a re-initialised component when the reading is surprising,
         resample when the ESS is low; the :class:`FlightUpdate`.
         """
         with np.errstate(divide="ignore"):
             logw = np.log(self.w) + ll
         top = float(logw.max())
         log_mb = top + math.log(float(np.exp(logw - top).sum()))      # Σ w·L
-        head, stage, mixed = self.heading, 0, 0.0
+        stage, mixed = 0, 0.0
         best = self._best_loglik(d) if side != "missed" else 0.0
         if self.cfg.p_lost > 0 and log_mb < best + math.log(self.cfg.surprise):
             rec = self._recovery(recovery_ll, best + math.log(self.cfg.surprise))
@@ -352,7 +356,8 @@ class ParticleFilter:
             pos0, head0 = poses[:, :2], poses[:, 2]
             factor, offset = self._prior_turns(len(poses))
             ll, stage = loglik(pos0, head0), 2
-        D, end, _, _, _ = landings(self.caster, pos0, head0, self.cfg.contact, bearings=False)
+        D, end, _, _, _, head0 = landings(self.caster, pos0, head0, self.cfg.contact,
+                                          bearings=False)
         return stage, end, head0 % 360.0, ll, factor, offset
 
     def _prior_turns(self, n: int) -> tuple[np.ndarray, np.ndarray]:

@@ -58,6 +58,7 @@ import numpy as np
 from ...cells import CellSpace
 from ..base import check_config
 from ..exact import ExactNavigator
+from ..exact.planner import refuse_turn_in
 from .filter import (
     SIDES,
     FeedbackConfig,
@@ -143,10 +144,12 @@ class FeedbackNavigator:
     @property
     def by_value(self) -> bool:
         """Whether decisions are made by the closed-loop value (``decision`` "value", or
-        "auto" with a declared turn error) rather than by scored plans.
+        "auto" with a declared turn error or a contact rule that turns the body in, which the
+        plan search does not follow) rather than by scored plans.
         """
-        d = self.cfg.decision
-        return d == "value" or (d == "auto" and self.cfg.value_sigma_deg > 0)
+        d, rule = self.cfg.decision, self.cfg.contact
+        return d == "value" or (d == "auto" and (self.cfg.value_sigma_deg > 0 or (
+            rule is not None and bool(rule.turn_in))))
 
     @property
     def value(self) -> ValueTable:
@@ -181,6 +184,7 @@ class FeedbackNavigator:
         With ``config.guided`` (and ``guided``) the search is guided by the cost to go
         (§15) and its plans need not be the cheapest.
         """
+        refuse_turn_in(self.cfg.contact)
         if self.cfg.reference:
             plans = search_reference(self, x, y, heading_deg, slack, bumped)
         else:
@@ -202,7 +206,7 @@ class FeedbackNavigator:
         s = self.cfg.turn_spread_deg
         for j, a in enumerate(angles):
             if not (bumped and j == 0):
-                pos = landings(caster, pos, head, contact, bearings=False)[1]
+                _, pos, _, _, _, head = landings(caster, pos, head, contact, bearings=False)
             turn = a if gain is None else gain * a + bias
             head = head + turn + (rng.normal(0.0, s, len(head)) if s > 0 else 0.0)
         return self.final(pos, head, np.full(len(head), 1.0 / len(head)))[1]
@@ -229,14 +233,14 @@ class FeedbackNavigator:
             act = np.flatnonzero(lens > j)
             if not (bumped and j == 0):
                 p, th = pos[act].reshape(-1, 2), head[act].reshape(-1)
-                pos[act] = landings(caster, p, th, self.cfg.contact,
-                                    bearings=False)[1].reshape(len(act), n, 2)
+                _, p, _, _, _, th = landings(caster, p, th, self.cfg.contact, bearings=False)
+                pos[act], head[act] = p.reshape(len(act), n, 2), th.reshape(len(act), n)
             turn = np.array([plans[c][j] for c in act], dtype=float)[:, None]
             if gain is not None:
                 turn = gain[None] * turn + bias[None]
             head[act] = head[act] + turn + noise[act, j] if s > 0 else head[act] + turn
-        _, _, _, sl, D = landings(caster, pos.reshape(-1, 2), head.reshape(-1),
-                                  self.cfg.contact, bearings=False)
+        _, _, _, sl, D, _ = landings(caster, pos.reshape(-1, 2), head.reshape(-1),
+                                     self.cfg.contact, bearings=False)
         D, w = D.reshape(len(plans), n), np.full(n, 1.0 / n)
         sl = None if sl is None else sl.reshape(len(plans), n)
         return [final_drive(pos[c], head[c], D[c], w, self.box, self.goal_heading,
@@ -249,7 +253,7 @@ class FeedbackNavigator:
         flight of weighted particles.
         """
         pos, heading = np.asarray(pos, dtype=float), np.asarray(heading, dtype=float)
-        _, _, _, slides, D = landings(self.nav.caster, pos, heading, self.cfg.contact,
+        _, _, _, slides, D, _ = landings(self.nav.caster, pos, heading, self.cfg.contact,
                                       bearings=False)
         return final_drive(pos, heading, D, w, self.box, self.goal_heading,
                            self.cells.delta_deg, self.cfg.margin_m, slides)
@@ -275,7 +279,7 @@ class FeedbackNavigator:
         pos, head = belief.sample(n)
         best, best_h = self.nav.angles[0], -1.0
         for a in self.nav.angles:
-            D, _, beta, _, _ = landings(self.nav.caster, pos, head + a, self.cfg.contact)
+            D, _, beta, _, _, _ = landings(self.nav.caster, pos, head + a, self.cfg.contact)
             side = np.argmax(side_probs(beta, self.cfg), axis=1)
             # a ray that meets no wall (a particle off the free space): a reading of its own
             key = np.where(np.isfinite(D), np.floor(np.nan_to_num(D, posinf=0.0) / bin_m), -1)
@@ -315,10 +319,11 @@ class FeedbackNavigator:
         caster, contact, s = self.nav.caster, cfg.contact, cfg.turn_spread_deg
 
         def worth(h):
-            _, end, _, slid, D = landings(caster, pos, h, contact, bearings=False)
+            _, end, _, slid, D, h_end = landings(caster, pos, h, contact, bearings=False)
             final_m, mass = final_drive(pos, h, D, w, self.box, self.goal_heading,
                                         self.cells.delta_deg, cfg.margin_m, slid)
-            cont = vt.gamma * float(vt.values(end, h, left - 1).mean()) if left > 0 else 0.0
+            cont = vt.gamma * float(vt.values(end, h_end, left - 1).mean()) if left > 0 \
+                else 0.0
             return final_m, mass, cont
 
         if not bumped:

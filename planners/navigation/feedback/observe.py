@@ -83,24 +83,31 @@ def landings(caster, pos, heading_deg, contact: ContactParams | None, bearings: 
     """Flights of poses to their bump under a contact rule (docs/model.md §15, §9).
 
     Returns (clock [m], end (n, 2) [m], bearings (n, F) [deg] or None, slid (n,) bool or
-    None, straight [m]): ``straight`` is :func:`flights`' drive to the first contact and
-    ``clock`` the clock length to the bump, where the robot ends (``end``). With a contact
-    rule, a flight whose first contact lies outside the bumper arc ±(90° − β) slides on
-    (:func:`envs.contact.contact_flights`, ``slid``), and its bearings are those at the
-    bump; bearings outside the arc are NaN (they press no switch). ``contact`` None: the
-    front-half bumper, bitwise :func:`flights` (clock = straight, slid None).
+    None, straight [m], heading at the bump (n,) [deg]): ``straight`` is :func:`flights`'
+    drive to the first contact and ``clock`` the clock length to the bump, where the robot
+    ends (``end``). With a contact rule, a flight whose first contact lies outside the
+    bumper arc ±(90° − β) slides on (:func:`envs.contact.contact_flights`, ``slid``), and
+    its bearings are those at the bump; bearings outside the arc are NaN (they press no
+    switch); a rule that turns the body into the wall (``turn_in``) changes its heading by
+    the bump. ``contact`` None: the front-half bumper, bitwise :func:`flights` (clock =
+    straight, slid None, the heading kept).
     """
     pos = np.asarray(pos, dtype=float).reshape(-1, 2)
     D, u, beta = flights(caster, pos, heading_deg, bearings)
-    if contact is None:
-        return D, pos + D[:, None] * u, beta, None, D
     head = np.broadcast_to(np.asarray(heading_deg, dtype=float).reshape(-1), (len(pos),))
+    if contact is None:
+        return D, pos + D[:, None] * u, beta, None, D, head
     # resampled copies share a pose: slide each distinct (x, y, heading) once
     _, first, inv = np.unique(np.column_stack([pos, head]), axis=0, return_index=True,
                               return_inverse=True)
     inv = inv.reshape(-1)
     fl = contact_flights(caster, pos[first], u[first], D[first], contact, legs=False)
     clock, end, slid = fl.clock[inv], fl.end[inv], fl.slid[inv]
+    turned = slid & np.any(fl.u_end[inv] != fl.u[inv], axis=1)
+    if turned.any():
+        head = head.copy()
+        v = fl.u_end[inv][turned]
+        head[turned] = np.degrees(np.arctan2(v[:, 1], v[:, 0])) % 360.0
     if beta is not None:
         arc = 90.0 - contact.beta_deg
         if slid.any():
@@ -108,7 +115,7 @@ def landings(caster, pos, heading_deg, contact: ContactParams | None, bearings: 
             beta[slid] = flights(caster, end[slid], head[slid])[2]
         with np.errstate(invalid="ignore"):
             beta = np.where(np.abs(beta) <= arc, beta, np.nan)
-    return clock, end, beta, slid, D
+    return clock, end, beta, slid, D, head
 
 
 def side_probs(beta, cfg: FeedbackConfig) -> np.ndarray:

@@ -101,9 +101,9 @@ class Transitions:
                 th = head0 + a + off
                 for lo in range(0, S, _CHUNK):
                     sl = slice(lo, min(lo + _CHUNK, S))
-                    _, end, _, _, _ = landings(caster, self.points[q, b[sl]], th[sl],
-                                               contact, bearings=False)
-                    self.nxt[i, sl, q] = self.state(end, th[sl])
+                    _, end, _, _, _, th_end = landings(caster, self.points[q, b[sl]],
+                                                       th[sl], contact, bearings=False)
+                    self.nxt[i, sl, q] = self.state(end, th_end)
 
     def state(self, pos, heading_deg) -> np.ndarray:
         """The contact state of bump poses (pos (n, 2) [m], heading (n,) [deg])."""
@@ -213,8 +213,8 @@ class ValueTable:
         k = np.flatnonzero(cast)
         if k.size == 0:
             return out
-        clock, end, _, _, straight = landings(fnav.nav.caster, p[k], heading[k],
-                                              fnav.nav.contact, bearings=False)
+        clock, end, _, _, straight, _ = landings(fnav.nav.caster, p[k], heading[k],
+                                                 fnav.nav.contact, bearings=False)
         good = (depth[k] >= 0) & (d[k] <= straight)
         if self.at_bump:
             x0, y0, x1, y1 = fnav.box
