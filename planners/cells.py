@@ -29,13 +29,20 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
+import shapely
 
 from envs import Environment, UserError
 from envs.motion import grid_index, unit_rad
 
 from .resources import DEFAULT_MAX_MEMORY, check_memory
 
-__all__ = ["AngleError", "CellSpace", "angle_steps"]
+__all__ = ["AngleError", "BODY_SNAP_M", "CellSpace", "angle_steps"]
+
+BODY_SNAP_M = 0.005
+"""[m] A body's centre this close outside the C-space is counted at the nearest C-space point
+(:meth:`CellSpace.cell_of_body`, docs/model.md §22): a physics body's disk is 2 mm smaller
+than the model's robot and its contacts penetrate a little, so at a wall it stands 1–3 mm
+beyond the model's contact."""
 
 
 class AngleError(UserError):
@@ -190,6 +197,35 @@ class CellSpace:
         """
         g = grid_index(xy, self.env.origin, self.h, self.index_grid.shape)
         return self._p_of_grid_index[g]
+
+    def cell_of_body(self, xy) -> np.ndarray:
+        """:meth:`cell_of_point` of a body's centres (docs/model.md §22): a centre outside
+        the C-space by at most :data:`BODY_SNAP_M` is counted at the nearest C-space point,
+        1e-6 m inside it, where the model's robot would stand.
+
+        A room 1.53 m deep: its C-space ends at y = 1.36 m, a cell border; a body 2 mm beyond
+        it lies in the row above, which is no cell, and is counted in the row below:
+
+        >>> from envs import Environment
+        >>> cs = CellSpace(Environment.from_dict({"boundary": [[0, 0], [1.36, 0], [1.36, 1.53],
+        ...     [0, 1.53]], "robot_radius": 0.17, "discretization": {"cell_size": 0.34}}))
+        >>> below = int(cs.cell_of_point([[0.5, 1.35]])[0])
+        >>> out = [[0.5, 1.362]]
+        >>> int(cs.cell_of_point(out)[0]), int(cs.cell_of_body(out)[0]) == below
+        (-1, True)
+        """
+        pts = np.array(xy, dtype=float).reshape(-1, 2)
+        cspace = self.env.cspace
+        out = np.flatnonzero(~shapely.contains_xy(cspace, pts[:, 0], pts[:, 1]))
+        if out.size:
+            near = out[shapely.distance(shapely.points(pts[out]), cspace) <= BODY_SNAP_M]
+            if near.size:
+                q = shapely.get_coordinates(shapely.shortest_line(
+                    cspace, shapely.points(pts[near]))).reshape(-1, 2, 2)[:, 0]
+                v = q - pts[near]
+                v /= np.maximum(np.hypot(v[:, 0], v[:, 1]), 1e-300)[:, None]
+                pts[near] = q + 1e-6 * v
+        return self.cell_of_point(pts)
 
     @cached_property
     def _p_of_grid_index(self) -> np.ndarray:

@@ -18,7 +18,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-import shapely
 
 from envs import UserError
 from planners.metrics import tv_distance
@@ -26,40 +25,7 @@ from planners.plan import PolicyMix
 
 from .noise import NoNoise, noise_for_mix
 
-__all__ = ["BatchRun", "ProgramBatch", "BODY_SNAP_M", "snap_to_cspace"]
-
-BODY_SNAP_M = 0.005
-"""[m] A physics body's centre this close outside the C-space is counted at the nearest
-C-space point (docs/model.md §22): its disk is 2 mm smaller than the model's robot and its
-contacts penetrate a little, so at a wall it stands 1–3 mm beyond the model's contact."""
-
-
-def snap_to_cspace(env, pts) -> np.ndarray:
-    """Points (n, 2) [m] of a physics body, those outside ``env.cspace`` by at most
-    :data:`BODY_SNAP_M` moved to the nearest C-space point and 1e-6 m inside it (where the
-    model's robot would stand); the others unchanged.
-
-    >>> import envs
-    >>> env = envs.Environment.from_dict({"boundary": [[0, 0], [1.36, 0], [1.36, 1.36],
-    ...     [0, 1.36]], "robot_radius": 0.17, "discretization": {"cell_size": 0.34}})
-    >>> snap_to_cspace(env, [[0.5, 0.168], [0.5, 0.16], [0.5, 0.5]]).round(6).tolist()
-    [[0.5, 0.170001], [0.5, 0.16], [0.5, 0.5]]
-    """
-    pts = np.array(pts, dtype=float).reshape(-1, 2)
-    cspace = env.cspace
-    outside = ~shapely.contains_xy(cspace, pts[:, 0], pts[:, 1])
-    if not outside.any():
-        return pts
-    idx = np.flatnonzero(outside)
-    p = shapely.points(pts[idx])
-    near = idx[shapely.distance(p, cspace) <= BODY_SNAP_M]
-    if near.size:
-        q = shapely.get_coordinates(shapely.shortest_line(
-            cspace, shapely.points(pts[near]))).reshape(-1, 2, 2)[:, 0]
-        v = q - pts[near]
-        v /= np.maximum(np.hypot(v[:, 0], v[:, 1]), 1e-300)[:, None]
-        pts[near] = q + 1e-6 * v
-    return pts
+__all__ = ["BatchRun", "ProgramBatch"]
 
 
 @dataclass(frozen=True)
@@ -187,7 +153,7 @@ class ProgramBatch:
         P = self.cells.P
         for i, pts in enumerate(out["points"]):
             if pts:
-                c = self.cells.cell_of_point(snap_to_cspace(self.cells.env, pts))
+                c = self.cells.cell_of_body(pts)
                 out["counts"][i] = np.bincount(c[c >= 0], minlength=P)
                 out["dropped"][i] = int(np.count_nonzero(c < 0))
         return BatchRun(counts=out["counts"], dropped=out["dropped"], bumps=out["bumps"],

@@ -257,7 +257,7 @@ class MixRunner:
     def _count(self, pose) -> None:
         if pose is None:
             return
-        p = int(self.cells.cell_of_point(pose[:2])[0])
+        p = int(self.cells.cell_of_body(pose[:2])[0])
         if p < 0:
             self.dropped += 1
         else:
