@@ -348,19 +348,20 @@ class TurnNoise:
                             f"scale and bias (got {self}); sample the scatter or the body's "
                             f"noise model (bouncesim.robots.noise.parse_noise).")
         c = as_commands(commanded_deg, n)
-        body = 0.0
-        if self.has_body:
-            body = rng.normal(self.body_offset_deg, self.body_sigma_deg, size=c.shape)
+        if self.has_body:               # the scatter, then the body's own error (BodyErrors)
+            t = replace(self, body_sigma_deg=0.0, body_offset_deg=0.0).sample(
+                rng, c, delta_deg=delta_deg)
+            return t + rng.normal(self.body_offset_deg, self.body_sigma_deg, size=t.shape)
         if self.sigma_deg > 0:
-            return c + rng.normal(0.0, self.sigma_deg, size=c.shape) + body
+            return c + rng.normal(0.0, self.sigma_deg, size=c.shape)
         m = self.quanta(delta_deg=delta_deg)
         if m == 0 or self.r == 1.0:
-            return c + body
+            return c
         size = c.shape
         wrong = rng.random(size) >= self.r
         k = rng.integers(1, m + 1, size=size)
         sign = np.where(rng.random(size) < 0.5, -1, 1)
-        return c + np.where(wrong, sign * k * delta_deg, 0.0) + body
+        return c + np.where(wrong, sign * k * delta_deg, 0.0)
 
 
 def _support(m: int, r: float) -> tuple[np.ndarray, np.ndarray]:
