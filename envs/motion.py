@@ -510,7 +510,7 @@ class ContactParams:
             raise UserError(f"a turn-in table needs incidences rising from >= 0 to below beta "
                             f"({b:g}) and slide lengths falling to above 0, got {pairs}.")
 
-    @property
+    @cached_property
     def turn_table(self) -> tuple[np.ndarray, np.ndarray]:
         """(incidences [deg], slides [m]) of :attr:`turn_in` with (β, 0) appended; both
         empty when the rule has no turn-in.
@@ -550,8 +550,10 @@ class ContactParams:
         >>> rule.slide_left(1.0), rule.slide_left(4.0), rule.slide_left(8.0)
         (inf, 1.25, 0.25)
         """
+        if not self.turn_in:                     # every slide keeps its heading (the hot path)
+            return math.inf
         a, ell = self.turn_table
-        if a.size == 0 or incidence_deg < a[0]:
+        if incidence_deg < a[0]:
             return math.inf
         return float(np.interp(incidence_deg, a, ell))
 

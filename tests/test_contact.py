@@ -159,6 +159,18 @@ def test_rule_with_beta_zero_is_the_front_half_bumper_bitwise():
     assert np.array_equal(runs[0].counts, runs[1].counts) and runs[0].bumps == runs[1].bumps
 
 
+def _twin_against(env, cs, rule, q):
+    """Two independent halves of the twin under ``rule`` (100 robots × 600 steps each, 100
+    of burn-in; 75°, ε = 5°, r = 0.8): (their TV, the floor; TV(q, pooled); bumps per step).
+    """
+    mix = PolicyMix((75.0,), (1.0,), 5.0, 0.8)               # the same ε, r in the twin
+    halves = [KinematicBatch(env, 100, seed, cells=cs, contact=rule).run(
+        mix, 600, burn_in=100) for seed in (1, 2)]
+    counts = [h.counts.astype(float) for h in halves]
+    bumps = sum(h.bumps for h in halves) / sum(h.total for h in halves)
+    return tv_distance(counts[0], counts[1]), tv_distance(q, counts[0] + counts[1]), bumps
+
+
 def test_twin_and_event_model_agree_with_the_contact_rule():
     """A small room with an interior block (straight slides and corner wraps), K = 72, 75°,
     ε = 5°, r = 0.8: TV(event q, twin q̂) at most 1.5 × the floor (two independent halves)
@@ -171,15 +183,9 @@ def test_twin_and_event_model_agree_with_the_contact_rule():
     noise = TurnNoise(5.0, 0.8)
     ac = EventModel(cs, EventSettings(0.01, contact=PYBULLET_CONTACT)).analyse(75.0, noise)
     off = EventModel(cs, EventSettings()).analyse(75.0, noise)
-    mix = PolicyMix((75.0,), (1.0,), 5.0, 0.8)               # the same ε, r in the twin
-    halves = [KinematicBatch(env, 100, seed, cells=cs, contact=PYBULLET_CONTACT).run(
-        mix, 600, burn_in=100) for seed in (1, 2)]
-    counts = [h.counts.astype(float) for h in halves]
-    floor = tv_distance(counts[0], counts[1])
-    tv = tv_distance(ac.q, counts[0] + counts[1])
+    floor, tv, bumps = _twin_against(env, cs, PYBULLET_CONTACT, ac.q)
     assert 0 < floor < 0.1
     assert tv <= 1.5 * floor + 0.01, (tv, floor)
-    bumps = sum(h.bumps for h in halves) / sum(h.total for h in halves)
     assert abs(bumps - 1.0 / ac.steps_per_flight) <= 0.02
     assert 1.0 / off.steps_per_flight - 1.0 / ac.steps_per_flight > 0.03
 
@@ -198,15 +204,9 @@ def test_twin_and_event_model_agree_with_a_turn_in_rule():
     noise = TurnNoise(5.0, 0.8)
     ac = EventModel(cs, EventSettings(contact=MUJOCO_CONTACT)).analyse(75.0, noise)
     pb = EventModel(cs, EventSettings(contact=PYBULLET_CONTACT)).analyse(75.0, noise)
-    mix = PolicyMix((75.0,), (1.0,), 5.0, 0.8)
-    halves = [KinematicBatch(env, 100, seed, cells=cs, contact=MUJOCO_CONTACT).run(
-        mix, 600, burn_in=100) for seed in (1, 2)]
-    counts = [h.counts.astype(float) for h in halves]
-    floor = tv_distance(counts[0], counts[1])
-    tv = tv_distance(ac.q, counts[0] + counts[1])
+    floor, tv, bumps = _twin_against(env, cs, MUJOCO_CONTACT, ac.q)
     assert 0 < floor < 0.05
     assert tv <= 2 * floor + 0.02, (tv, floor)
-    bumps = sum(h.bumps for h in halves) / sum(h.total for h in halves)
     assert abs(bumps - 1.0 / ac.steps_per_flight) <= 0.01
     assert tv_distance(ac.q, pb.q) > 0.1
 

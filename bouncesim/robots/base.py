@@ -19,7 +19,8 @@ from dataclasses import dataclass
 
 from envs import UserError
 
-__all__ = ["CREATE2", "BumpEvent", "Robot", "RobotError", "RobotSpec", "SigtermStop"]
+__all__ = ["CREATE2", "BumpEvent", "EmulatedDeclarations", "Robot", "RobotError", "RobotSpec",
+           "SigtermStop"]
 
 
 class RobotError(RuntimeError):
@@ -177,6 +178,35 @@ class Robot(ABC):
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+class EmulatedDeclarations:
+    """For hardware adapters: on an emulator, what the emulated body declares of itself (its
+    contact rule, docs/model.md §9, and its turn errors, §15); on a real robot nothing, which
+    a user declares with ``--contact`` and ``--noise``. An adapter says where its emulator is
+    (:meth:`_emulator`).
+    """
+
+    def _emulator(self):
+        """The emulator the adapter drives, or None on a real robot."""
+        return None
+
+    @property
+    def contact(self):
+        """The emulated body's contact rule (None on a real robot): what the feedback filter
+        assumes.
+        """
+        return self._emulated("contact")
+
+    @property
+    def turn_errors(self):
+        """The emulated body's declared turn errors (None on a real robot)."""
+        return self._emulated("turn_errors")
+
+    def _emulated(self, name: str):
+        """The emulated body's attribute ``name`` (None on a real robot or when it has none)."""
+        emulator = self._emulator()
+        return None if emulator is None else getattr(emulator.body, name, None)
 
 
 class SigtermStop:

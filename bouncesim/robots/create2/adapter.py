@@ -71,7 +71,15 @@ from typing import TYPE_CHECKING, Any
 
 from envs import UserError
 
-from ..base import CREATE2, BumpEvent, Robot, RobotError, RobotSpec, SigtermStop
+from ..base import (
+    CREATE2,
+    BumpEvent,
+    EmulatedDeclarations,
+    Robot,
+    RobotError,
+    RobotSpec,
+    SigtermStop,
+)
 from . import oi
 from .sensing import SENSOR_IDS, SensingMixin, SensorState
 from .turning import TurningMixin
@@ -81,7 +89,7 @@ if TYPE_CHECKING:
 
 __all__ = ["Create2Robot", "SensorState", "SENSOR_IDS"]
 
-class Create2Robot(SigtermStop, SensingMixin, TurningMixin, Robot):
+class Create2Robot(SigtermStop, EmulatedDeclarations, SensingMixin, TurningMixin, Robot):
     """An iRobot Create 2 over its Open Interface.
 
     Parameters
@@ -435,23 +443,8 @@ class Create2Robot(SigtermStop, SensingMixin, TurningMixin, Robot):
             return super().place(x, y, heading_deg)
         self.emulator.place(x, y, heading_deg)
 
-    @property
-    def contact(self):
-        """The emulated body's contact rule (simulation only; None on a real robot, whose
-        rule a user declares with ``--contact``): what the feedback filter assumes.
-        """
-        return self._emulated("contact")
-
-    @property
-    def turn_errors(self):
-        """The emulated body's declared turn errors (simulation only; None on a real robot,
-        whose errors a user declares with ``--noise``).
-        """
-        return self._emulated("turn_errors")
-
-    def _emulated(self, name: str):
-        """The emulated body's attribute ``name`` (None on hardware or when it has none)."""
-        return None if self.emulator is None else getattr(self.emulator.body, name, None)
+    def _emulator(self):
+        return self.emulator
 
     def true_pose(self) -> tuple[float, float, float] | None:
         """The emulator's true pose (x [m], y [m], heading [deg]); None on hardware."""

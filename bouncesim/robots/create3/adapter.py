@@ -24,7 +24,7 @@ from dataclasses import replace
 
 from envs import UserError
 
-from ..base import CREATE2, BumpEvent, Robot, RobotError, SigtermStop
+from ..base import CREATE2, BumpEvent, EmulatedDeclarations, Robot, RobotError, SigtermStop
 from .emulator import TURN_DEG_S, raw_bytes
 from .packets import MAX_SPEED_MM_S, Packet, bump_event, pose_of
 
@@ -34,7 +34,7 @@ CREATE3 = replace(CREATE2, radius=0.171, max_wheel_speed=MAX_SPEED_MM_S / 1000)
 """The Create 3 (a Roomba i3 base): 508.8 encoder counts per wheel turn, 0.306 m/s."""
 
 
-class Create3Robot(SigtermStop, Robot):
+class Create3Robot(SigtermStop, EmulatedDeclarations, Robot):
     """A Create 3 (or its emulator) as a bump-and-clock :class:`~bouncesim.robots.base.Robot`.
 
     Parameters
@@ -267,24 +267,8 @@ class Create3Robot(SigtermStop, Robot):
         self.backend.place(x, y, heading_deg)
         self._run(asyncio.sleep(0))
 
-    @property
-    def contact(self):
-        """The emulated body's contact rule (simulation only; None on a real robot, whose
-        rule a user declares with ``--contact``): what the feedback filter assumes.
-        """
-        return self._emulated("contact")
-
-    @property
-    def turn_errors(self):
-        """The emulated body's declared turn errors (simulation only; None on a real robot,
-        whose errors a user declares with ``--noise``).
-        """
-        return self._emulated("turn_errors")
-
-    def _emulated(self, name: str):
-        """The emulated body's attribute ``name`` (None on a real robot or when it has none)."""
-        emulator = getattr(self.backend, "emulator", None)
-        return None if emulator is None else getattr(emulator.body, name, None)
+    def _emulator(self):
+        return getattr(self.backend, "emulator", None)
 
     def true_pose(self) -> tuple[float, float, float] | None:
         """The emulated body's pose; None on a real robot."""
