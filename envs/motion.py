@@ -550,12 +550,8 @@ class ContactParams:
         >>> rule.slide_left(1.0), rule.slide_left(4.0), rule.slide_left(8.0)
         (inf, 1.25, 0.25)
         """
-        if not self.turn_in:                     # every slide keeps its heading (the hot path)
-            return math.inf
-        a, ell = self.turn_table
-        if incidence_deg < a[0]:
-            return math.inf
-        return float(np.interp(incidence_deg, a, ell))
+        a, ell = self.turn_table if self.turn_in else ((math.inf,), ())   # none: the hot path
+        return math.inf if incidence_deg < a[0] else float(np.interp(incidence_deg, a, ell))
 
     def incidence_after(self, left_m: float) -> float:
         """[deg] the incidence of a turning-in slide with ``left_m`` [m] still to go (the
