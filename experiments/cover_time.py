@@ -11,6 +11,7 @@ disagree), config.json and cover_time.png (C(t), model against twin).
 
     python -m experiments.cover_time            # the full run (about five minutes)
     python -m experiments.cover_time --quick    # a small map, K = 72, short horizon
+    python -m experiments.cover_time --bin-length 0.01   # the model with 1 cm contact bins
 """
 
 from __future__ import annotations
@@ -49,6 +50,8 @@ class Config:
                            (:func:`envs.generated.slanted_room`, every pillar 2.2 r clear)
     model_runs : int       sampled runs (teams) of the model per record
     twin_runs : int        simulated teams per angle and team size
+    bin_length : float     [m] the event model's contact bins (its default 0.03; 0.01 closes
+                           the two-room door's gap, docs/readme_coverage.md)
     quick, seed, out
     """
 
@@ -59,6 +62,7 @@ class Config:
     slanted: int = 1
     model_runs: int = 2000
     twin_runs: int = 200
+    bin_length: float = 0.03
     quick: bool = False
     seed: int = 0
     out: Path = Path("results") / NAME
@@ -78,7 +82,7 @@ def run(config: Config) -> Path:
     t0 = time.perf_counter()
     for env in maps:
         cs = CellSpace(env)
-        model = model_for(cs, "event")
+        model = model_for(cs, "event", {"bin_length": config.bin_length})
         t1 = time.perf_counter()
         times = sorted(set(metric_times(config.horizon)) | set(config.times))
         pred = coverage_metrics(model, ANGLES, noise, robots=[1, 4], horizon=config.horizon,
@@ -159,13 +163,17 @@ def draw_figure(out: Path) -> Path:
 def main(argv=None) -> int:
     """Parse the command line into a :class:`Config` and :func:`run` it (exit status)."""
     p = experiment_parser(NAME, __doc__.split("\n\n")[0])
+    p.add_argument("--bin-length", type=float, default=0.03, metavar="M",
+                   help="the event model's contact bin length [m] (default 0.03)")
     args = p.parse_args(argv)
+    if not 0 < args.bin_length <= 0.2:
+        p.error(f"--bin-length must lie in (0, 0.2] m, got {args.bin_length:g}")
     if args.quick:
         config = Config(orientations=72, horizon=2000, times=(100, 1000, 2000), rooms=0,
                         slanted=0, model_runs=300, twin_runs=30, quick=True, seed=args.seed,
-                        out=args.out)
+                        out=args.out, bin_length=args.bin_length)
     else:
-        config = Config(seed=args.seed, out=args.out)
+        config = Config(seed=args.seed, out=args.out, bin_length=args.bin_length)
     run(config)
     return 0
 

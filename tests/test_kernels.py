@@ -121,3 +121,65 @@ def test_compiled_slides_match_advance(seed):
             assert abs(vx[i] - rv[0]) <= 1e-9 and abs(vy[i] - rv[1]) <= 1e-9
         if contact.turn_in:                         # the turn-in case is exercised
             assert (np.hypot(vx - u[:, 0], vy - u[:, 1]) > 1e-3).sum() >= 20
+
+
+def _turn_matrix_reference(n, K, steps, probs):
+    """Pre-turn (b, k) → (b, (k + step) mod K): one COO entry per state and turn, duplicates
+    summed by scipy.
+    """
+    import scipy.sparse as sp
+    i = np.arange(n)
+    cols = ((i // K)[:, None] * K + ((i % K)[:, None] + steps[None, :]) % K).ravel()
+    M = sp.csr_matrix((np.tile(probs, n), (np.repeat(i, len(steps)), cols)), shape=(n, n))
+    M.sum_duplicates()
+    return M
+
+
+@pytest.mark.parametrize("K,noise", [(8, None), (72, "model:eps=5,r=0.8"),
+                                      (72, "gauss:60"), (8, "gauss:200"),
+                                      (360, "model:eps=5,r=0.8+body")])
+def test_event_turn_matrix_equals_the_plain_construction(K, noise):
+    # the event model builds its turn matrix in CSR form directly; against one COO entry per
+    # (state, turn) with duplicates summed: the same sorted columns and the same values,
+    # including supports wider than the circle (gauss:200 at K = 8 wraps several times)
+    import envs
+    from planners.cells import CellSpace
+    from planners.coverage import TurnNoise, model_for
+    from planners.noise import parse_noise_spec
+    env = envs.Environment.from_dict({"boundary": [[0, 0], [1.8, 0], [1.8, 1.5], [0, 1.5]],
+                                      "obstacles": [[[0.8, 0.7], [1.0, 0.65], [0.9, 0.85]]],
+                                      "robot_radius": 0.17,
+                                      "discretization": {"cell_size": 0.3, "orientations": K}})
+    m = model_for(CellSpace(env), "event")
+    if noise is None:
+        nz = TurnNoise()
+    elif noise.endswith("+body"):
+        nz = parse_noise_spec(noise[:-5]).noise.with_body("gauss:0.6,offset=-1.26")
+    else:
+        nz = parse_noise_spec(noise).noise
+    for angle in (45.0, 90.0, 315.0):
+        got = m.turn_matrix(angle, nz)
+        steps, probs = nz.turns(K, angle, positive=True)
+        ref = _turn_matrix_reference(m.n_states, K, steps, probs)
+        assert got.shape == ref.shape and got.nnz == ref.nnz
+        assert np.array_equal(got.indptr, ref.indptr) and np.array_equal(got.indices, ref.indices)
+        assert np.allclose(got.data, ref.data, rtol=0, atol=1e-15)
+        assert np.allclose(np.asarray(got.sum(axis=1)).ravel(), 1.0)
+
+
+def test_block_cumsum_matches_numpy_per_block():
+    # the compiled restartable cumulative sum of the coverage sampler against np.cumsum
+    # block by block, on random blocks with empty ones and all-zero ones
+    from planners.coverage.cover_sample import _block_cumsum
+    rng = np.random.default_rng(5)
+    ptr = np.concatenate([[0], np.cumsum(rng.integers(0, 6, 400))])
+    w = rng.random(int(ptr[-1]))
+    w[rng.random(w.size) < 0.3] = 0.0
+    got = _block_cumsum(w, ptr)
+    for lo, hi in zip(ptr[:-1], ptr[1:]):
+        if hi == lo:
+            continue
+        c = np.cumsum(w[lo:hi])
+        want = c / c[-1] if c[-1] > 0 else c.copy()
+        want[-1] = 1.0
+        assert np.allclose(got[lo:hi], want, rtol=1e-12, atol=1e-15)

@@ -75,17 +75,25 @@ class SampleTables:
                    cells=cells)
 
 
+@numba.njit(cache=True)
 def _block_cumsum(w: np.ndarray, ptr: np.ndarray) -> np.ndarray:
-    """Cumulative sums of ``w`` restarted at every block of ``ptr``, each block's last
-    entry set to 1 exactly (so a uniform draw below 1 always finds an entry).
+    """Cumulative sums of ``w`` restarted at every block of ``ptr``, normalised to end at 1
+    (a block of zero weight is left unnormalised), each block's last entry set to 1 exactly
+    (so a uniform draw below 1 always finds an entry).
     """
-    c = np.cumsum(w)
-    starts = np.repeat(np.concatenate([[0.0], c])[ptr[:-1]], np.diff(ptr))
-    c = c - starts
-    tot = np.repeat(np.where(np.diff(ptr) > 0, c[np.maximum(ptr[1:] - 1, 0)], 1.0),
-                    np.diff(ptr))
-    c = c / np.where(tot > 0, tot, 1.0)
-    c[ptr[1:][np.diff(ptr) > 0] - 1] = 1.0
+    c = np.empty(w.size)
+    for b in range(ptr.size - 1):
+        lo, hi = ptr[b], ptr[b + 1]
+        if hi == lo:
+            continue
+        s = 0.0
+        for i in range(lo, hi):
+            s += w[i]
+            c[i] = s
+        if s > 0:
+            for i in range(lo, hi):
+                c[i] /= s
+        c[hi - 1] = 1.0
     return c
 
 

@@ -306,16 +306,22 @@ class EventModel:
         return cached_build(cls, cs, settings)
 
     def turn_matrix(self, angle_deg: float, noise: TurnNoise = _EXACT) -> sp.csr_matrix:
-        """Pre-turn (b, k) → post-turn (b, k + (φ+δ)/Δ) with the docs/model.md §16 probabilities."""
-        K = self.cs.K
+        """Pre-turn (b, k) → post-turn (b, k + (φ+δ)/Δ) with the docs/model.md §16 probabilities.
+
+        Built in CSR form directly (no COO sort): every row of heading k has the same
+        columns (k + steps) mod K, sorted, in every bin; offsets that wrap onto one heading
+        add up.
+        """
+        K, n = self.cs.K, self.n_states
         steps, probs = noise.turns(K, angle_deg, positive=True)
-        i = np.arange(self.n_states)
-        b, k = i // K, i % K
-        cols = (b[:, None] * K + (k[:, None] + steps[None, :]) % K).ravel()
-        M = sp.csr_matrix((np.tile(probs, i.size), (np.repeat(i, steps.size), cols)),
-                          shape=(self.n_states, self.n_states))
-        M.sum_duplicates()
-        return M
+        steps, inv = np.unique(np.asarray(steps) % K, return_inverse=True)
+        probs = np.bincount(inv.reshape(-1), probs, len(steps))
+        kc = (np.arange(K)[:, None] + steps[None, :]) % K              # (K, S)
+        order = np.argsort(kc, axis=1, kind="stable")
+        kc, kp = np.take_along_axis(kc, order, 1), probs[order]
+        indices = (np.arange(n // K)[:, None, None] * K + kc[None]).reshape(-1)
+        data = np.broadcast_to(kp[None], (n // K, K, len(steps))).reshape(-1)
+        return sp.csr_matrix((data, indices, np.arange(n + 1) * len(steps)), shape=(n, n))
 
     def delay_chain(self, noise: TurnNoise = _EXACT) -> DelayChain:
         """The model as a :class:`planners.coverage.timeshare.DelayChain`: the sampled flights with
