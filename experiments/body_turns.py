@@ -3,6 +3,7 @@ drives it to its bump, turns it by a bouncing angle and reads its true pose (doc
 §15: the heading error a feedback navigator must be told to expect).
 
     python -m experiments.body_turns [--bodies mujoco,pybullet] [--env lab] [--trials 90]
+                                     [--speed 0.3]
 
 Prints, per body and angle, the signed turn error (true turn − commanded) [deg], and the
 heading change over each flight with its bump (0 for a body that keeps its heading); then,
@@ -29,15 +30,18 @@ def _wrap(deg: float) -> float:
     return (deg + 180.0) % 360.0 - 180.0
 
 
-def measure(kind: str, env, trials: int, rng: np.random.Generator) -> pd.DataFrame:
-    """One row per trial: angle, turn_error_deg, flight_rotation_deg."""
+def measure(kind: str, env, trials: int, rng: np.random.Generator,
+            speed: float = 0.3) -> pd.DataFrame:
+    """One row per trial (the bump driven at ``speed`` [m/s]): angle, turn_error_deg,
+    flight_rotation_deg.
+    """
     from bouncesim.robots import make_robot
     rows = []
     with make_robot(kind, env) as body:
         for _ in range(trials):
             body.place(*env.random_pose(rng))
             h0 = body.true_pose()[2]
-            body.drive_until_bump(0.3, 30.0)
+            body.drive_until_bump(speed, 30.0)
             h1 = body.true_pose()[2]
             a = float(rng.choice(ANGLES))
             body.turn(a)
@@ -85,10 +89,15 @@ def main(argv: list[str] | None = None) -> int:
                    help="bodies (make_robot kinds: kinematic, pybullet, mujoco, ...)")
     p.add_argument("--env", default="lab", help="catalogue map (default lab)")
     p.add_argument("--trials", type=int, default=90, help="trials per body (default 90)")
+    p.add_argument("--speed", type=float, default=0.3,
+                   help="drive speed into each bump [m/s] (default 0.3; a body's turns after "
+                   "a bump can depend on it)")
     args = p.parse_args(argv)
+    if not 0 < args.speed <= 0.5:
+        p.error(f"--speed must lie in (0, 0.5] m/s, got {args.speed:g}")
     env = envs.load(args.env)
     trials = 10 if args.quick else args.trials
-    runs = pd.concat([measure(k, env, trials, np.random.default_rng(args.seed))
+    runs = pd.concat([measure(k, env, trials, np.random.default_rng(args.seed), args.speed)
                       for k in args.bodies], ignore_index=True)
     print(table(runs).round(2).to_string(index=False))
     for body, d in runs.groupby("body", sort=False):

@@ -206,16 +206,21 @@ class TurnNoise:
         """The noise with a body's own turn errors added (:attr:`body_sigma_deg`,
         :attr:`body_offset_deg`), from the spec the body declares (its ``turn_errors``,
         ``gauss:S,offset=O``; :func:`bouncesim.runs.feedback.body_turns`); None: unchanged.
+        A declared ``bias=B`` (how far the offset may be from O in another room or at another
+        angle, which a feedback filter learns online) is not a turn error of the coverage
+        chain: the chain takes the offset O (docs/model.md §11b).
 
         >>> TurnNoise(5, 0.8).with_body("gauss:0.6,offset=-1.26")
         TurnNoise(eps_deg=5.0, r=0.8, sigma_deg=0.0, body_sigma_deg=0.6, body_offset_deg=-1.26)
+        >>> TurnNoise(5, 0.8).with_body("gauss:0.6,offset=-1.26,bias=0.5").body_offset_deg
+        -1.26
         """
         if errors is None:
             return self
         spec = parse_noise_spec(errors)
-        if spec.kind == "model" or not spec.noise.unbiased or spec.factor not in (None, 1.0):
-            raise UserError(f"a body declares its turn errors as gauss:S,offset=O, got "
-                            f"{errors!r}.")
+        if spec.kind == "model" or spec.noise.scale or spec.factor not in (None, 1.0):
+            raise UserError(f"a body declares its turn errors as gauss:S,offset=O(,bias=B), "
+                            f"got {errors!r}.")
         return replace(self, body_sigma_deg=float(spec.noise.sigma_deg),
                        body_offset_deg=float(spec.offset_deg or 0.0))
 
@@ -424,8 +429,8 @@ TURN_KEYS = ("scale", "bias", "factor", "offset")
 
 NOISE_FORMS = ("use none, gauss:SIGMA or model:eps=E,r=R (degrees), each optionally followed "
                "by scale=S,bias=B (a turn factor unknown within 1 ± S, 0 <= S < 0.5, and an "
-               "offset unknown within ±B degrees) or factor=F,offset=O (a simulated body's "
-               "known ones), e.g. gauss:2,scale=0.1 or none:factor=1.08")
+               "offset unknown within ±B degrees) and factor=F,offset=O (known ones, or the "
+               "centres of those ranges), e.g. gauss:2,scale=0.1 or none:factor=1.08")
 """The accepted forms, as error messages name them."""
 
 
@@ -514,22 +519,21 @@ def parse_noise_spec(text) -> NoiseSpec:
     (keys in any order; ``none`` takes them after a colon or a comma: ``none:factor=1.08``,
     ``none,factor=1.08``): ``scale=S`` (the turn's constant factor f unknown within 1 ± S,
     0 <= S < 0.5) and ``bias=B`` (its constant offset b unknown within ±B [deg], B >= 0), in
-    :attr:`NoiseSpec.noise`; or a simulated body's known ``factor=F`` (F > 0) and
-    ``offset=O`` [deg], in :attr:`NoiseSpec.factor` and :attr:`NoiseSpec.offset_deg` (not
-    together with scale, respectively bias). E.g. ``gauss:2,scale=0.1``,
-    ``gauss:sigma=2,scale=0.1,bias=1``, ``model:eps=5,r=0.8,scale=0.05``,
-    ``gauss:0,factor=1.08``.
+    :attr:`NoiseSpec.noise`; and a known ``factor=F`` (F > 0) and ``offset=O`` [deg], in
+    :attr:`NoiseSpec.factor` and :attr:`NoiseSpec.offset_deg`. Given together, F and O are
+    the centres of the unknown ranges: f within F ± S, b within O ± B (a body that declares
+    its turns ``gauss:0.55,offset=-0.77,bias=0.5``: 0.77° short, give or take 0.5°). E.g.
+    ``gauss:2,scale=0.1``, ``gauss:sigma=2,scale=0.1,bias=1``,
+    ``model:eps=5,r=0.8,scale=0.05``, ``gauss:0,factor=1.08``.
 
     Raises :class:`envs.UserError` (one sentence naming the accepted forms) on anything else.
 
     >>> parse_noise_spec("model:eps=5,r=0.8,delta=1,bias=2,factor=0.92")
     NoiseSpec(kind='model', noise=TurnNoise(eps_deg=5.0, r=0.8, sigma_deg=0.0, bias_deg=2.0), \
 delta_deg=1.0, factor=0.92)
-    >>> parse_noise_spec("gauss:2,scale=0.1,factor=1.1")           # doctest: +ELLIPSIS
-    Traceback (most recent call last):
-    ...
-    envs.errors.UserError: noise 'gauss:2,scale=0.1,factor=1.1' gives both scale (an unknown \
-turn factor) and factor (a known one); give one of them: use none, ...
+    >>> parse_noise_spec("gauss:0.55,offset=-0.77,bias=0.5")
+    NoiseSpec(kind='gauss', noise=TurnNoise(eps_deg=0.0, r=1.0, sigma_deg=0.55, bias_deg=0.5), \
+delta_deg=None, offset_deg=-0.77)
     """
     s = str(text).strip().lower().replace(" ", "")
     cut = min((i for i in (s.find(":"), s.find(",")) if i >= 0), default=len(s))
@@ -564,10 +568,6 @@ turn factor) and factor (a known one); give one of them: use none, ...
     delta = params.get("delta")
     if delta is not None and not (math.isfinite(delta) and delta > 0):
         raise UserError(f"the noise quantum delta must be positive, got {delta:g}°.")
-    for unknown, known in (("scale", "factor"), ("bias", "offset")):
-        if unknown in params and known in params:
-            raise UserError(f"noise {text!r} gives both {unknown} (an unknown turn {known}) "
-                            f"and {known} (a known one); give one of them: {NOISE_FORMS}.")
     scale, bias = params.get("scale", 0.0), params.get("bias", 0.0)
     if not 0.0 <= scale < SCALE_MAX:
         raise UserError(f"the turn scale S must lie in [0, {SCALE_MAX:g}), got {scale:g}; "

@@ -45,3 +45,49 @@ def test_the_mujoco_body_turns_as_it_declares():
     assert abs(runs.turn_error_deg.mean() - declared["offset"]) <= 0.3
     scatter = math.hypot(runs.turn_error_deg.std(), runs.flight_rotation_deg.std())
     assert declared["sigma"] / 1.6 <= scatter <= declared["sigma"] * 1.6, scatter
+
+
+@pytest.mark.physics
+def test_the_mujoco_body_declares_its_turns_by_bump_speed():
+    # after a bump at 0.2 m/s (navigation's speed) the body turns less short than at 0.3 m/s
+    # (DECLARED_TURNS_AT): what `... --trials 150 --speed 0.2` prints (lab, seed 0), within
+    # 0.05°, and the two speeds' offsets apart by more than their scatter's standard error
+    pytest.importorskip("mujoco")
+    from bouncesim.robots.mujoco.robot import DECLARED_TURNS_AT, MuJoCoRobot
+    from bouncesim.runs.feedback import body_turns
+    from planners.navigation.feedback.planner import declared_turn
+    slow = declared_turn(DECLARED_TURNS_AT[0.2])
+    printed = declared_turn(declaration(measure("mujoco", envs.load("lab"), 150,
+                                                np.random.default_rng(0), speed=0.2)))
+    assert abs(printed["offset"] - slow["offset"]) <= 0.05
+    assert abs(printed["sigma"] - slow["sigma"]) <= 0.05
+    assert slow["offset"] - declared_turn(DECLARED_TURNS_AT[0.3])["offset"] > 0.3
+    with MuJoCoRobot("lab") as bot:
+        assert body_turns(bot, 0.2) == DECLARED_TURNS_AT[0.2]
+        assert body_turns(bot, 0.3) == body_turns(bot) == bot.turn_errors
+        assert body_turns(bot, 0.25) is None          # no measurement at that speed
+
+
+def test_body_turns_follows_a_wrapper_to_the_speed_of_its_body():
+    # FaultyRobot passes the wrapped body's speed-dependent declarations through; a body
+    # with only a fixed declaration gives it at every speed
+    from bouncesim.robots.faulty import FaultyRobot
+    from bouncesim.runs.feedback import body_contact, body_turns
+
+    class Fixed:
+        env = envs.load("lab")
+        turn_errors, contact, spec = "gauss:0.3,offset=-0.2", None, None
+
+    class BySpeed(Fixed):
+        def turn_errors_at(self, speed):
+            return {0.2: "gauss:0.5,offset=-0.7"}.get(speed)
+
+        def contact_at(self, speed):
+            return None
+
+    assert body_turns(Fixed(), 0.2) == "gauss:0.3,offset=-0.2"
+    assert body_turns(BySpeed(), 0.2) == "gauss:0.5,offset=-0.7"
+    assert body_turns(BySpeed(), 0.3) is None and body_turns(BySpeed()) == Fixed.turn_errors
+    wrapped = FaultyRobot(BySpeed())
+    assert body_turns(wrapped, 0.2) == "gauss:0.5,offset=-0.7"
+    assert body_contact(wrapped, 0.2) is None

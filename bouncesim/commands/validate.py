@@ -165,9 +165,10 @@ def register(sub) -> None:
     add_contact_arg(p, auto=True, what=" of the event model and the twin")
     p.add_argument("--body-turns", choices=("auto", "off"), default="auto",
                    help="auto (default): the model adds the simulated body's own declared "
-                   "turn errors to --eps/--r (docs/model.md section 11b; MuJoCo's: "
-                   "gauss:0.6,offset=-1.26, its turns by clock 1.26 deg short); off: the model "
-                   "assumes the body turns exactly as --eps/--r say")
+                   "turn errors at --speed to --eps/--r (docs/model.md section 11b; MuJoCo's "
+                   "at 0.3 m/s: gauss:0.6,offset=-1.26, its turns by clock 1.26 deg short, at "
+                   "0.2 m/s 0.77 deg; none declared at other speeds); off: the model assumes "
+                   "the body turns exactly as --eps/--r say")
     p.add_argument("--seed", type=int, default=0, help="root seed (default 0)")
     p.add_argument("--out", type=Path, default=None, metavar="DIR",
                    help="keep the sweep's journal, runs.csv and config.json here (a re-run "
@@ -335,14 +336,15 @@ def _check(args) -> None:
     args.interact = args.interact or "bump"
 
 
-def body_turn_errors(backend: str) -> str | None:
-    """The turn errors a simulated body of ``backend`` declares of itself (a noise spec,
-    docs/model.md §11b): MuJoCo's ``DECLARED_TURNS``; None for the twin and PyBullet, whose
+def body_turn_errors(backend: str, speed: float = 0.3) -> str | None:
+    """The turn errors a simulated body of ``backend`` declares of itself after bumps driven
+    at ``speed`` [m/s] (a noise spec, docs/model.md §11b): MuJoCo's ``DECLARED_TURNS_AT``
+    (0.3 and 0.2 m/s; None at a speed not measured); None for the twin and PyBullet, whose
     turns are exact or nearly (PyBullet: −0.23° ± 0.28°).
     """
     if backend == "mujoco":
-        from ..robots.mujoco.robot import DECLARED_TURNS
-        return DECLARED_TURNS
+        from ..robots.mujoco.robot import declared_turns_at
+        return declared_turns_at(speed)
     return None
 
 
@@ -353,7 +355,8 @@ def run(args) -> int:
     cs = make_cells(args, env)
     noise = TurnNoise(args.eps, args.r)
     angles = check_angles(cs.K, parse_angles(args.angles), noise)
-    body_turns = body_turn_errors(args.backend) if args.body_turns == "auto" else None
+    body_turns = body_turn_errors(args.backend, args.speed) if args.body_turns == "auto" \
+        else None
     noise = noise.with_body(body_turns)      # the model's: the body's own errors added
     out = writable_path(args.out, folder=True) if args.out is not None else None
     backend = args.backend

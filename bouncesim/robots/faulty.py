@@ -86,6 +86,20 @@ class FaultyRobot(Robot):
         """The wrapped body's declared turn errors (a noise spec), if any."""
         return getattr(self.body, "turn_errors", None)
 
+    def contact_at(self, speed: float | None):
+        """The wrapped body's contact rule at drive ``speed`` (its ``contact_at``, else its
+        ``contact``).
+        """
+        at = getattr(self.body, "contact_at", None)
+        return at(speed) if callable(at) else self.contact
+
+    def turn_errors_at(self, speed: float | None):
+        """The wrapped body's turn errors after a bump at ``speed`` (its ``turn_errors_at``,
+        else its ``turn_errors``).
+        """
+        at = getattr(self.body, "turn_errors_at", None)
+        return at(speed) if callable(at) else self.turn_errors
+
     def drive(self, speed: float) -> None:
         """The wrapped body's ``drive``."""
         self.body.drive(speed)

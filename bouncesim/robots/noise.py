@@ -226,8 +226,9 @@ class ScaledNoise(NoiseModel):
     ``base.sample(rng, f·φ + b)``, i.e. the base model's noise is drawn on the scaled and
     offset command (for Gaussian and exact bases: f·φ + b + δ).
 
-    f and b are known (``factor``, ``offset_deg``) or unknown within 1 ± ``scale`` and
-    ±``bias_deg``: then the body draws them, uniformly, once per rng: at its first turn (or
+    f and b are known (``factor``, ``offset_deg``) or unknown within ``factor`` ± ``scale``
+    and ``offset_deg`` ± ``bias_deg`` (the centres 1 and 0 when not given): then the body
+    draws them, uniformly, once per rng: at its first turn (or
     :meth:`draw`), from that rng, factor first, before the base's draw; every later turn with
     the same rng keeps them. A body's randomness thus comes only from its rng (the same seed
     gives the same f and b), and one model shared by several bodies (each with its own rng,
@@ -238,12 +239,11 @@ class ScaledNoise(NoiseModel):
     Parameters
     ----------
     base : NoiseModel        the scatter (default exact turns)
-    factor : float or None   known factor F > 0; None: 1, or drawn within 1 ± ``scale``
+    factor : float or None   known factor F > 0, or the centre of an unknown one; None: 1
     offset_deg : float or None
-        known offset O [deg]; None: 0, or drawn within ±``bias_deg``
-    scale : float            half-range S in [0, 0.5) of an unknown factor (not with ``factor``)
-    bias_deg : float         half-range B >= 0 [deg] of an unknown offset (not with
-                             ``offset_deg``)
+        known offset O [deg], or the centre of an unknown one; None: 0
+    scale : float            half-range S in [0, 0.5) of an unknown factor (within F ± S)
+    bias_deg : float         half-range B >= 0 [deg] of an unknown offset (within O ± B)
 
     Examples
     --------
@@ -282,17 +282,10 @@ class ScaledNoise(NoiseModel):
         TurnNoise(scale=self.scale, bias_deg=self.bias_deg)      # checks S and B
         if self.factor is not None and self.factor <= 0:
             raise UserError(f"the turn factor F must be positive, got {self.factor:g}.")
-        if self.factor is not None and self.scale:
-            raise UserError("a turn factor is either known (factor) or unknown within a scale "
-                            "(scale), not both.")
-        if self.offset_deg is not None and self.bias_deg:
-            raise UserError("a turn offset is either known (offset) or unknown within a bias "
-                            "(bias), not both.")
 
     @property
     def _unknown(self) -> bool:
-        return (self.factor is None and self.scale > 0) or \
-            (self.offset_deg is None and self.bias_deg > 0)
+        return self.scale > 0 or self.bias_deg > 0
 
     @property
     def _known(self) -> tuple[float, float]:
@@ -322,11 +315,11 @@ class ScaledNoise(NoiseModel):
                             "Generator or an int seed) to draw it.")
         got = self._draws.get(id(rng))
         if got is None:
-            f, b = self._known
-            if self.factor is None and self.scale > 0:
-                f = float(rng.uniform(1.0 - self.scale, 1.0 + self.scale))
-            if self.offset_deg is None and self.bias_deg > 0:
-                b = float(rng.uniform(-self.bias_deg, self.bias_deg))
+            f, b = self._known                              # the centres
+            if self.scale > 0:
+                f = float(rng.uniform(f - self.scale, f + self.scale))
+            if self.bias_deg > 0:
+                b = float(rng.uniform(b - self.bias_deg, b + self.bias_deg))
             got = self._draws[id(rng)] = (rng, f, b)       # the rng kept: its id stays unique
         self._draws[None] = got
         return got[1], got[2]
@@ -386,8 +379,9 @@ def parse_noise(text: str, delta_deg: float | None = None) -> NoiseModel:
     (:func:`planners.noise.parse_noise_spec`): ``none`` | ``gauss:SIGMA`` |
     ``model:eps=E,r=R`` (optionally ``,delta=D``; by default Δ is ``delta_deg``, the
     environment's 360°/K), each optionally followed by the turn keys: ``scale=S``,
-    ``bias=B`` (the body draws f within 1 ± S and b within ±B once, at its first turn) or the
-    known ``factor=F``, ``offset=O`` (``none:factor=F``), giving a :class:`ScaledNoise` (the
+    ``bias=B`` (the body draws f within 1 ± S and b within ±B once, at its first turn), the
+    known ``factor=F``, ``offset=O`` (``none:factor=F``), or both (f within F ± S, b within
+    O ± B), giving a :class:`ScaledNoise` (the
     plain model when f = 1 and b = 0 are known).
 
     Raises

@@ -118,15 +118,19 @@ def body_contact(robot, speed: float | None = None) -> ContactParams | None:
     return rule if isinstance(rule, ContactParams) else None
 
 
-def body_turns(robot) -> str | None:
+def body_turns(robot, speed: float | None = None) -> str | None:
     """The turn errors a body declares of itself (docs/model.md §15, "A body's own turns"):
-    its ``turn_errors`` attribute, a noise spec in the one grammar
-    (:func:`planners.noise.parse_noise_spec`), e.g. ``"gauss:0.6,offset=-1.26"`` for a body
-    whose turns are measured 1.26° short with a scatter of 0.6°
-    (``python -m experiments.body_turns``). The filter adds them to the declared noise. None
-    (a body that declares nothing: the twin, a real robot): exact turns of its own.
+    for a body whose turns depend on the speed [m/s] of the drive into the bump before them
+    (MuJoCo's) its ``turn_errors_at(speed)``; else its ``turn_errors`` attribute, a noise
+    spec in the one grammar (:func:`planners.noise.parse_noise_spec`), e.g.
+    ``"gauss:0.6,offset=-1.26"`` for a body whose turns are measured 1.26° short with a
+    scatter of 0.6° (``python -m experiments.body_turns``). The filter adds them to the
+    declared noise. None (a body that declares nothing: the twin, a real robot): exact turns
+    of its own.
     """
-    errors = getattr(robot, "turn_errors", None)
+    at = getattr(robot, "turn_errors_at", None)
+    errors = at(speed) if callable(at) and speed is not None else \
+        getattr(robot, "turn_errors", None)
     return errors if isinstance(errors, str) else None
 
 
@@ -160,7 +164,8 @@ class FeedbackRunner:
         self.back_off, self.rng = float(back_off), planner.rng
         self.contact = planner.resolved(body_contact(robot, speed))
         self.fnav = planner.navigator(policy.goal, self.contact, policy.max_bumps,
-                                      body_turns(robot) if planner.config.body_turns else None)
+                                      body_turns(robot, speed) if planner.config.body_turns
+                                      else None)
         self.cfg = self.fnav.cfg
         if self.fnav.by_value:
             _ = self.fnav.value                 # set-up before the robot moves, not a decision

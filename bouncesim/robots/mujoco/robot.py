@@ -37,7 +37,8 @@ from ..noise import NoiseModel, noise_and_rng
 from ..stepped import SETTLE_STEPS, SteppedWheels
 from .world import CONTACT_MARGIN, BodyParams, world_xml
 
-__all__ = ["MuJoCoRobot", "DECLARED_TURNS", "DEFAULT_TIME_STEP", "DEFAULT_TURN_SPEED",
+__all__ = ["MuJoCoRobot", "DECLARED_TURNS", "DECLARED_TURNS_AT", "declared_turns_at",
+           "DEFAULT_TIME_STEP", "DEFAULT_TURN_SPEED",
            "import_mujoco", "SETTLE_STEPS", "Bodies"]
 
 DEFAULT_TIME_STEP = 1 / 200
@@ -52,7 +53,34 @@ by ``python -m experiments.body_turns --bodies mujoco --trials 150`` (seed 0, la
 turns end 1.26° short of the command (45°: −1.07°, 90°: −1.35°, 135°: −1.31°: an offset,
 not a factor) with a scatter of 0.38°, and a flight with its bump turns it by 0.46° (sd, up
 to 4.1°); the scatter declared is the two in quadrature. It is what that command prints as
-the body's declaration (tests/test_body_turns.py keeps it so, and checks it on fig1)."""
+the body's declaration (tests/test_body_turns.py keeps it so, and checks it on fig1).
+These are its turns after a bump driven at 0.3 m/s (``validate``'s speed); after a bump at
+0.2 m/s it turns less short (:data:`DECLARED_TURNS_AT`)."""
+
+DECLARED_TURNS_AT = {
+    0.3: DECLARED_TURNS,
+    0.2: "gauss:0.55,offset=-0.77,bias=0.5",
+}
+"""The default body's turn errors by the speed [m/s] of the drive into the bump before the
+turn (:meth:`MuJoCoRobot.turn_errors_at`): ``python -m experiments.body_turns --bodies mujoco
+--trials 150 --speed V`` (seed 0, lab). At 0.2 m/s (navigation's speed) its turns end 0.77°
+short (45°: −0.60°, 90°: −0.85°, 135°: −0.82°), not 1.26°: told the 0.3 m/s offset, a
+feedback filter's heading drifted by 0.5° per turn where the flights do not measure it
+(docs/readme_feedback.md, "MuJoCo"). ``bias=0.5``: the offset lies up to 0.27° from the
+mean between angles and rooms (studio: −0.50° in a navigation run), so a filter learns it
+within ±0.5° (the coverage chain takes the offset, docs/model.md §11b)."""
+
+
+def declared_turns_at(speed: float | None) -> str | None:
+    """The default body's declared turn errors after a bump driven at ``speed`` [m/s]
+    (:data:`DECLARED_TURNS_AT`, within 0.01 m/s); None at a speed not measured.
+    """
+    if speed is None:
+        return None
+    for v, spec in DECLARED_TURNS_AT.items():
+        if abs(float(speed) - v) <= 0.01:
+            return spec
+    return None
 
 
 def import_mujoco():
@@ -206,6 +234,13 @@ class MuJoCoRobot(SteppedWheels, Robot):
             if abs(float(speed) - v) <= 0.01:
                 return rule
         return None
+
+    def turn_errors_at(self, speed: float | None) -> str | None:
+        """The turn errors (a noise spec) this body declares after a bump driven at ``speed``
+        [m/s] (:data:`DECLARED_TURNS_AT`, within 0.01 m/s) at the default settings
+        (:attr:`turn_errors`' condition); else None, nothing declared.
+        """
+        return None if self.turn_errors is None else declared_turns_at(speed)
 
     def __init__(self, env: Environment | str, noise: NoiseModel | None = None,
                  rng: np.random.Generator | int | None = None, *,
