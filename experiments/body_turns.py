@@ -87,7 +87,8 @@ def main(argv: list[str] | None = None) -> int:
     p = experiment_parser("body_turns", __doc__.split("\n\n")[0])
     p.add_argument("--bodies", type=name_list, default=("mujoco", "pybullet"),
                    help="bodies (make_robot kinds: kinematic, pybullet, mujoco, ...)")
-    p.add_argument("--env", default="lab", help="catalogue map (default lab)")
+    p.add_argument("--env", default="lab",
+                   help="catalogue map or env file (default lab)")
     p.add_argument("--trials", type=int, default=90, help="trials per body (default 90)")
     p.add_argument("--speed", type=float, default=0.3,
                    help="drive speed into each bump [m/s] (default 0.3; a body's turns after "
@@ -95,7 +96,10 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     if not 0 < args.speed <= 0.5:
         p.error(f"--speed must lie in (0, 0.5] m/s, got {args.speed:g}")
-    env = envs.load(args.env)
+    try:
+        env = envs.load(args.env)
+    except envs.UserError as err:
+        p.error(str(err))
     trials = 10 if args.quick else args.trials
     runs = pd.concat([measure(k, env, trials, np.random.default_rng(args.seed), args.speed)
                       for k in args.bodies], ignore_index=True)
