@@ -51,9 +51,11 @@ def test_the_mujoco_body_turns_as_it_declares():
 def test_the_mujoco_body_declares_its_turns_by_bump_speed():
     # after a bump at 0.2 m/s (navigation's speed) the body turns less short than at 0.3 m/s
     # (DECLARED_TURNS_AT): what `... --trials 150 --speed 0.2` prints (lab, seed 0), within
-    # 0.05°, and the two speeds' offsets apart by more than their scatter's standard error
+    # 0.05°, and the two speeds' offsets more than 0.3° apart; a feedback run at each speed
+    # assumes that speed's declaration
     pytest.importorskip("mujoco")
     from bouncesim.robots.mujoco.robot import DECLARED_TURNS_AT, MuJoCoRobot
+    from bouncesim.runs.execute import navigate_feedback
     from bouncesim.runs.feedback import body_turns
     from planners.navigation.feedback.planner import declared_turn
     slow = declared_turn(DECLARED_TURNS_AT[0.2])
@@ -66,6 +68,12 @@ def test_the_mujoco_body_declares_its_turns_by_bump_speed():
         assert body_turns(bot, 0.2) == DECLARED_TURNS_AT[0.2]
         assert body_turns(bot, 0.3) == body_turns(bot) == bot.turn_errors
         assert body_turns(bot, 0.25) is None          # no measurement at that speed
+        for speed in (0.2, 0.3):                       # one bump each: what the filter assumed
+            run = navigate_feedback(bot, bot.env, 8, 0, None, np.random.default_rng(1),
+                                    speed=speed, max_bumps=1)
+            told = declared_turn(DECLARED_TURNS_AT[speed])
+            assert run.assumed_turns["offset"] == pytest.approx(told["offset"])
+            assert run.assumed_turns["bias"] == pytest.approx(told["bias"])
 
 
 def test_body_turns_follows_a_wrapper_to_the_speed_of_its_body():
