@@ -482,3 +482,29 @@ def test_an_output_file_in_a_new_folder_says_it_made_the_folder(tmp_path, capsys
     assert main(["coverage", "lab", "--angles", "90", "--orientations", "8", "--eps", "45",
                  "--no-plots", "--out", str(tmp_path / "cov")]) == 0
     assert "created the folder" not in capsys.readouterr().err
+
+
+def test_run_plan_feedback_takes_the_robots_rule_and_mujocos_rule_follows_speed():
+    # run-plan's --contact defaults to auto: the feedback planner then takes the executing
+    # body's declared rule when it runs (at --speed), the exact planner plans without one;
+    # an explicit --contact mujoco is MuJoCo's rule at the command's speed (run-plan 0.2 m/s,
+    # validate 0.3 m/s), and a speed with no fitted rule says which one it used
+    from bouncesim.cli import build_parser
+    from bouncesim.commands.common import _PENDING, contact_name, contact_rule
+    from bouncesim.commands.plan import make_planner_of
+    from envs.motion import MUJOCO_CONTACT, MUJOCO_CONTACTS
+    p = build_parser()
+    base = ["run-plan", "lab", "--angles", "45,90,135", "--start", "8", "--goal", "0"]
+    fb = p.parse_args(base + ["--planner", "feedback"])
+    assert fb.contact == "auto" and make_planner_of(fb).contact == "auto"
+    assert make_planner_of(p.parse_args(base + ["--planner", "exact"])).contact is None
+    slow = p.parse_args(base + ["--planner", "feedback", "--contact", "mujoco"])
+    assert contact_rule(slow) == MUJOCO_CONTACTS[0.2] != MUJOCO_CONTACT
+    assert contact_name(contact_rule(slow)) == "mujoco"
+    val = p.parse_args(["validate", "lab", "--angles", "30", "--backend", "mujoco"])
+    assert contact_rule(val) == MUJOCO_CONTACT
+    _PENDING.clear()
+    odd = p.parse_args(base + ["--contact", "mujoco", "--speed", "0.15"])
+    assert contact_rule(odd) == MUJOCO_CONTACTS[0.2]
+    assert any("0.2 m/s rule is used" in line for line in _PENDING)
+    _PENDING.clear()

@@ -24,7 +24,7 @@ from bouncesim.runs.metadata import write_config as save_config
 from bouncesim.runs.options import parse_angles
 from envs import UserError
 from envs.diagnostics import diagnose
-from envs.motion import MUJOCO_CONTACT, PYBULLET_CONTACT, ContactParams
+from envs.motion import MUJOCO_CONTACT, MUJOCO_CONTACTS, PYBULLET_CONTACT, ContactParams
 from planners.cells import CellSpace
 from planners.coverage import MODELS
 from planners.resources import (
@@ -73,18 +73,20 @@ CONTACT_RULES = {"off": None, "pybullet": PYBULLET_CONTACT, "mujoco": MUJOCO_CON
 """The contact rules of ``--contact`` (docs/model.md §9)."""
 
 
-def add_contact_arg(p: argparse.ArgumentParser, auto: bool = False, what: str = "") -> None:
+def add_contact_arg(p: argparse.ArgumentParser, auto: bool = False, what: str = "",
+                    auto_text: str = "the rule of --backend pybullet or mujoco, else off"
+                    ) -> None:
     """--contact: the executing robot's contact rule (docs/model.md §9) for a model or a
-    planner; with ``auto`` also the choice "auto" (on with --backend pybullet) as default.
+    planner; with ``auto`` also the choice "auto" (``auto_text`` says what it means) as
+    default.
     """
     choices = ("auto", *CONTACT_RULES) if auto else tuple(CONTACT_RULES)
     p.add_argument("--contact", choices=choices, default=choices[0],
                    help=f"contact rule{what} (docs/model.md section 9): off = every front "
                    "contact bumps, pybullet = PyBullet's fitted bumper arc: glancing contacts "
-                   "slide on, mujoco = MuJoCo's: glancing contacts slide while turning into "
-                   "the wall, then bump" + (
-                       "; auto (default) = the rule of --backend pybullet or mujoco, else off"
-                       if auto else " (default off)"))
+                   "slide on, mujoco = MuJoCo's at --speed: glancing contacts slide while "
+                   "turning into the wall, then bump" + (
+                       f"; auto (default) = {auto_text}" if auto else " (default off)"))
 
 
 def contact_rule(args: argparse.Namespace) -> ContactParams | None:
@@ -105,14 +107,27 @@ def contact_rule(args: argparse.Namespace) -> ContactParams | None:
         users = ", ".join(n for n, c in MODELS.items() if c.contact_rule)
         raise UserError(f"the contact rule is part of the {users} model only, not the "
                         f"{model} model.")
+    speed = getattr(args, "speed", None)
+    if choice == "mujoco" and speed is not None:      # MuJoCo's rule depends on the speed
+        for v, rule in MUJOCO_CONTACTS.items():
+            if abs(float(speed) - v) <= 0.01:
+                return rule
+        near = min(MUJOCO_CONTACTS, key=lambda v: abs(v - float(speed)))
+        warn(f"MuJoCo's contact rule is fitted at {', '.join(map(str, MUJOCO_CONTACTS))} m/s "
+             f"only; at --speed {speed:g} the {near:g} m/s rule is used.")
+        return MUJOCO_CONTACTS[near]
     return CONTACT_RULES[choice]
 
 
 def contact_name(contact: ContactParams | None) -> str:
-    """The ``--contact`` name of a rule ("off", "pybullet", "mujoco"), else its text."""
+    """The ``--contact`` name of a rule ("off", "pybullet", "mujoco" for MuJoCo's at any
+    fitted speed), else its text.
+    """
     for name, rule in CONTACT_RULES.items():
         if rule == contact:
             return name
+    if contact in MUJOCO_CONTACTS.values():
+        return "mujoco"
     return contact.text
 
 

@@ -108,9 +108,11 @@ def make_planner_of(args, cells: CellSpace | None = None, rng=None, noise=None):
             parse_noise(getattr(args, "noise", "none"), cells.delta_deg)
     if "rng" in cls.needs:              # its particles: a stream of their own from --seed
         kw["rng"] = rng if rng is not None else np.random.default_rng([args.seed, 20])
-    if "contact" in cls.needs and hasattr(args, "contact"):
-        kw["contact"] = contact
     params = inspect.signature(cls).parameters
+    if "contact" in cls.needs and hasattr(args, "contact"):
+        # "auto" for a planner that resolves it itself (feedback: the executing body's rule)
+        takes_auto = "contact" in params and params["contact"].default == "auto"
+        kw["contact"] = "auto" if args.contact == "auto" and takes_auto else contact
     for opt in ("particles", "slack"):
         if opt in params and hasattr(args, opt):
             kw[opt] = getattr(args, opt)

@@ -62,8 +62,10 @@ def register(sub) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter)
     add_env_args(p)
     add_planner_args(p)
-    add_contact_arg(p, what=" the exact and reliable planners plan for (pybullet: the rule "
-                    "--robot pybullet follows)")
+    add_contact_arg(p, auto=True, what=" the planner assumes (pybullet: the rule --robot "
+                    "pybullet follows)", auto_text="feedback: the robot's own declared rule "
+                    "at --speed (PyBullet's, MuJoCo's; none for the twin and real robots), "
+                    "exact and reliable: off")
     p.add_argument("--turn-sigma", type=float, default=None, metavar="DEG",
                    help="closed-loop planners (feedback): the turn noise σ [deg] the filter "
                    "assumes (default: the σ of --noise; set it on a real robot)")
