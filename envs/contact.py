@@ -53,12 +53,28 @@ from .motion import (
     drive_distance,
 )
 
-__all__ = ["advance", "advance_many", "slide_on", "front_contacts", "closes_bumper", "switches",
-           "leg_point", "leg_length", "ContactFlights", "contact_flights", "glancing"]
+__all__ = ["at_speed", "advance", "advance_many", "slide_on", "front_contacts", "closes_bumper",
+           "switches", "leg_point", "leg_length", "ContactFlights", "contact_flights", "glancing"]
 
 _MAX_EVENTS = 1000       # contacts handled within one drive (collinear wall pieces add events)
 _SAME_CONTACT = 1e-5     # [m] contacts closer than this are one (a side's end and its vertex)
 _CHUNK = 4096            # rays per vectorised feature cast
+
+
+def at_speed(table: dict, speed: float | None, tol: float = 0.01):
+    """The entry of ``table`` (keyed by drive speed [m/s]) measured at ``speed``, within
+    ``tol``; None when ``speed`` is None or nothing was measured there. A body's contact
+    rule and turn errors are declared per speed this way (docs/model.md §9, §15).
+
+    >>> at_speed({0.3: "a", 0.2: "b"}, 0.205), at_speed({0.3: "a"}, 0.25)
+    ('b', None)
+    """
+    if speed is None:
+        return None
+    for v, entry in table.items():
+        if abs(float(speed) - v) <= tol:
+            return entry
+    return None
 
 
 def front_contacts(caster: WallCaster, x: float, y: float, ux: float, uy: float

@@ -23,6 +23,7 @@ from bouncesim.runs.metadata import provenance
 from bouncesim.runs.metadata import write_config as save_config
 from bouncesim.runs.options import parse_angles
 from envs import UserError
+from envs.contact import at_speed
 from envs.diagnostics import diagnose
 from envs.motion import MUJOCO_CONTACT, MUJOCO_CONTACTS, PYBULLET_CONTACT, ContactParams
 from planners.cells import CellSpace
@@ -109,9 +110,9 @@ def contact_rule(args: argparse.Namespace) -> ContactParams | None:
                         f"{model} model.")
     speed = getattr(args, "speed", None)
     if choice == "mujoco" and speed is not None:      # MuJoCo's rule depends on the speed
-        for v, rule in MUJOCO_CONTACTS.items():
-            if abs(float(speed) - v) <= 0.01:
-                return rule
+        rule = at_speed(MUJOCO_CONTACTS, speed)
+        if rule is not None:
+            return rule
         near = min(MUJOCO_CONTACTS, key=lambda v: abs(v - float(speed)))
         warn(f"MuJoCo's contact rule is fitted at {', '.join(map(str, MUJOCO_CONTACTS))} m/s "
              f"only; at --speed {speed:g} the {near:g} m/s rule is used.")

@@ -28,7 +28,7 @@ import numpy as np
 import shapely
 
 from envs import Environment, UserError
-from envs.contact import switches
+from envs.contact import at_speed, switches
 from envs.motion import MUJOCO_CONTACTS, ContactParams
 from planners.measures import wrap180
 
@@ -75,12 +75,7 @@ def declared_turns_at(speed: float | None) -> str | None:
     """The default body's declared turn errors after a bump driven at ``speed`` [m/s]
     (:data:`DECLARED_TURNS_AT`, within 0.01 m/s); None at a speed not measured.
     """
-    if speed is None:
-        return None
-    for v, spec in DECLARED_TURNS_AT.items():
-        if abs(float(speed) - v) <= 0.01:
-            return spec
-    return None
+    return at_speed(DECLARED_TURNS_AT, speed)
 
 
 def import_mujoco():
@@ -228,12 +223,7 @@ class MuJoCoRobot(SteppedWheels, Robot):
         0.3 m/s, within 0.01 m/s) at the default settings (:attr:`turn_errors`' condition);
         else None, nothing declared.
         """
-        if self.turn_errors is None or speed is None:
-            return None
-        for v, rule in MUJOCO_CONTACTS.items():
-            if abs(float(speed) - v) <= 0.01:
-                return rule
-        return None
+        return None if self.turn_errors is None else at_speed(MUJOCO_CONTACTS, speed)
 
     def turn_errors_at(self, speed: float | None) -> str | None:
         """The turn errors (a noise spec) this body declares after a bump driven at ``speed``
