@@ -99,3 +99,20 @@ def test_body_turns_follows_a_wrapper_to_the_speed_of_its_body():
     wrapped = FaultyRobot(BySpeed())
     assert body_turns(wrapped, 0.2) == "gauss:0.5,offset=-0.7"
     assert body_contact(wrapped, 0.2) is None
+
+
+@pytest.mark.physics
+def test_contact_flights_agree_away_from_the_bump_angle(capsys):
+    # experiments.contact_flights: PyBullet and the twin with PyBullet's rule, one flight
+    # from the same glancing pose at 13°–20° (well above β): both bodies bump at the wall
+    # and end within 2 cm of each other; a bad --incidence is one sentence, exit 2
+    pytest.importorskip("pybullet")
+    from experiments.contact_flights import compare, glancing_starts, main
+    env = envs.load("lab")
+    starts = glancing_starts(env, 8, (13.0, 20.0), np.random.default_rng(2))
+    assert len(starts) == 8 and all(13 <= s[3] < 20 for s in starts)
+    runs = compare(env, "pybullet", starts)
+    assert (runs.apart_m < 0.02).all(), runs
+    with pytest.raises(SystemExit) as stop:
+        main(["--incidence", "20,5"])
+    assert stop.value.code == 2 and "--incidence" in capsys.readouterr().err
