@@ -566,8 +566,8 @@ class ContactParams:
 
 PYBULLET_CONTACT = ContactParams()
 """The PyBullet Create 2's fitted contact rule (±80° bumper arc, frictionless walls; fit of
-144 trials at 0.3 m/s: β = 9.62°, μ = 0.0062, rounded). While sliding, its heading drifts
-into the wall by about 0.1°/m, so a slide near β ends in a bump after 0.6–2.7 m."""
+144 trials at 0.3 m/s: β = 9.62°, μ = 0.0062, rounded). Its slides below 10.44° turn into
+the wall and bump after 5.7–0.05 m (docs/model.md Appendix B), not modelled here."""
 
 MUJOCO_CONTACT = ContactParams(
     beta_deg=10.44, slide_friction=0.14,

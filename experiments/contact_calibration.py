@@ -16,7 +16,8 @@ and fits the two numbers a contact rule needs (:class:`envs.motion.ContactParams
   the wall while sliding (least squares over the sliding trials; μ = 0 is a frictionless
   slide that keeps the along-wall component of the drive).
 
-Each trial places the robot in a 6 m × 1.5 m room facing the bottom wall at incidence α, its
+Each trial places the robot in a 6 m × 1.5 m room (longer for a ``--slide-budget`` above
+4.5 m) facing the bottom wall at incidence α, its
 body edge a random gap g ~ U(0.5, 5) mm from the wall (so the contact falls at a random phase
 of the 15 ms bumper poll), drives at ``speed`` and polls every 15 ms: the first wall contact,
 its bearing, then either a bump (the bumper closes) or a slide of ``slide_budget`` along the
@@ -29,7 +30,11 @@ trial), ``fit.csv`` (bump rate and means per incidence), ``config.json`` (parame
 fitted ``beta_deg`` and ``slide_friction``, versions, git revision) and ``contact.png`` (bump
 rate, slide length, heading change and speed factor against incidence, from the CSV alone).
 
-``--quick``: 12 incidences, 2 trials each.
+``--quick``: 12 incidences, 2 trials each. ``--incidences A,B,...`` chooses them,
+``--slide-budget M`` lets slides run M metres (PyBullet's slides from 9° bump only after
+5.7 m), ``--wall south|east|north|west`` calibrates on another wall of a square room
+(docs/model.md Appendix B: PyBullet's slides turn into walls at rates that depend on their
+direction in the world).
 """
 
 from __future__ import annotations
@@ -43,10 +48,10 @@ import pandas as pd
 
 import envs
 from envs.motion import MUJOCO_CONTACT, PYBULLET_CONTACT
-from experiments.common import experiment_parser, output_dir, write_config
+from experiments.common import experiment_parser, name_list, output_dir, write_config
 
-__all__ = ["BACKENDS", "INCIDENCES", "QUICK_INCIDENCES", "Config", "draw_figure", "fit", "main",
-           "make_body", "run",
+__all__ = ["BACKENDS", "INCIDENCES", "QUICK_INCIDENCES", "WALLS", "Config", "OnWall",
+           "draw_figure", "fit", "main", "make_body", "run",
            "trial", "wall_room"]
 
 NAME = "contact_calibration"
@@ -58,20 +63,74 @@ MUJOCO_SLIDES = ((1.0, 0.45), (3.0, 1.21), (10.0, 1.46))
 """(incidence [deg], slide [m]) of the separate MuJoCo check quoted in the issue."""
 
 
-def wall_room() -> envs.Environment:
-    """A 6 m × 1.5 m empty room; the bottom wall (y = 0) is the calibration wall."""
-    return envs.Environment.from_dict({"name": "wall", "boundary": [[0, 0], [6, 0], [6, 1.5],
+def wall_room(length: float = 6.0) -> envs.Environment:
+    """An empty room ``length`` [m] × 1.5 m; the bottom wall (y = 0) is the calibration wall."""
+    L = float(length)
+    return envs.Environment.from_dict({"name": "wall", "boundary": [[0, 0], [L, 0], [L, 1.5],
                                                                     [0, 1.5]],
                                        "robot_radius": 0.17})
 
 
-def make_body(backend: str, bumper_arc_deg: float):
-    """The calibrated body in :func:`wall_room`: a PyBullet or a MuJoCo Create 2."""
+WALLS = {"south": 0.0, "east": 90.0, "north": 180.0, "west": 270.0}
+"""The calibration wall, by the angle [deg] a square room is turned to bring the south wall
+there: a slide runs counter-clockwise round the room, the wall on the body's right."""
+
+
+class OnWall:
+    """A body in a square room of side ``side`` [m], seen in the frame of one of its walls:
+    that wall is y = 0 and the slide runs along +x, so :func:`trial` runs unchanged on every
+    wall (the bumper and the contact bearings do not depend on the frame).
+    """
+
+    def __init__(self, bot, wall: str, side: float) -> None:
+        self.bot, self.c = bot, float(side) / 2
+        self.phi = WALLS[wall]
+        a = math.radians(self.phi)
+        self._cs = (math.cos(a), math.sin(a))
+
+    def __getattr__(self, name):
+        return getattr(self.bot, name)
+
+    def __enter__(self):
+        self.bot.__enter__()
+        return self
+
+    def __exit__(self, *exc):
+        return self.bot.__exit__(*exc)
+
+    def _turn(self, x: float, y: float, sign: float) -> tuple[float, float]:
+        """(x, y) turned about the room centre by +φ (``sign`` 1) or −φ (−1)."""
+        (co, si), c = self._cs, self.c
+        dx, dy = x - c, y - c
+        return c + co * dx - sign * si * dy, c + sign * si * dx + co * dy
+
+    def place(self, x: float, y: float, heading_deg: float) -> None:
+        """Place the body at the wall-frame pose (x [m], y [m], heading [deg])."""
+        self.bot.place(*self._turn(x, y, 1.0), heading_deg + self.phi)
+
+    def true_pose(self) -> tuple[float, float, float]:
+        """The body's pose in the wall's frame (x [m], y [m], heading [deg] in [−180, 180))."""
+        X, Y, H = self.bot.true_pose()
+        return (*self._turn(X, Y, -1.0), (H - self.phi + 180.0) % 360.0 - 180.0)
+
+
+def make_body(backend: str, bumper_arc_deg: float, slide_budget: float = 3.0,
+              wall: str = "south"):
+    """The calibrated body: a PyBullet or a MuJoCo Create 2 in a :func:`wall_room` long
+    enough for a ``slide_budget`` [m] slide from x = 0.5 m, or for another ``wall`` than
+    the south one, in a square room of that side seen from that wall (:class:`OnWall`).
+    """
+    side = max(6.0, slide_budget + 1.5)
+    room = wall_room(side) if wall == "south" else envs.Environment.from_dict(
+        {"name": "square", "boundary": [[0, 0], [side, 0], [side, side], [0, side]],
+         "robot_radius": 0.17})
     if backend == "mujoco":
         from bouncesim.robots.mujoco import MuJoCoRobot
-        return MuJoCoRobot(wall_room(), bumper_arc_deg=bumper_arc_deg)
-    from bouncesim.robots.pybullet import PyBulletRobot
-    return PyBulletRobot(wall_room(), bumper_arc_deg=bumper_arc_deg)
+        bot = MuJoCoRobot(room, bumper_arc_deg=bumper_arc_deg)
+    else:
+        from bouncesim.robots.pybullet import PyBulletRobot
+        bot = PyBulletRobot(room, bumper_arc_deg=bumper_arc_deg)
+    return bot if wall == "south" else OnWall(bot, wall, side)
 
 
 def trial(bot, incidence: float, gap: float, speed: float,
@@ -223,6 +282,7 @@ class Config:
     slide_budget : float          along-wall travel [m] after which a slide ends unbumped
     bumper_arc_deg : float        the bumper arc [deg]
     backend : str                 the physics engine: "pybullet" or "mujoco"
+    wall : str                    the calibration wall (:data:`WALLS`; south: the long room)
     quick : bool
     seed : int
     out : Path
@@ -234,6 +294,7 @@ class Config:
     slide_budget: float = 3.0
     bumper_arc_deg: float = 80.0
     backend: str = "pybullet"
+    wall: str = "south"
     quick: bool = False
     seed: int = 0
     out: Path = Path("results") / NAME
@@ -244,7 +305,8 @@ def run(config: Config) -> Path:
     out = output_dir(config.out)
     rng = np.random.default_rng(config.seed)
     rows = []
-    with make_body(config.backend, config.bumper_arc_deg) as bot:
+    with make_body(config.backend, config.bumper_arc_deg, config.slide_budget,
+                   config.wall) as bot:
         for inc in config.incidences:
             for rep in range(config.repeats):
                 gap = float(rng.uniform(0.0005, 0.005))
@@ -281,12 +343,30 @@ def main(argv=None) -> int:
     p.add_argument("--speed", type=float, default=0.3, help="drive speed [m/s] (default 0.3)")
     p.add_argument("--backend", choices=BACKENDS, default="pybullet",
                    help="the physics engine of the body (default pybullet)")
+    p.add_argument("--slide-budget", type=float, default=3.0, metavar="M",
+                   help="along-wall travel [m] after which a slide ends unbumped; the room "
+                   "is made long enough (default 3)")
+    p.add_argument("--wall", choices=tuple(WALLS), default="south",
+                   help="the calibration wall: south (default) in a 1.5 m wide room; the "
+                   "others in a square room, the slide counter-clockwise round it (an engine "
+                   "whose slides depend on their direction in the world shows it here)")
+    p.add_argument("--incidences", type=name_list, default=None, metavar="A,B,...",
+                   help="incidences [deg] to try (default: 24 from 0.5 to 90, quick 12)")
     args = p.parse_args(argv)
+    try:
+        incs = tuple(float(a) for a in args.incidences) if args.incidences else None
+    except ValueError:
+        p.error(f"--incidences needs numbers in degrees, got {','.join(args.incidences)!r}")
+    if incs is not None and not all(0 < a <= 90 for a in incs):
+        p.error("--incidences must lie in (0, 90] degrees.")
+    if not args.slide_budget > 0:
+        p.error(f"--slide-budget must be positive, got {args.slide_budget}")
     q = args.quick
     if args.backend != "pybullet" and args.out == Path("results") / NAME:
         args.out = Path("results") / f"{NAME}_{args.backend}"
-    config = Config(incidences=QUICK_INCIDENCES if q else INCIDENCES,
+    config = Config(incidences=incs or (QUICK_INCIDENCES if q else INCIDENCES),
                     repeats=args.repeats or (2 if q else 6), speed=args.speed,
+                    slide_budget=args.slide_budget, wall=args.wall,
                     backend=args.backend, quick=q,
                     seed=args.seed, out=args.out)
     run(config)

@@ -83,3 +83,86 @@ def test_quick_run_writes_outputs_and_agrees_with_the_defaults(tmp_path):
     assert abs(cfg["fit"]["slide_friction"] - PYBULLET_CONTACT.slide_friction) <= 0.01
     trials = pd.read_csv(out / "trials.csv")
     assert len(trials) == 2 * len(cc.QUICK_INCIDENCES)
+
+
+class _StubP:
+    """The three pybullet calls :func:`read_bumper` makes, for a body at the origin facing +x."""
+
+    def getBasePositionAndOrientation(self, body, **kw):
+        return (0.0, 0.0, 0.036), (0.0, 0.0, 0.0, 1.0)
+
+    def getEulerFromQuaternion(self, q):
+        return (0.0, 0.0, 0.0)
+
+
+def test_the_bumper_closes_on_a_touch_not_on_a_wall_a_millimetre_away():
+    """A contact point straight ahead closes both switches when it touches (−0.01 mm, as a
+    pressing contact reads) or lies within BUMPER_REACH; a wall 0.5 mm away (an engine's early
+    contact) or a touch behind the arc closes nothing.
+    """
+    from bouncesim.robots.pybullet.bumper import BUMPER_REACH, read_bumper
+
+    def read(pos, dist, arc=80.0):
+        c = (0, 1, 7, -1, -1, pos, pos, (1, 0, 0), dist)
+        return read_bumper(_StubP(), 1, frozenset({7}), arc, {}, contacts=[c])
+
+    ahead, left85 = (0.17, 0.0, 0.05), (0.17 * math.cos(math.radians(85)),
+                                         0.17 * math.sin(math.radians(85)), 0.05)
+    assert read(ahead, -1e-5) == (True, True)
+    assert read(ahead, 0.9 * BUMPER_REACH) == (True, True)
+    assert read(ahead, 5e-4) == (False, False)
+    assert read(left85, -1e-5) == (False, False)
+    assert read(left85, -1e-5, arc=89.0) == (True, False)
+
+
+@pytest.mark.physics
+@pytest.mark.skipif(importlib.util.find_spec("pybullet") is None, reason="needs pybullet")
+def test_a_slide_toward_a_reflex_corner_wraps_round_it_as_the_rule_does():
+    """Sliding at 6° along a wall toward a reflex corner of an L-shaped room (two wall slabs
+    meet there), the PyBullet body passes the corner and drives on to the far wall, as the
+    twin with PyBullet's rule does (ends within 3 cm). With a bumper that read walls 1 mm
+    away it bumped on the next slab's corner before the side's end, 1.8 m short.
+    """
+    import envs
+    from bouncesim.robots import make_robot
+    room = envs.Environment.from_dict({"name": "ell", "boundary": [[0, 0], [4, 0], [4, 1.5],
+                                                                   [2, 1.5], [2, 3], [0, 3]],
+                                       "robot_radius": 0.17})
+    ends = []
+    for name, kw in (("pybullet", {}), ("kinematic", {"contact": PYBULLET_CONTACT})):
+        with make_robot(name, room, **kw) as bot:
+            bot.place(3.5, 1.27, 174.0)
+            assert bot.drive_until_bump(0.3, 30.0).bumped
+            ends.append(bot.true_pose())
+    (xp, yp, _), (xt, yt, _) = ends
+    assert xt == pytest.approx(0.17, abs=1e-6)          # the twin: round the corner, west wall
+    assert math.hypot(xp - xt, yp - yt) <= 0.03
+
+
+@pytest.mark.parametrize("wall", ["east", "north", "west"])
+def test_on_wall_sees_every_wall_of_a_square_room_as_the_south_one(wall):
+    """OnWall turns the room about its centre: the south-frame pose (1, 0.2, −7°) is the
+    hand-rotated room pose, reads back unchanged, and the twin with PyBullet's rule (the same
+    physics in every direction) slides from it to the same south-frame end on every wall.
+    """
+    import envs
+    from bouncesim.robots.kinematic import KinematicRobot
+    from experiments.contact_calibration import WALLS, OnWall
+    side = 6.0
+    room = envs.Environment.from_dict({"name": "sq", "boundary": [[0, 0], [side, 0],
+                                                                  [side, side], [0, side]],
+                                       "robot_radius": 0.17})
+    ends = {}
+    for w in ("south", wall):
+        bot = OnWall(KinematicRobot(room, contact=PYBULLET_CONTACT), w, side)
+        bot.place(1.0, 0.2, -7.0)
+        a = math.radians(WALLS[w])
+        X, Y, H = bot.bot.true_pose()
+        assert (X - 3, Y - 3) == pytest.approx((math.cos(a) * -2 - math.sin(a) * -2.8,
+                                                math.sin(a) * -2 + math.cos(a) * -2.8))
+        assert (H - (WALLS[w] - 7.0)) % 360 == pytest.approx(0, abs=1e-9)
+        assert bot.true_pose() == pytest.approx((1.0, 0.2, -7.0))
+        bot.drive_until_bump(0.3, 60.0)
+        ends[w] = bot.true_pose()
+    assert ends[wall] == pytest.approx(ends["south"], abs=1e-6)
+    assert ends["south"][0] == pytest.approx(side - 0.17, abs=1e-6)   # slid to the corner

@@ -19,8 +19,9 @@ never another robot (MuJoCo collides two geoms when ``contype`` of one shares a 
 
 Contacts: the walls and the casters are frictionless (``condim`` 1 and a higher
 ``priority``, so their setting wins over the other geom's). The body detects a wall within
-``margin`` (1 mm) but the contact only pushes once they overlap (``gap`` = ``margin``), so a
-bumper can read a contact 1 mm before the touch without the wall holding the body off.
+``margin`` (1 mm), meant to push only once they overlap (``gap`` = ``margin``). Measured
+(MuJoCo 4.0, ``mj_contactForce``): contacts that push the body read 0.1–0.95 mm, so the
+bumper's 1 mm is the touch here, not an early reading (docs/model.md Appendix B).
 
 >>> import envs
 >>> xml = world_xml(envs.load("lab"), 2)

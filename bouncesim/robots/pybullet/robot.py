@@ -423,8 +423,9 @@ class PyBulletRobot(SteppedWheels, Robot):
     def bumper(self) -> tuple[bool, bool]:
         """(left, right) bumper switches from the body's contacts with walls.
 
-        A contact point closer than 1 mm on the front arc (± ``bumper_arc_deg`` of the
-        heading) closes the switch on its side; within ±10° of straight ahead both close.
+        A wall contact that touches the body (within ``BUMPER_REACH``) on the front arc
+        (± ``bumper_arc_deg`` of the heading) closes the switch on its side; within ±10° of
+        straight ahead both close.
         """
         self._check_open()
         return read_bumper(self._p, self._robot, self._wall_set, self.bumper_arc_deg, self._kw)
