@@ -86,7 +86,9 @@ def test_quick_run_writes_outputs_and_agrees_with_the_defaults(tmp_path):
 
 
 class _StubP:
-    """The three pybullet calls :func:`read_bumper` makes, for a body at the origin facing +x."""
+    """The two pybullet calls :func:`read_bumper` makes when given the contacts: a body at the
+    origin facing +x.
+    """
 
     def getBasePositionAndOrientation(self, body, **kw):
         return (0.0, 0.0, 0.036), (0.0, 0.0, 0.0, 1.0)
