@@ -31,9 +31,9 @@ def _wrap(deg: float) -> float:
 
 
 def measure(kind: str, env, trials: int, rng: np.random.Generator,
-            speed: float = 0.3) -> pd.DataFrame:
-    """One row per trial (the bump driven at ``speed`` [m/s]): angle, turn_error_deg,
-    flight_rotation_deg.
+            speed: float = 0.3, angles=ANGLES) -> pd.DataFrame:
+    """One row per trial (the bump driven at ``speed`` [m/s], the turn by one of ``angles``
+    [deg] drawn at random): angle, turn_error_deg, flight_rotation_deg.
     """
     from bouncesim.robots import make_robot
     rows = []
@@ -43,7 +43,7 @@ def measure(kind: str, env, trials: int, rng: np.random.Generator,
             h0 = body.true_pose()[2]
             body.drive_until_bump(speed, 30.0)
             h1 = body.true_pose()[2]
-            a = float(rng.choice(ANGLES))
+            a = float(rng.choice(angles))
             body.turn(a)
             rows.append({"body": kind, "angle": a,
                          "turn_error_deg": _wrap(body.true_pose()[2] - h1 - a),
@@ -93,7 +93,16 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--speed", type=float, default=0.3,
                    help="drive speed into each bump [m/s] (default 0.3; a body's turns after "
                    "a bump can depend on it)")
+    p.add_argument("--angles", type=name_list, default=tuple(f"{a:g}" for a in ANGLES),
+                   help="turn angles [deg] drawn from (default 45,90,135, navigation's; "
+                   "30,75,315 are validate's)")
     args = p.parse_args(argv)
+    try:
+        angles = tuple(float(a) for a in args.angles)
+    except ValueError:
+        p.error(f"--angles needs numbers in degrees, got {','.join(args.angles)!r}")
+    if not angles or not all(0 < a < 360 for a in angles):
+        p.error("--angles must lie in (0, 360) degrees.")
     if not 0 < args.speed <= 0.5:
         p.error(f"--speed must lie in (0, 0.5] m/s, got {args.speed:g}")
     try:
@@ -101,8 +110,8 @@ def main(argv: list[str] | None = None) -> int:
     except envs.UserError as err:
         p.error(str(err))
     trials = 10 if args.quick else args.trials
-    runs = pd.concat([measure(k, env, trials, np.random.default_rng(args.seed), args.speed)
-                      for k in args.bodies], ignore_index=True)
+    runs = pd.concat([measure(k, env, trials, np.random.default_rng(args.seed), args.speed,
+                              angles) for k in args.bodies], ignore_index=True)
     print(table(runs).round(2).to_string(index=False))
     for body, d in runs.groupby("body", sort=False):
         print(f"{body} declares turn_errors = {declaration(d)!r}")
