@@ -53,8 +53,14 @@ from .motion import (
     drive_distance,
 )
 
-__all__ = ["at_speed", "advance", "advance_many", "slide_on", "front_contacts", "closes_bumper",
-           "switches", "leg_point", "leg_length", "ContactFlights", "contact_flights", "glancing"]
+__all__ = ["REST_FLIGHT", "at_speed", "advance", "advance_many", "slide_on", "front_contacts",
+           "closes_bumper", "switches", "leg_point", "leg_length", "ContactFlights",
+           "contact_flights", "glancing"]
+
+REST_FLIGHT = 1e-3
+"""[m] A bump after a flight shorter than this (since the last turn) is a bump from rest: the
+turn before left the robot facing its wall. A body may turn differently after one
+(docs/model.md §11b); the event model's flights and the twin use this one threshold."""
 
 _MAX_EVENTS = 1000       # contacts handled within one drive (collinear wall pieces add events)
 _SAME_CONTACT = 1e-5     # [m] contacts closer than this are one (a side's end and its vertex)

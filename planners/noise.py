@@ -31,28 +31,9 @@ Traceback (most recent call last):
 envs.errors.UserError: error range eps -5° must be non-negative.
 
 One grammar for every noise spec (the CLI's ``--noise``, the coverage models, the simulated
-bodies of :mod:`bouncesim.robots.noise`): :func:`parse_noise_spec`.
-
->>> parse_noise_spec("model:eps=5,r=0.8")
-NoiseSpec(kind='model', noise=TurnNoise(eps_deg=5.0, r=0.8, sigma_deg=0.0), delta_deg=None)
->>> parse_noise_spec("gauss:sigma=2").noise, parse_noise_spec("off").kind
-(TurnNoise(eps_deg=0.0, r=1.0, sigma_deg=2.0), 'none')
-
-Every kind also takes the turn keys (:data:`TURN_KEYS`): a turn's constant factor f unknown
-within 1 ± S (``scale=S``) and constant offset b unknown within ±B [deg] (``bias=B``), which a
-planner or filter declares; or a simulated body's known ones (``factor=F``, ``offset=O``):
-
->>> n = parse_noise_spec("gauss:2,scale=0.1").noise
->>> n, str(n), n.exact
-(TurnNoise(eps_deg=0.0, r=1.0, sigma_deg=2.0, scale=0.1), 'gauss:2,scale=0.1', False)
->>> parse_noise_spec("none:factor=1.08")
-NoiseSpec(kind='none', noise=TurnNoise(eps_deg=0.0, r=1.0, sigma_deg=0.0), delta_deg=None, \
-factor=1.08)
->>> n.support(360)
-Traceback (most recent call last):
-...
-envs.errors.UserError: the coverage models assume an unbiased turn; scale and bias are for \
-navigation (got gauss:2,scale=0.1).
+bodies of :mod:`bouncesim.robots.noise`), with the turn keys a planner declares (an unknown
+factor ``scale=S`` and offset ``bias=B``) or a simulated body knows (``factor=F``,
+``offset=O``): :func:`parse_noise_spec`; the coverage models refuse ``scale`` and ``bias``.
 """
 
 from __future__ import annotations
@@ -62,11 +43,11 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.special import ndtr, ndtri
 
 from envs import UserError
 
 from .cells import angle_steps
+from .turn_offsets import gauss_support, quanta_of, stepped_support
 
 __all__ = ["NOISE_FORMS", "NoiseSpec", "NoiseView", "R_RESOLUTION", "SCALE_MAX", "TURN_KEYS",
            "TurnNoise", "as_commands", "parse_noise_spec", "spec_text"]
@@ -94,11 +75,6 @@ R_RESOLUTION = 1e-9
 SCALE_MAX = 0.5
 """The half-range S of an unknown turn factor (``scale=S``) must lie in [0, SCALE_MAX)."""
 
-GAUSS_TAIL = 1e-6
-"""Gaussian noise on the K grid: offsets are kept out to the smallest ±M whose two tails
-beyond (M + ½)Δ hold at most this much probability; the kept ones are renormalised."""
-
-
 @dataclass(frozen=True)
 class TurnNoise:
     """docs/model.md §11 rotation noise: exact with probability ``r``, else off by a uniform
@@ -121,6 +97,11 @@ class TurnNoise:
                       measured 1.26° short with 0.6° of scatter (:meth:`with_body`). Default
                       0: none. The coverage models use them; with either set, headings
                       leave the Δ grid as under Gaussian noise (:attr:`gaussian`).
+    body_factor, body_rest_deg : float
+                      the body's known turn factor F (default 1: a turn by φ adds (F − 1)·φ to
+                      the offset), and how much further [deg] it turns after a bump from rest
+                      than after a flight (default 0; the event model's zero-length flights,
+                      docs/model.md §11b, §17).
 
     A run turns by f·φ + b plus the scatter (ε, r or σ). Scale and bias are what a planner or
     filter declares (navigation); the coverage models assume an unbiased turn and refuse them
@@ -139,6 +120,8 @@ class TurnNoise:
     bias_deg: float = 0.0
     body_sigma_deg: float = 0.0
     body_offset_deg: float = 0.0
+    body_factor: float = 1.0
+    body_rest_deg: float = 0.0
 
     @classmethod
     def gauss(cls, sigma_deg: float) -> "TurnNoise":
@@ -168,7 +151,9 @@ class TurnNoise:
         for name, what in (("eps_deg", "error range eps"), ("r", "reliability r"),
                            ("sigma_deg", "Gaussian noise sigma"), ("scale", "turn scale"),
                            ("bias_deg", "turn bias"), ("body_sigma_deg", "the body's turn sigma"),
-                           ("body_offset_deg", "the body's turn offset")):
+                           ("body_offset_deg", "the body's turn offset"),
+                           ("body_factor", "the body's turn factor"),
+                           ("body_rest_deg", "the body's turn after a bump from rest")):
             v = getattr(self, name)
             try:
                 v = float(v)
@@ -201,38 +186,71 @@ class TurnNoise:
         if self.body_sigma_deg < 0:
             raise UserError(f"the body's turn sigma must be non-negative, got "
                             f"{_fmt(self.body_sigma_deg)}°.")
+        if not 0.5 < self.body_factor < 1.5:
+            raise UserError(f"the body's turn factor must lie in (0.5, 1.5), got "
+                            f"{_fmt(self.body_factor)}.")
 
-    def with_body(self, errors: str | None) -> "TurnNoise":
+    def with_body(self, errors: str | None, rest: str | None = None) -> "TurnNoise":
         """The noise with a body's own turn errors added (:attr:`body_sigma_deg`,
-        :attr:`body_offset_deg`), from the spec the body declares (its ``turn_errors``,
-        ``gauss:S,offset=O``; :func:`bouncesim.runs.feedback.body_turns`); None: unchanged.
-        A declared ``bias=B`` (how far the offset may be from O in another room or at another
-        angle, which a feedback filter learns online) is not a turn error of the coverage
-        chain: the chain takes the offset O (docs/model.md §11b).
+        :attr:`body_offset_deg`, :attr:`body_factor`), from the spec the body declares (its
+        ``turn_errors``, ``gauss:S,offset=O(,factor=F)``;
+        :func:`bouncesim.runs.feedback.body_turns`); None: unchanged. A declared ``bias=B``
+        (how far the offset may be from O in another room or at another angle, which a
+        feedback filter learns online) is not a turn error of the coverage chain: the chain
+        takes the offset O (docs/model.md §11b).
+
+        ``rest``: its errors after a bump from rest; :attr:`body_rest_deg` is the difference
+        of the two offsets (the factor and scatter are those of ``errors``).
 
         >>> TurnNoise(5, 0.8).with_body("gauss:0.6,offset=-1.26")
         TurnNoise(eps_deg=5.0, r=0.8, sigma_deg=0.0, body_sigma_deg=0.6, body_offset_deg=-1.26)
         >>> TurnNoise(5, 0.8).with_body("gauss:0.6,offset=-1.26,bias=0.5").body_offset_deg
         -1.26
+        >>> TurnNoise().with_body("gauss:0.6,offset=-1.1,factor=0.998", rest="gauss:0.3,"
+        ...                       "offset=-0.4").body_rest_deg
+        0.7
         """
         if errors is None:
+            if rest is not None:
+                raise UserError("a body's turns after a bump from rest need those after a flight.")
             return self
-        spec = parse_noise_spec(errors)
-        if spec.kind == "model" or spec.noise.scale or spec.factor not in (None, 1.0):
-            raise UserError(f"a body declares its turn errors as gauss:S,offset=O(,bias=B), "
-                            f"got {errors!r}.")
+        spec, at_rest = self._body_spec(errors), self._body_spec(rest)
+        offset = float(spec.offset_deg or 0.0)
         return replace(self, body_sigma_deg=float(spec.noise.sigma_deg),
-                       body_offset_deg=float(spec.offset_deg or 0.0))
+                       body_offset_deg=offset,
+                       body_factor=float(spec.factor if spec.factor is not None else 1.0),
+                       body_rest_deg=0.0 if at_rest is None else
+                       round(float(at_rest.offset_deg or 0.0) - offset, 10))
+
+    @staticmethod
+    def _body_spec(errors: str | None):
+        if errors is None:
+            return None
+        spec = parse_noise_spec(errors)
+        if spec.kind == "model" or spec.noise.scale:
+            raise UserError(f"a body declares its turn errors as gauss:S,offset=O(,factor=F)"
+                            f"(,bias=B), got {errors!r}.")
+        return spec
+
+    def body_mean_deg(self, angle_deg: float = 0.0) -> float:
+        """The mean of the body's own error [deg] on a turn by ``angle_deg``:
+        O + (F − 1)·φ (:attr:`body_offset_deg`, :attr:`body_factor`).
+
+        >>> TurnNoise(body_offset_deg=-1.0, body_factor=0.998).body_mean_deg(300)
+        -1.6
+        """
+        return round(self.body_offset_deg + (self.body_factor - 1.0) * float(angle_deg), 12)
 
     @property
     def has_body(self) -> bool:
         """True when a body's own turn errors are added (:meth:`with_body`)."""
-        return self.body_sigma_deg > 0 or self.body_offset_deg != 0
+        return (self.body_sigma_deg > 0 or self.body_offset_deg != 0
+                or self.body_factor != 1.0 or self.body_rest_deg != 0)
 
     def __repr__(self) -> str:
-        extra = "".join(f", {name}={getattr(self, name)!r}" for name in
-                        ("scale", "bias_deg", "body_sigma_deg", "body_offset_deg")
-                        if getattr(self, name) != 0)
+        extra = "".join(f", {name}={getattr(self, name)!r}" for name, default in (
+            ("scale", 0), ("bias_deg", 0), ("body_sigma_deg", 0), ("body_offset_deg", 0),
+            ("body_factor", 1), ("body_rest_deg", 0)) if getattr(self, name) != default)
         return (f"TurnNoise(eps_deg={self.eps_deg!r}, r={self.r!r}, "
                 f"sigma_deg={self.sigma_deg!r}{extra})")
 
@@ -278,6 +296,8 @@ class TurnNoise:
             base = ("none" if self.eps_deg == 0 or self.r == 1.0
                     else f"model:eps={_fmt(self.eps_deg)},r={_fmt(self.r)}")
         body = (f" + body gauss:{_fmt(self.body_sigma_deg)},offset={_fmt(self.body_offset_deg)}"
+                + (f",factor={_fmt(self.body_factor)}" if self.body_factor != 1.0 else "")
+                + (f",rest={_fmt(self.body_rest_deg)}" if self.body_rest_deg else "")
                 if self.has_body else "")
         return spec_text(base, scale=self.scale, bias_deg=self.bias_deg) + body
 
@@ -292,29 +312,31 @@ class TurnNoise:
             return angle_steps(self.eps_deg, K, what="error range eps", allow_zero=True)
         if delta_deg is None:
             raise TypeError("quanta() needs K or delta_deg.")
-        return _quanta_of(self.eps_deg, delta_deg)
+        return quanta_of(self.eps_deg, delta_deg)
 
-    def support(self, K: int | None = None, *, delta_deg: float | None = None
-                ) -> tuple[np.ndarray, np.ndarray]:
+    def support(self, K: int | None = None, *, delta_deg: float | None = None,
+                angle_deg: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
         """Offsets δ/Δ = −ε/Δ … ε/Δ [quanta] and their probabilities (sum 1), at K
         orientations or for the quantum ``delta_deg`` (see :meth:`quanta`).
 
         Zero-probability offsets (r = 1 with ε > 0, or r = 0) are kept. Gaussian noise: the
         discretised Gaussian of docs/model.md §11a (offsets ±M, tails beyond ±(M + ½)Δ of at
-        most :data:`GAUSS_TAIL` dropped and the rest renormalised). A scale or bias is
-        refused (UserError): the coverage models assume an unbiased turn.
+        most :data:`planners.turn_offsets.GAUSS_TAIL` dropped and the rest renormalised). A
+        scale or bias is refused (UserError): the coverage models assume an unbiased turn. A
+        body's own errors (:attr:`has_body`) are added with their mean at the turn
+        ``angle_deg`` [deg] (:meth:`body_mean_deg`).
         """
         self._refuse_bias()
         delta = 360.0 / K if K is not None else delta_deg
         if self.sigma_deg > 0:
             if delta is None:
                 raise TypeError("support() needs K or delta_deg.")
-            d, p = _gauss_support(self.sigma_deg, float(delta))
+            d, p = gauss_support(self.sigma_deg, float(delta))
         else:
-            d, p = _support(self.quanta(K, delta_deg=delta_deg), self.r)
+            d, p = stepped_support(self.quanta(K, delta_deg=delta_deg), self.r)
         if not self.has_body:
             return d, p
-        db, pb = _gauss_support(self.body_sigma_deg, float(delta), self.body_offset_deg)
+        db, pb = gauss_support(self.body_sigma_deg, float(delta), self.body_mean_deg(angle_deg))
         total = d[:, None] + db[None, :]
         m = int(np.abs(total).max())
         out = np.zeros(2 * m + 1)
@@ -330,7 +352,7 @@ class TurnNoise:
         """
         self._refuse_bias()
         s = angle_steps(angle_deg, K)
-        d, p = self.support(K)
+        d, p = self.support(K, angle_deg=angle_deg)
         steps = (s + d) % K
         if positive:
             keep = p > 0
@@ -354,9 +376,10 @@ class TurnNoise:
                             f"noise model (bouncesim.robots.noise.parse_noise).")
         c = as_commands(commanded_deg, n)
         if self.has_body:               # the scatter, then the body's own error (BodyErrors)
-            t = replace(self, body_sigma_deg=0.0, body_offset_deg=0.0).sample(
-                rng, c, delta_deg=delta_deg)
-            return t + rng.normal(self.body_offset_deg, self.body_sigma_deg, size=t.shape)
+            t = replace(self, body_sigma_deg=0.0, body_offset_deg=0.0, body_factor=1.0,
+                        body_rest_deg=0.0).sample(rng, c, delta_deg=delta_deg)
+            return t + (self.body_factor - 1.0) * c + rng.normal(
+                self.body_offset_deg, self.body_sigma_deg, size=t.shape)
         if self.sigma_deg > 0:
             return c + rng.normal(0.0, self.sigma_deg, size=c.shape)
         m = self.quanta(delta_deg=delta_deg)
@@ -367,45 +390,6 @@ class TurnNoise:
         k = rng.integers(1, m + 1, size=size)
         sign = np.where(rng.random(size) < 0.5, -1, 1)
         return c + np.where(wrong, sign * k * delta_deg, 0.0)
-
-
-def _support(m: int, r: float) -> tuple[np.ndarray, np.ndarray]:
-    if m == 0:
-        return np.array([0]), np.array([1.0])
-    d = np.arange(-m, m + 1)
-    return d, np.where(d == 0, r, (1.0 - r) / (2 * m))
-
-
-def _gauss_support(sigma: float, delta: float, mean: float = 0.0
-                   ) -> tuple[np.ndarray, np.ndarray]:
-    """Offsets −M … M [quanta] and Φ(((j + ½)Δ − μ)/σ) − Φ(((j − ½)Δ − μ)/σ), renormalised
-    (§11a; μ = ``mean``, 0 but for a body's own offset, §11b); σ = 0: all of it on the
-    offset nearest μ (ties: the lower).
-    """
-    if not (math.isfinite(delta) and delta > 0):
-        raise UserError(f"the noise quantum delta must be positive, got {delta:g}°.")
-    if sigma == 0:
-        j = math.ceil(mean / delta - 0.5)
-        m = abs(j)
-        d = np.arange(-m, m + 1)
-        return d, (d == j).astype(float)
-    z = -float(ndtri(GAUSS_TAIL / 2))                    # 2·(1 − Φ(z)) = GAUSS_TAIL
-    m = max(0, math.ceil((z * sigma + abs(mean)) / delta - 0.5))
-    m = min(m, 1_000_000)                                # wraps the circle many times
-    d = np.arange(-m, m + 1)
-    p = ndtr(((d + 0.5) * delta - mean) / sigma) - ndtr(((d - 0.5) * delta - mean) / sigma)
-    return d, p / p.sum()
-
-
-def _quanta_of(eps_deg: float, delta_deg: float) -> int:
-    """ε / Δ for an arbitrary quantum Δ [deg] > 0 (UserError unless a whole number)."""
-    if not (math.isfinite(delta_deg) and delta_deg > 0):
-        raise UserError(f"the noise quantum delta must be positive, got {delta_deg:g}°.")
-    m = eps_deg / delta_deg
-    if abs(m - round(m)) > 1e-9 * max(1.0, m):
-        raise UserError(f"error range eps = {eps_deg:g}° is not a multiple of the "
-                        f"orientation step {delta_deg:g}°.")
-    return int(round(m))
 
 
 class NoiseView:

@@ -163,12 +163,23 @@ def register(sub) -> None:
     p.add_argument("--speed", type=float, default=0.3, metavar="M/S",
                    help="PyBullet and MuJoCo drive speed [m/s] (default 0.3)")
     add_contact_arg(p, auto=True, what=" of the event model and the twin")
-    p.add_argument("--body-turns", choices=("auto", "off"), default="auto",
+    p.add_argument("--body-turns", default="auto", metavar="auto|off|SPEC",
                    help="auto (default): the model adds the simulated body's own declared "
-                   "turn errors at --speed to --eps/--r (docs/model.md section 11b; MuJoCo's "
-                   "at 0.3 m/s: gauss:0.6,offset=-1.26, its turns by clock 1.26 deg short, at "
-                   "0.2 m/s 0.77 deg; none declared at other speeds); off: the model assumes "
-                   "the body turns exactly as --eps/--r say")
+                   "turn errors at --speed to --eps/--r, and to the event model its errors "
+                   "after a bump from rest (docs/model.md section 11b; MuJoCo's at 0.3 m/s: "
+                   "gauss:0.45,offset=-1.04,factor=0.9982, its turns by clock 1.04 deg + "
+                   "0.18%% of the angle short, 0.68 deg less after a bump from rest; at 0.2 "
+                   "m/s 0.77 deg; none declared at other speeds); off: the model assumes "
+                   "the body turns exactly as --eps/--r say; a spec gauss:S,offset=O: the "
+                   "model adds these errors, and on --backend kinematic the twin turns with "
+                   "them too (a stand-in for a body whose turns are off: with --contact "
+                   "mujoco and MuJoCo's errors it separates the model's error from the "
+                   "engine's)")
+    p.add_argument("--body-turns-rest", default=None, metavar="SPEC",
+                   help="with --body-turns SPEC: the errors after a bump from rest (a flight "
+                   "of length zero, docs/model.md section 11b), for the event model and the "
+                   "twin (with --body-turns auto the body's own are taken: MuJoCo's "
+                   "DECLARED_REST_TURNS)")
     p.add_argument("--seed", type=int, default=0, help="root seed (default 0)")
     p.add_argument("--out", type=Path, default=None, metavar="DIR",
                    help="keep the sweep's journal, runs.csv and config.json here (a re-run "
@@ -207,8 +218,13 @@ def simulate_trial(params: dict, rng: np.random.Generator) -> dict:
         counts, dropped, bumps, meetings = res.counts, res.dropped, res.flights, res.meetings
     elif params["backend"] == "kinematic":
         from ..robots.kinematic import KinematicBatch
+        from ..robots.noise import body_noise
+        # the twin turns with a body's own errors when the trial names them (--body-turns)
+        noise = body_noise(TurnNoise(mix.eps, mix.r).with_body(
+            params.get("body_turns"), params.get("body_turns_rest")),
+            cs.delta_deg) if params.get("body_turns") else None
         res = KinematicBatch(env, n, rng, cells=cs, contact=contact).run(
-            mix, steps, epoch=epoch, burn_in=burn_in)
+            mix, steps, epoch=epoch, burn_in=burn_in, noise=noise)
         counts, dropped, bumps = res.counts, res.dropped, res.bumps
     else:
         if params["backend"] == "mujoco":
@@ -322,6 +338,10 @@ def _check(args) -> None:
         raise UserError(f"--speed must lie in (0, 0.5] m/s, got {args.speed:g}.")
     if args.seed < 0:
         raise UserError(f"--seed must be a non-negative integer, got {args.seed}.")
+    if args.body_turns_rest is not None and args.body_turns in ("auto", "off"):
+        raise UserError("--body-turns-rest goes with an explicit --body-turns SPEC.")
+    if args.robots is not None and args.body_turns not in ("auto", "off"):
+        raise UserError("--body-turns SPEC is for single robots: teams turn as --eps/--r say.")
     if args.robots is None:
         if args.interact is not None:
             raise UserError("--interact is for teams: give --robots K.")
@@ -336,6 +356,13 @@ def _check(args) -> None:
     args.interact = args.interact or "bump"
 
 
+def backend_twin_turns(args) -> bool:
+    """True when the kinematic twin is told to turn with a body's errors: an explicit
+    ``--body-turns`` spec (not auto or off) on ``--backend kinematic``.
+    """
+    return args.backend == "kinematic" and args.body_turns not in ("auto", "off")
+
+
 def body_turn_errors(backend: str, speed: float = 0.3) -> str | None:
     """The turn errors a simulated body of ``backend`` declares of itself after bumps driven
     at ``speed`` [m/s] (a noise spec, docs/model.md §11b): MuJoCo's ``DECLARED_TURNS_AT``
@@ -348,6 +375,17 @@ def body_turn_errors(backend: str, speed: float = 0.3) -> str | None:
     return None
 
 
+def body_rest_turn_errors(backend: str) -> str | None:
+    """The turn errors a simulated body of ``backend`` declares after a bump from rest (a
+    flight of length zero, docs/model.md §11b): MuJoCo's ``DECLARED_REST_TURNS``; None for
+    the twin and PyBullet.
+    """
+    if backend == "mujoco":
+        from ..robots.mujoco.robot import DECLARED_REST_TURNS
+        return DECLARED_REST_TURNS
+    return None
+
+
 def run(args) -> int:
     """Run ``bouncesim validate``: predict, simulate, compare; print the table; exit status."""
     _check(args)
@@ -355,9 +393,18 @@ def run(args) -> int:
     cs = make_cells(args, env)
     noise = TurnNoise(args.eps, args.r)
     angles = check_angles(cs.K, parse_angles(args.angles), noise)
-    body_turns = body_turn_errors(args.backend, args.speed) if args.body_turns == "auto" \
-        else None
-    noise = noise.with_body(body_turns)      # the model's: the body's own errors added
+    auto = args.body_turns == "auto"
+    body_turns = body_turn_errors(args.backend, args.speed) if auto \
+        else None if args.body_turns == "off" else args.body_turns
+    # after a bump from rest: the event model's zero-length flights (§11b, §17)
+    rest_turns = (body_rest_turn_errors(args.backend) if auto and body_turns else
+                  None if auto else args.body_turns_rest)
+    if not MODELS[args.model].rest_turns:
+        rest_turns = None                       # a model that turns every bump alike
+    noise = noise.with_body(body_turns, rest_turns)   # the model's: the body's own errors
+    # a twin told to turn like a body (an explicit spec on the kinematic backend)
+    twin_turns = body_turns if backend_twin_turns(args) else None
+    twin_rest = rest_turns if twin_turns else None
     out = writable_path(args.out, folder=True) if args.out is not None else None
     backend = args.backend
     team = args.robots is not None
@@ -385,7 +432,9 @@ def run(args) -> int:
                 "r": float(args.r), "backend": backend, "robots": robots,
                 "steps": per_robot, "burn_in": args.burn_in, "epoch": args.epoch,
                 "speed": float(args.speed), "contact": contact_text,
-                **({"team": robots, "interact": args.interact} if team else {})}
+                **({"team": robots, "interact": args.interact} if team else {}),
+                **({"body_turns": twin_turns} if twin_turns else {}),
+                **({"body_turns_rest": twin_rest} if twin_rest else {})}
 
     # the sweep's identity: what decides the trials and their meaning, never a timing (a
     # second run, or one after Ctrl-C, resumes the same sweep)
@@ -485,6 +534,7 @@ def run(args) -> int:
                      "model": args.model, "backend": backend, "env": env.name,
                      "predict_s": round(predict_s, 3),
                      "contact": contact_name(contact), "body_turns": body_turns,
+                     "body_turns_rest": rest_turns,
                      **({"robots": robots, "interact": args.interact,
                          "meetings_per_1000_steps": 1000 * float(sub.meetings.sum()) / steps}
                         if team else {}),

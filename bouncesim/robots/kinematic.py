@@ -56,6 +56,7 @@ import numpy as np
 
 from envs import Environment, UserError
 from envs.contact import (
+    REST_FLIGHT,
     advance,
     closes_bumper,
     front_contacts,
@@ -465,6 +466,7 @@ class KinematicBatch:
         self.pos = self.cells.centres[p].copy()
         self.heading = (k * self.cells.delta_deg).astype(float)
         self._u = self._u_of = None      # cached unit headings, refreshed on turns
+        self._flown = np.full(self.n, np.inf)   # [m] since the last turn (a start flies)
 
     def cell_of(self, pos: np.ndarray) -> np.ndarray:
         """Position cell p of each point (n, 2), or -1 outside the free cells
@@ -496,15 +498,22 @@ class KinematicBatch:
             free = self.local.cast(self.pos, u)
         move, bumped = step(drive_distance(free), self.h)     # docs/model.md §8
         counted = self.cell_of(self.pos)
+        before = self.pos.copy()
         self.pos += move[:, None] * u
         if self.contact is not None and bumped.any():         # slides: docs/model.md §9
             self._slide(bumped, move, u)
+        self._flown += np.hypot(*(self.pos - before).T)
         if bumped.any():
             idx = np.flatnonzero(bumped)
             counted[idx] = self.cell_of(self.pos[idx])
             ang = np.broadcast_to(np.asarray(angles_deg, dtype=float), (self.n,))[idx]
             noise = noise if noise is not None else _EXACT
-            self.heading[idx] = (self.heading[idx] + noise.sample_many(self.rng, ang)) % 360.0
+            turn = noise.sample_many(self.rng, ang)
+            rest = float(getattr(noise, "rest_deg", 0.0))
+            if rest:                 # a bump from rest: no flight since the last turn (§11b)
+                turn = turn + rest * (self._flown[idx] < REST_FLIGHT)
+            self.heading[idx] = (self.heading[idx] + turn) % 360.0
+            self._flown[idx] = 0.0
             u[idx] = unit(self.heading[idx])
         return counted, bumped
 

@@ -203,21 +203,29 @@ class GaussianNoise(NoiseModel):
 
 @dataclass(frozen=True)
 class BodyErrors(NoiseModel):
-    """A body's own turn errors on top of a base model (docs/model.md §11b): every turn is
-    the base's draw plus N(``offset_deg``, ``sigma_deg``²) [deg], drawn after the base's.
+    """A body's own turn errors on top of a base model (docs/model.md §11b): every turn by φ
+    is the base's draw plus (``factor`` − 1)·φ + N(``offset_deg``, ``sigma_deg``²) [deg],
+    drawn after the base's. ``rest_deg``: how much further the body turns after a bump from
+    rest (no flight since its last turn); the draws here do not know the flight, so a
+    simulation that does adds it (:class:`~bouncesim.robots.kinematic.KinematicBatch`).
     """
 
     base: NoiseModel
     sigma_deg: float
     offset_deg: float
+    factor: float = 1.0
+    rest_deg: float = 0.0
 
     def sample_many(self, rng, commanded, n=None) -> np.ndarray:
         """The base's executed turns [deg] plus the body's error."""
         t = self.base.sample_many(rng, commanded, n)
-        return t + rng.normal(self.offset_deg, self.sigma_deg, size=np.shape(t))
+        scaled = (self.factor - 1.0) * np.broadcast_to(np.asarray(commanded, float), np.shape(t))
+        return t + scaled + rng.normal(self.offset_deg, self.sigma_deg, size=np.shape(t))
 
     def __str__(self) -> str:
-        return f"{self.base} + body gauss:{self.sigma_deg:g},offset={self.offset_deg:g}"
+        return (f"{self.base} + body gauss:{self.sigma_deg:g},offset={self.offset_deg:g}"
+                + (f",factor={self.factor:g}" if self.factor != 1.0 else "")
+                + (f",rest={self.rest_deg:g}" if self.rest_deg else ""))
 
 
 @dataclass(frozen=True)
@@ -418,8 +426,10 @@ def body_noise(noise: TurnNoise, delta_deg: float | None) -> NoiseModel:
 bias_deg=0.0)
     """
     if noise.has_body:
-        return BodyErrors(body_noise(replace(noise, body_sigma_deg=0.0, body_offset_deg=0.0),
-                                     delta_deg), noise.body_sigma_deg, noise.body_offset_deg)
+        scatter = replace(noise, body_sigma_deg=0.0, body_offset_deg=0.0, body_factor=1.0,
+                          body_rest_deg=0.0)
+        return BodyErrors(body_noise(scatter, delta_deg), noise.body_sigma_deg,
+                          noise.body_offset_deg, noise.body_factor, noise.body_rest_deg)
     if not noise.unbiased:
         return _with_turn_error(body_noise(noise.scatter, delta_deg), scale=noise.scale,
                                 bias_deg=noise.bias_deg)

@@ -101,6 +101,9 @@ class CoverageModel(Protocol):
                                 docs/model.md §19) whose headings Gaussian noise moves off
                                 the Δ grid (§11a); False: one step per transition
     contact_rule : bool         it models the body's contact rule (docs/model.md §9)
+    rest_turns : bool           it turns a bump from rest by the body's own rest shift
+                                (``TurnNoise.body_rest_deg``, docs/model.md §11b); False:
+                                every bump alike
     cs : CellSpace
     settings : Settings
     """
@@ -111,6 +114,7 @@ class CoverageModel(Protocol):
     state_kind: ClassVar[str]
     steps_in_flights: ClassVar[bool]
     contact_rule: ClassVar[bool]
+    rest_turns: ClassVar[bool]
     cs: CellSpace
     settings: Any
 

@@ -44,7 +44,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from envs import UserError
-from envs.contact import contact_flights
+from envs.contact import REST_FLIGHT, contact_flights
 from envs.motion import ContactParams, casters, drive_distance, flight_steps, unit
 
 from ..boundary import Boundary, bins_estimate
@@ -112,12 +112,15 @@ def _cast(caster, pos, u) -> np.ndarray:
     return drive_distance(out)
 
 
-def _landing_heading(paths, k: np.ndarray, delta_deg: float, K: int):
+def _landing_heading(paths, k: np.ndarray, delta_deg: float, K: int,
+                     rest: np.ndarray | None = None, rest_deg: float = 0.0):
     """The heading each flight lands with, on the grid: (lo, hi, t), the flight landing with
     heading index lo with probability 1 − t and hi = lo + 1 with t. A flight keeps its own
     ``k`` (t = 0) unless it slid into the wall (a rule with ``turn_in``, docs/model.md §9):
     its bump heading θ then lies between two grid headings, θ/Δ = lo + t, and is split
-    between them linearly.
+    between them linearly. The flights marked in ``rest`` (no length: a bump from rest)
+    land turned by ``rest_deg``, the body's extra turn after such a bump (§11b, §17),
+    split in the same way.
     """
     k = np.asarray(k, dtype=np.int64)
     lo, t = k.copy(), np.zeros(k.size)
@@ -126,6 +129,11 @@ def _landing_heading(paths, k: np.ndarray, delta_deg: float, K: int):
         x = np.degrees(np.arctan2(paths.u_end[turned, 1], paths.u_end[turned, 0])) / delta_deg
         lo[turned] = np.floor(x).astype(np.int64) % K
         t[turned] = x - np.floor(x)
+    if rest is not None and rest_deg != 0:
+        at = np.flatnonzero(rest)
+        x = lo[at] + t[at] + rest_deg / delta_deg
+        lo[at] = np.floor(x).astype(np.int64) % K
+        t[at] = x - np.floor(x)
     return lo, (lo + 1) % K, t
 
 
@@ -200,6 +208,7 @@ class EventModel:
     state_kind: ClassVar[str] = "contact states (bin, heading)"
     steps_in_flights: ClassVar[bool] = True
     contact_rule: ClassVar[bool] = True
+    rest_turns: ClassVar[bool] = True
     summary: ClassVar[str] = ("bump-to-bump model: exact flights between binned contact "
                               "points (the one that matches continuous motion)")
 
@@ -218,7 +227,7 @@ class EventModel:
         caster = casters(env)[0]
         uk = unit(np.arange(K) * cs.delta_deg)
         self._flight_sets: dict = {}
-        self._use(self._flight_set(False))
+        self._use(self._flight_set(False, 0.0))
         # first flights from the cell centres (uniform over the N configurations)
         p0 = np.tile(np.arange(cs.P), K)
         k0 = np.repeat(np.arange(K), cs.P)
@@ -236,13 +245,22 @@ class EventModel:
         self.flight, self.flights, self.reward = fs.flight, fs.flights, fs.reward
         self.length, self.mean_flight = fs.length, fs.mean_flight
 
-    def _flight_set(self, continuous: bool) -> "_Flights":
+    def _flights_for(self, noise: TurnNoise) -> "_Flights":
+        """The flight set of ``noise``: continuous headings for Gaussian noise or a body's
+        errors, with the body's extra turn after a bump from rest (:meth:`_flight_set`).
+        """
+        return self._flight_set(noise.gaussian, noise.body_rest_deg)
+
+    def _flight_set(self, continuous: bool, rest_deg: float = 0.0) -> "_Flights":
         """The sampled flights: from the exact grid headings θ_k (grid noise, docs/model.md
         §17), or with ``continuous`` from ``heading_samples`` headings spread evenly inside
-        each heading bin, θ_k + ((l + ½)/n_θ − ½)Δ (Gaussian noise, §11a). Cached.
+        each heading bin, θ_k + ((l + ½)/n_θ − ½)Δ (Gaussian noise, §11a). A flight shorter
+        than :data:`envs.contact.REST_FLIGHT` (its start heads into its wall: a bump from
+        rest) lands turned by ``rest_deg`` (a body that turns further after one, §11b). Cached.
         """
-        if continuous in self._flight_sets:
-            return self._flight_sets[continuous]
+        key = (bool(continuous), float(rest_deg))
+        if key in self._flight_sets:
+            return self._flight_sets[key]
         cs, st, bd = self.cs, self.settings, self.boundary
         K, n = cs.K, self.n_states
         caster = casters(cs.env)[0]
@@ -276,14 +294,15 @@ class EventModel:
         n_fwd = flight_steps(dist, cs.h)
         src, to, n_fwd, w, steps = _split_landings(
             state, lb, K, np.full(state.size, 1.0 / (S * nt)), n_fwd,
-            step_table(cs, n_fwd, paths), _landing_heading(paths, k, cs.delta_deg, K))
+            step_table(cs, n_fwd, paths),
+            _landing_heading(paths, k, cs.delta_deg, K, paths.clock < REST_FLIGHT, rest_deg))
         flight = sp.csr_matrix((w, (src, to)), shape=(n, n))
         flight.sum_duplicates()
         fs = _Flights(flight=flight, flights=(src, to, n_fwd + 1, w),
                       reward=steps.reward(src, w, n, cs.P),
                       length=np.bincount(src, weights=w * (n_fwd + 1), minlength=n),
                       mean_flight=float(np.mean(dist)), steps=steps)
-        self._flight_sets[continuous] = fs
+        self._flight_sets[key] = fs
         return fs
 
     @classmethod
@@ -328,7 +347,7 @@ class EventModel:
         their steps (forward steps + the bump step), the flight rewards and the first landing
         (for Gaussian ``noise`` the flights with headings inside their bins, §11a).
         """
-        fs = self._flight_set(noise.gaussian)
+        fs = self._flights_for(noise)
         src, dst, delay, w = fs.flights
         return DelayChain(src=src, dst=dst, delay=delay, weight=w, reward=fs.reward,
                           start=self.start_pre)
@@ -339,14 +358,14 @@ class EventModel:
         """
         paths, land0 = self._start
         n0 = flight_steps(paths.clock, self.cs.h)
-        return FlightCells(steps=self._flight_set(noise.gaussian).steps, start_delay=n0 + 1,
+        return FlightCells(steps=self._flights_for(noise).steps, start_delay=n0 + 1,
                            start_land=land0, start_steps=step_table(self.cs, n0, paths))
 
     def chain(self, angle_deg: float, noise: TurnNoise = _EXACT
               ) -> tuple[sp.csr_matrix, np.ndarray]:
         """(transition matrix over contact states, start distribution) of one angle."""
         W = self.turn_matrix(angle_deg, noise)
-        T = sp.csr_matrix(self._flight_set(noise.gaussian).flight @ W)
+        T = sp.csr_matrix(self._flights_for(noise).flight @ W)
         mu = np.asarray(W.T @ self.start_pre).ravel()
         return T, mu
 
@@ -366,7 +385,7 @@ class EventModel:
         T, mu = self.chain(angle_deg, noise)
         res = analyse_contact_chain(T, mu, np.arange(self.n_states) // self.cs.K,
                                     method=self.stationary_method)
-        fs = self._flight_set(noise.gaussian)
+        fs = self._flights_for(noise)
         q = np.zeros(fs.reward.shape[1])
         for idx, a in zip(res.groups, res.absorption):
             qg = np.asarray(fs.reward[idx].T @ res.stationary[idx]).ravel()

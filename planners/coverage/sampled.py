@@ -80,6 +80,7 @@ class SampledModel:
     state_kind: ClassVar[str] = "configurations"
     steps_in_flights: ClassVar[bool] = False
     contact_rule: ClassVar[bool] = False
+    rest_turns: ClassVar[bool] = False
     summary: ClassVar[str] = ("generalized cell mapping: each configuration cell's "
                               "transitions from a lattice of exact continuous steps")
 

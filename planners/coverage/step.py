@@ -129,6 +129,7 @@ class StepModel:
     state_kind: ClassVar[str] = "configurations"
     steps_in_flights: ClassVar[bool] = False
     contact_rule: ClassVar[bool] = False
+    rest_turns: ClassVar[bool] = False
     summary: ClassVar[str] = ("the paper's chain over configuration cells, snapped to cell "
                               "centres after every step")
 
