@@ -63,6 +63,10 @@ MUJOCO_SLIDES = ((1.0, 0.45), (3.0, 1.21), (10.0, 1.46))
 """(incidence [deg], slide [m]) of the separate MuJoCo check quoted in the issue."""
 
 
+SI_ITERATIONS = 50
+"""Iterations of PyBullet's sequential-impulse solver with ``--solver si`` (its default)."""
+
+
 def wall_room(length: float = 6.0) -> envs.Environment:
     """An empty room ``length`` [m] × 1.5 m; the bottom wall (y = 0) is the calibration wall."""
     L = float(length)
@@ -115,10 +119,12 @@ class OnWall:
 
 
 def make_body(backend: str, bumper_arc_deg: float, slide_budget: float = 3.0,
-              wall: str = "south"):
+              wall: str = "south", solver: str | None = None):
     """The calibrated body: a PyBullet or a MuJoCo Create 2 in a :func:`wall_room` long
     enough for a ``slide_budget`` [m] slide from x = 0.5 m, or for another ``wall`` than
     the south one, in a square room of that side seen from that wall (:class:`OnWall`).
+    ``solver`` (PyBullet only): "dantzig" (its default) or "si", the sequential-impulse
+    solver at PyBullet's default 50 iterations.
     """
     side = max(6.0, slide_budget + 1.5)
     room = wall_room(side) if wall == "south" else envs.Environment.from_dict(
@@ -129,7 +135,9 @@ def make_body(backend: str, bumper_arc_deg: float, slide_budget: float = 3.0,
         bot = MuJoCoRobot(room, bumper_arc_deg=bumper_arc_deg)
     else:
         from bouncesim.robots.pybullet import PyBulletRobot
-        bot = PyBulletRobot(room, bumper_arc_deg=bumper_arc_deg)
+        kw = {} if solver in (None, "dantzig") else {"solver": solver,
+                                                     "solver_iterations": SI_ITERATIONS}
+        bot = PyBulletRobot(room, bumper_arc_deg=bumper_arc_deg, **kw)
     return bot if wall == "south" else OnWall(bot, wall, side)
 
 
@@ -283,6 +291,8 @@ class Config:
     bumper_arc_deg : float        the bumper arc [deg]
     backend : str                 the physics engine: "pybullet" or "mujoco"
     wall : str                    the calibration wall (:data:`WALLS`; south: the long room)
+    solver : str                  PyBullet's constraint solver: "dantzig" (the body's
+                                  default) or "si" (:func:`make_body`)
     quick : bool
     seed : int
     out : Path
@@ -295,6 +305,7 @@ class Config:
     bumper_arc_deg: float = 80.0
     backend: str = "pybullet"
     wall: str = "south"
+    solver: str = "dantzig"
     quick: bool = False
     seed: int = 0
     out: Path = Path("results") / NAME
@@ -306,7 +317,7 @@ def run(config: Config) -> Path:
     rng = np.random.default_rng(config.seed)
     rows = []
     with make_body(config.backend, config.bumper_arc_deg, config.slide_budget,
-                   config.wall) as bot:
+                   config.wall, config.solver) as bot:
         for inc in config.incidences:
             for rep in range(config.repeats):
                 gap = float(rng.uniform(0.0005, 0.005))
@@ -350,6 +361,10 @@ def main(argv=None) -> int:
                    help="the calibration wall: south (default) in a 1.5 m wide room; the "
                    "others in a square room, the slide counter-clockwise round it (an engine "
                    "whose slides depend on their direction in the world shows it here)")
+    p.add_argument("--solver", choices=("dantzig", "si"), default="dantzig",
+                   help="PyBullet's constraint solver: dantzig (the body's default) or si "
+                   f"(sequential impulse, {SI_ITERATIONS} iterations: slides that do not "
+                   "depend on their direction in the world, docs/model.md Appendix B)")
     p.add_argument("--incidences", type=name_list, default=None, metavar="A,B,...",
                    help="incidences [deg] to try (default: 24 from 0.5 to 90, quick 12)")
     args = p.parse_args(argv)
@@ -361,12 +376,14 @@ def main(argv=None) -> int:
         p.error("--incidences must lie in (0, 90] degrees.")
     if not args.slide_budget > 0:
         p.error(f"--slide-budget must be positive, got {args.slide_budget}")
+    if args.solver != "dantzig" and args.backend != "pybullet":
+        p.error("--solver chooses PyBullet's constraint solver: give --backend pybullet.")
     q = args.quick
     if args.backend != "pybullet" and args.out == Path("results") / NAME:
         args.out = Path("results") / f"{NAME}_{args.backend}"
     config = Config(incidences=incs or (QUICK_INCIDENCES if q else INCIDENCES),
                     repeats=args.repeats or (2 if q else 6), speed=args.speed,
-                    slide_budget=args.slide_budget, wall=args.wall,
+                    slide_budget=args.slide_budget, wall=args.wall, solver=args.solver,
                     backend=args.backend, quick=q,
                     seed=args.seed, out=args.out)
     run(config)

@@ -124,10 +124,12 @@ class PyBulletRobot(SteppedWheels, Robot):
         Wheel speed while turning [m/s].
     solver : {"dantzig", "si"}
         Constraint solver. "dantzig" (default): Bullet's exact MLCP solver for the small
-        contact problem of one robot; it has no constraint-ordering bias, so a robot pushing
-        along a wall keeps its heading and turns come out within ~0.2°. "si": PyBullet's
+        contact problem of one robot; a robot pushing along a wall keeps its heading and turns
+        come out within ~0.2°, but how fast a glancing slide turns into the wall depends on
+        the wall's direction in the world (docs/model.md Appendix B). "si": PyBullet's
         default sequential-impulse solver (with 10 iterations it turns a robot that scrapes a
-        wall on its left into that wall, a few degrees per second).
+        wall on its left into that wall, a few degrees per second; with 50 its slides turn in
+        and bump at about 10.4°, alike on every wall and either side).
     solver_iterations : int
         Iterations of the sequential-impulse solver (PyBullet's default is 50), also used by
         the Dantzig solver's fallback.
