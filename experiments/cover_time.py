@@ -106,6 +106,8 @@ def run(config: Config) -> Path:
                              "T90_model": m.T["0.9"]["mean"],
                              "T90_model_not_reached": m.T["0.9"]["not_reached"],
                              "T90_twin": tw_T, "T90_twin_not_reached": tw_nr,
+                             "T90_model_se": m.T["0.9"].get("mean_se"),
+                             "T90_twin_se": sim.T_mean_se(0.9),
                              "model_seconds_all": model_s, "twin_seconds": sim.seconds})
             sim_cells = visited_by(sim.first, m.t)
             for t in config.times:

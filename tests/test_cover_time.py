@@ -324,3 +324,18 @@ def test_experiment_quick(tmp_path):
         assert np.all(np.diff(g.sort_values("t")[["model", "twin"]].to_numpy(), axis=0) >= 0)
     cfg = json.loads((tmp_path / "config.json").read_text())
     assert cfg["quick"] is True and cfg["orientations"] == 72
+
+
+def test_the_twins_T90_mean_and_its_standard_error_by_hand():
+    # four teams, three of which reach 90 % at steps 10, 20 and 30: mean 20, sd 10, standard
+    # error 10 / √3; one team reaching gives no error; none, no mean
+    import math
+
+    import numpy as np
+
+    from bouncesim.runs.cover import TwinCover
+    reach = np.array([[1, 5, 10, 40], [1, 5, 20, -1], [1, 5, -1, -1], [1, 5, 30, -1]])
+    tc = TwinCover(t=np.array([1]), covered=np.zeros((4, 1)), reach=reach, seconds=0.0)
+    assert tc.T_mean(0.9) == (20.0, 0.25)
+    assert tc.T_mean_se(0.9) == pytest.approx(10 / math.sqrt(3))
+    assert tc.T_mean_se(1.0) is None and tc.T_mean(1.0) == (40.0, 0.75)

@@ -61,6 +61,14 @@ class TwinCover:
         ok = col[col >= 0]
         return (float(ok.mean()) if ok.size else None), float(1 - ok.size / col.size)
 
+    def T_mean_se(self, x: float) -> float | None:
+        """Standard error of :meth:`T_mean`'s mean (None below two teams that reach X): how
+        far a mean over the few runs that reach a rarely reached X can move by chance.
+        """
+        col = self.reach[:, list(LEVELS).index(x)]
+        ok = col[col >= 0].astype(float)
+        return float(ok.std(ddof=1) / math.sqrt(ok.size)) if ok.size > 1 else None
+
 
 def twin_cover(env, policy, noise: TurnNoise, *, robots: int = 1, runs: int = 100,
                horizon: int = 20_000, epoch: int = 1000, times=None, rng=None, start=None,
