@@ -81,6 +81,9 @@ def test_the_twin_that_turns_further_from_rest_matches_the_model_that_says_so(ca
     assert row["floor"] < apart / 4 and row["tv"] <= 1.5 * row["floor"] + 0.01, row
     assert main(["validate", "lab", "--angles", "30", "--body-turns-rest", rest]) == 2
     assert "explicit --body-turns" in capsys.readouterr().err
+    assert main(["validate", "lab", "--angles", "30", "--model", "step", "--body-turns", spec,
+                 "--body-turns-rest", rest]) == 2
+    assert "turns every bump alike" in capsys.readouterr().err
 
 
 @pytest.mark.physics

@@ -340,6 +340,9 @@ def _check(args) -> None:
         raise UserError(f"--seed must be a non-negative integer, got {args.seed}.")
     if args.body_turns_rest is not None and args.body_turns in ("auto", "off"):
         raise UserError("--body-turns-rest goes with an explicit --body-turns SPEC.")
+    if args.body_turns_rest is not None and not MODELS[args.model].rest_turns:
+        raise UserError(f"--body-turns-rest is for the event model: the {args.model} model "
+                        f"turns every bump alike.")
     if args.robots is not None and args.body_turns not in ("auto", "off"):
         raise UserError("--body-turns SPEC is for single robots: teams turn as --eps/--r say.")
     if args.robots is None:
@@ -377,7 +380,8 @@ def body_turn_errors(backend: str, speed: float = 0.3) -> str | None:
 
 def body_rest_turn_errors(backend: str) -> str | None:
     """The turn errors a simulated body of ``backend`` declares after a bump from rest (a
-    flight of length zero, docs/model.md §11b): MuJoCo's ``DECLARED_REST_TURNS``; None for
+    flight of length zero, docs/model.md §11b): MuJoCo's ``DECLARED_REST_TURNS`` (measured
+    with drives at 0.3 m/s, taken at every speed: a bump from rest is slow at any); None for
     the twin and PyBullet.
     """
     if backend == "mujoco":

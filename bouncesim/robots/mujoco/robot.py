@@ -64,10 +64,8 @@ DECLARED_REST_TURNS = "gauss:0.26,offset=-0.36,factor=0.9982"
 """The default body's turn errors after a bump from rest: a flight of length zero, when the
 turn before left it facing its wall (docs/model.md §11b), measured by the same command (its
 "rest" trials, the factor fixed to :data:`DECLARED_TURNS`'): 0.68° less short than after a
-flight (30°: −0.36°, 45°: −0.29°, 75°: −0.44°, 90°: −0.66°, 315°: −1.16°). A turn right
-after a moving bump starts while the body still presses into the wall; a turn after a
-bump from rest does not. The event model's zero-length flights take it
-(``validate --backend mujoco``)."""
+flight (30°: −0.36°, 45°: −0.29°, 75°: −0.44°, 90°: −0.66°, 315°: −1.16°). The event
+model's zero-length flights take it (``validate --backend mujoco``)."""
 
 DECLARED_TURNS_AT = {
     0.3: DECLARED_TURNS,
