@@ -39,8 +39,10 @@ def _wrap(deg: float) -> float:
     return (deg + 180.0) % 360.0 - 180.0
 
 
-REST_FLIGHT = 0.005
-"""[m] A flight shorter than this after a turn is a bump from rest (:func:`measure`)."""
+BODY_REST_FLIGHT = 0.005
+"""[m] A body's flight shorter than this after a turn is a bump from rest (:func:`measure`):
+a physical body pushes up to a few mm into its wall (MuJoCo's up to 4.2 mm); the models'
+threshold for their exact flights is :data:`envs.contact.REST_FLIGHT`, 1 mm."""
 
 
 def measure(kind: str, env, trials: int, rng: np.random.Generator,
@@ -50,7 +52,7 @@ def measure(kind: str, env, trials: int, rng: np.random.Generator,
 
     With ``rest`` every other trial is a bounce in place, as the chain makes them: after its
     bump it turns by its angle and drives again; when that flight is shorter than
-    :data:`REST_FLIGHT` (the turn left it facing its wall: a bump from rest, its length in
+    :data:`BODY_REST_FLIGHT` (the turn left it facing its wall: a bump from rest, its length in
     ``rest_flight_m``) the second turn by the angle is the one measured (arrival "rest");
     a trial whose turn took it off the wall is dropped.
     """
@@ -69,7 +71,7 @@ def measure(kind: str, env, trials: int, rng: np.random.Generator,
                 body.drive_until_bump(speed, 30.0)       # from rest
                 x2, y2, _ = body.true_pose()
                 row |= {"arrival": "rest", "rest_flight_m": float(np.hypot(x2 - x1, y2 - y1))}
-                if row["rest_flight_m"] >= REST_FLIGHT:
+                if row["rest_flight_m"] >= BODY_REST_FLIGHT:
                     continue
             h1 = body.true_pose()[2]
             body.turn(a)

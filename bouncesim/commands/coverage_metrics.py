@@ -125,8 +125,8 @@ def run_metrics(model, result: MixDesign, args, start, timeshared=None,
                              start=start, cells=model.cs)
             rec["twin_covered_mean"] = [float(x) for x in sim.covered_mean]
             rec["twin_covered_se"] = [float(x) for x in sim.covered_se]
-            rec["twin_T"] = {f"{x:.1f}": dict(zip(("mean", "not_reached"), sim.T_mean(x)))
-                             for x in LEVELS}
+            rec["twin_T"] = {f"{x:.1f}": {**dict(zip(("mean", "not_reached"), sim.T_mean(x))),
+                                          "mean_se": sim.T_mean_se(x)} for x in LEVELS}
             rec["twin_runs"] = int(args.simulate)
             rec["twin_seconds"] = round(sim.seconds, 3)
     cs = model.cs
