@@ -338,12 +338,12 @@ def _check(args) -> None:
         raise UserError(f"--speed must lie in (0, 0.5] m/s, got {args.speed:g}.")
     if args.seed < 0:
         raise UserError(f"--seed must be a non-negative integer, got {args.seed}.")
-    if args.body_turns_rest is not None and args.body_turns in ("auto", "off"):
+    if args.body_turns_rest is not None and not explicit_body_turns(args):
         raise UserError("--body-turns-rest goes with an explicit --body-turns SPEC.")
     if args.body_turns_rest is not None and not MODELS[args.model].rest_turns:
         raise UserError(f"--body-turns-rest is for the event model: the {args.model} model "
                         f"turns every bump alike.")
-    if args.robots is not None and args.body_turns not in ("auto", "off"):
+    if args.robots is not None and explicit_body_turns(args):
         raise UserError("--body-turns SPEC is for single robots: teams turn as --eps/--r say.")
     if args.robots is None:
         if args.interact is not None:
@@ -359,11 +359,11 @@ def _check(args) -> None:
     args.interact = args.interact or "bump"
 
 
-def backend_twin_turns(args) -> bool:
-    """True when the kinematic twin is told to turn with a body's errors: an explicit
-    ``--body-turns`` spec (not auto or off) on ``--backend kinematic``.
+def explicit_body_turns(args) -> bool:
+    """True for an explicit ``--body-turns`` spec (not auto or off): the model takes it, and
+    on ``--backend kinematic`` the twin turns with it too.
     """
-    return args.backend == "kinematic" and args.body_turns not in ("auto", "off")
+    return args.body_turns not in ("auto", "off")
 
 
 def body_turn_errors(backend: str, speed: float = 0.3) -> str | None:
@@ -407,7 +407,7 @@ def run(args) -> int:
         rest_turns = None                       # a model that turns every bump alike
     noise = noise.with_body(body_turns, rest_turns)   # the model's: the body's own errors
     # a twin told to turn like a body (an explicit spec on the kinematic backend)
-    twin_turns = body_turns if backend_twin_turns(args) else None
+    twin_turns = body_turns if explicit_body_turns(args) and args.backend == "kinematic" else None
     twin_rest = rest_turns if twin_turns else None
     out = writable_path(args.out, folder=True) if args.out is not None else None
     backend = args.backend

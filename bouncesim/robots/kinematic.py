@@ -498,22 +498,25 @@ class KinematicBatch:
             free = self.local.cast(self.pos, u)
         move, bumped = step(drive_distance(free), self.h)     # docs/model.md §8
         counted = self.cell_of(self.pos)
-        before = self.pos.copy()
+        noise = noise if noise is not None else _EXACT
+        # a body that turns further after a bump from rest (§11b): the flight since the
+        # last turn is tracked only for it (a run keeps one noise model)
+        rest = float(getattr(noise, "rest_deg", 0.0))
+        before = self.pos.copy() if rest else None
         self.pos += move[:, None] * u
         if self.contact is not None and bumped.any():         # slides: docs/model.md §9
             self._slide(bumped, move, u)
-        self._flown += np.hypot(*(self.pos - before).T)
+        if rest:
+            self._flown += np.hypot(*(self.pos - before).T)
         if bumped.any():
             idx = np.flatnonzero(bumped)
             counted[idx] = self.cell_of(self.pos[idx])
             ang = np.broadcast_to(np.asarray(angles_deg, dtype=float), (self.n,))[idx]
-            noise = noise if noise is not None else _EXACT
             turn = noise.sample_many(self.rng, ang)
-            rest = float(getattr(noise, "rest_deg", 0.0))
-            if rest:                 # a bump from rest: no flight since the last turn (§11b)
+            if rest:                 # a bump from rest: no flight since the last turn
                 turn = turn + rest * (self._flown[idx] < REST_FLIGHT)
+                self._flown[idx] = 0.0
             self.heading[idx] = (self.heading[idx] + turn) % 360.0
-            self._flown[idx] = 0.0
             u[idx] = unit(self.heading[idx])
         return counted, bumped
 
