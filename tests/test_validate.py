@@ -213,15 +213,16 @@ def test_validate_takes_the_mujoco_bodys_contact_rule_and_turn_errors():
 
     from bouncesim.commands.common import contact_rule
     from bouncesim.commands.validate import body_turn_errors
-    from bouncesim.robots.mujoco.robot import DECLARED_TURNS, DECLARED_TURNS_AT
+    from bouncesim.robots.mujoco.robot import DECLARED_REST_TURNS, DECLARED_TURNS, DECLARED_TURNS_AT
     from envs.motion import MUJOCO_CONTACT, PYBULLET_CONTACT
     rule = {b: contact_rule(argparse.Namespace(contact="auto", backend=b, model="event"))
             for b in ("kinematic", "pybullet", "mujoco")}
     assert rule == {"kinematic": None, "pybullet": PYBULLET_CONTACT, "mujoco": MUJOCO_CONTACT}
-    assert body_turn_errors("mujoco") == DECLARED_TURNS == body_turn_errors("mujoco", 0.3)
-    assert body_turn_errors("mujoco", 0.2) == DECLARED_TURNS_AT[0.2]
-    assert body_turn_errors("mujoco", 0.25) is None          # not measured at that speed
-    assert body_turn_errors("kinematic") is None and body_turn_errors("pybullet") is None
+    assert body_turn_errors("mujoco")[0] == DECLARED_TURNS == body_turn_errors("mujoco", 0.3)[0]
+    assert body_turn_errors("mujoco", 0.2)[0] == DECLARED_TURNS_AT[0.2]
+    assert body_turn_errors("mujoco", 0.25)[0] is None       # not measured at that speed
+    assert body_turn_errors("mujoco")[1] == DECLARED_REST_TURNS
+    assert body_turn_errors("kinematic") == body_turn_errors("pybullet") == (None, None)
 
 
 def test_an_explicit_body_turns_spec_turns_the_twin_as_it_tells_the_model(capsys):

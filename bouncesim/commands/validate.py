@@ -78,6 +78,8 @@ BURN_IN = {"kinematic": 200, "pybullet": 50, "mujoco": 50}
 TEAM_STEPS = 100_000
 """Default steps per angle of a team run (--robots K: one world of K robots per trial)."""
 TEAM_PER_ROBOT = 2500
+BACKEND_TEAMS = {"kinematic": True, "pybullet": True, "mujoco": False}
+"""Backends whose worlds run teams that bump each other (--robots K)."""
 
 DESCRIPTION = """\
 For every bouncing angle: the coverage q predicted by --model and the step-sampled visit
@@ -107,8 +109,8 @@ floor ~ 1/sqrt(steps), up to 1e6 steps per angle (--max-steps; an angle that sto
 cap is reported on stderr).
 --steps N fixes the count; --floor F with --steps N makes N the first round.
 
-Teams (--robots K, kinematic only; docs/model.md section 24): each trial is one room with K
-robots that start in distinct cells and bounce by the angle; --interact bump (default) makes
+Teams (--robots K, kinematic or pybullet; docs/model.md section 24): each trial is one room
+with K robots that start in distinct cells and bounce by the angle; --interact bump (default) makes
 robot-robot contact a bump, as real robots feel it, --interact off lets them pass through each
 other. The prediction stays the model's single-robot coverage (K independent robots share
 it), so with --interact bump tv measures how far the robots' meetings move the team's
@@ -155,8 +157,8 @@ def register(sub) -> None:
     p.add_argument("--epoch", type=int, default=1000, metavar="STEPS",
                    help="steps per epoch of the mix (default 1000)")
     p.add_argument("--robots", type=int, default=None, metavar="K",
-                   help="kinematic only: simulate teams of K robots in one room (see below; "
-                   "default: independent robots)")
+                   help="kinematic or pybullet: simulate teams of K robots in one room (see "
+                   "below; default: independent robots)")
     p.add_argument("--interact", choices=("bump", "off"), default=None,
                    help="with --robots: robot-robot contact is a bump (default) or the robots "
                    "pass through each other")
@@ -208,8 +210,8 @@ def simulate_trial(params: dict, rng: np.random.Generator) -> dict:
     contact = None if contact == "off" else ContactParams.from_text(contact)
     epoch, burn_in = int(params["epoch"]), int(params["burn_in"])
     t0 = time.perf_counter()
-    meetings = None
-    if params.get("team"):
+    team = params.get("team")
+    if team and params["backend"] == "kinematic":
         from ..robots.noise import parse_noise
         from ..runs.team_runs import team_coverage
         noise = parse_noise(f"model:eps={params['eps']},r={params['r']}", cs.delta_deg)
@@ -225,15 +227,17 @@ def simulate_trial(params: dict, rng: np.random.Generator) -> dict:
             cs.delta_deg) if params.get("body_turns") else None
         res = KinematicBatch(env, n, rng, cells=cs, contact=contact).run(
             mix, steps, epoch=epoch, burn_in=burn_in, noise=noise)
-        counts, dropped, bumps = res.counts, res.dropped, res.bumps
+        counts, dropped, bumps, meetings = res.counts, res.dropped, res.bumps, None
     else:
         if params["backend"] == "mujoco":
             from ..robots.mujoco.batch import MuJoCoBatch as Batch
         else:
             from ..robots.pybullet.batch import PyBulletBatch as Batch
-        with Batch(env, n, rng, cells=cs, speed=float(params["speed"])) as batch:
+        with Batch(env, n, rng, cells=cs, speed=float(params["speed"]),
+                   **({"interact": params["interact"]} if team else {})) as batch:
             res = batch.run(mix, steps, epoch=epoch, burn_in=burn_in)
         counts, dropped, bumps = res.pooled, int(res.dropped.sum()), int(res.bumps.sum())
+        meetings = int(res.meetings.sum()) if team else None
     return {"counted": int(counts.sum()), "dropped": int(dropped), "bumps": int(bumps),
             "wall_s": round(time.perf_counter() - t0, 3),
             **({} if meetings is None else {"meetings": int(meetings)}),
@@ -351,9 +355,9 @@ def _check(args) -> None:
         return
     if args.robots < 1:
         raise UserError(f"--robots must be at least 1, got {args.robots}.")
-    if args.backend != "kinematic" or args.alpha is not None:
-        raise UserError("--robots runs teams in the kinematic twin, one angle at a time (no "
-                        "--backend pybullet, no --alpha).")
+    if not BACKEND_TEAMS[args.backend] or args.alpha is not None:
+        raise UserError("--robots runs teams in the kinematic twin or PyBullet, one angle at a "
+                        "time (no --backend mujoco, no --alpha).")
     if args.contact not in (None, "auto", "off"):
         raise UserError("--robots teams use the front-half bumper (--contact off).")
     args.interact = args.interact or "bump"
@@ -366,28 +370,18 @@ def explicit_body_turns(args) -> bool:
     return args.body_turns not in ("auto", "off")
 
 
-def body_turn_errors(backend: str, speed: float = 0.3) -> str | None:
-    """The turn errors a simulated body of ``backend`` declares of itself after bumps driven
-    at ``speed`` [m/s] (a noise spec, docs/model.md §11b): MuJoCo's ``DECLARED_TURNS_AT``
-    (0.3 and 0.2 m/s; None at a speed not measured); None for the twin and PyBullet, whose
+def body_turn_errors(backend: str, speed: float = 0.3) -> tuple[str | None, str | None]:
+    """The turn errors a simulated body of ``backend`` declares of itself (noise specs,
+    docs/model.md §11b): after bumps driven at ``speed`` [m/s], MuJoCo's ``DECLARED_TURNS_AT``
+    (0.3 and 0.2 m/s; None at a speed not measured), and after a bump from rest (a flight of
+    length zero), its ``DECLARED_REST_TURNS`` (measured with drives at 0.3 m/s, taken at every
+    speed: a bump from rest is slow at any). (None, None) for the twin and PyBullet, whose
     turns are exact or nearly (PyBullet: −0.23° ± 0.28°).
     """
     if backend == "mujoco":
-        from ..robots.mujoco.robot import declared_turns_at
-        return declared_turns_at(speed)
-    return None
-
-
-def body_rest_turn_errors(backend: str) -> str | None:
-    """The turn errors a simulated body of ``backend`` declares after a bump from rest (a
-    flight of length zero, docs/model.md §11b): MuJoCo's ``DECLARED_REST_TURNS`` (measured
-    with drives at 0.3 m/s, taken at every speed: a bump from rest is slow at any); None for
-    the twin and PyBullet.
-    """
-    if backend == "mujoco":
-        from ..robots.mujoco.robot import DECLARED_REST_TURNS
-        return DECLARED_REST_TURNS
-    return None
+        from ..robots.mujoco.robot import DECLARED_REST_TURNS, declared_turns_at
+        return declared_turns_at(speed), DECLARED_REST_TURNS
+    return None, None
 
 
 def run(args) -> int:
@@ -398,10 +392,10 @@ def run(args) -> int:
     noise = TurnNoise(args.eps, args.r)
     angles = check_angles(cs.K, parse_angles(args.angles), noise)
     auto = args.body_turns == "auto"
-    body_turns = body_turn_errors(args.backend, args.speed) if auto \
-        else None if args.body_turns == "off" else args.body_turns
+    declared, declared_rest = body_turn_errors(args.backend, args.speed)
+    body_turns = declared if auto else None if args.body_turns == "off" else args.body_turns
     # after a bump from rest: the event model's zero-length flights (§11b, §17)
-    rest_turns = (body_rest_turn_errors(args.backend) if auto and body_turns else
+    rest_turns = (declared_rest if auto and body_turns else
                   None if auto else args.body_turns_rest)
     if not MODELS[args.model].rest_turns:
         rest_turns = None                       # a model that turns every bump alike

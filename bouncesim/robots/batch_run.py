@@ -44,6 +44,8 @@ class BatchRun:
     wall_s, cpu_s : float       wall-clock and process CPU time of the run [s]
     skipped : (n,) int array    physics steps each robot fast-forwarded (Appendix C; 0 without)
     poses : (n, 3) array        each robot's (x [m], y [m], heading [deg]) at its end
+    meetings : (n,) int array   counted bump steps whose bumper another robot pressed (a team
+                                whose robots bump each other; 0 otherwise)
     turns : list, optional      with ``record=True``, per robot, one
                                 (x [m], y [m], heading [deg], turn [deg], heading after
                                 [deg]) per bump: the contact pose, the executed turn (noise
@@ -61,6 +63,7 @@ class BatchRun:
     turns: list | None = None
     skipped: np.ndarray | None = None
     poses: np.ndarray | None = None
+    meetings: np.ndarray | None = None
 
     @property
     def total(self) -> int:
@@ -112,6 +115,7 @@ class ProgramBatch:
                "turns": [[] for _ in range(n)] if record else None,
                "skipped": np.zeros(n, dtype=np.int64),
                "poses": np.zeros((n, 3)),
+               "meetings": np.zeros(n, dtype=np.int64),
                "points": [[] for _ in range(n)]}
         return angles, alpha, noise, out
 
@@ -161,4 +165,5 @@ class ProgramBatch:
                         sim_time=physics_steps * time_step,
                         wall_s=time.perf_counter() - t_wall,
                         cpu_s=time.process_time() - t_cpu, turns=out["turns"],
-                        skipped=out["skipped"], poses=out["poses"])
+                        skipped=out["skipped"], poses=out["poses"],
+                        meetings=out["meetings"])

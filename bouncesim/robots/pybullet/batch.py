@@ -1,10 +1,14 @@
 """Many PyBullet Create 2 bodies in one world, stepped in lockstep (docs/model.md §8, §21).
 
 :class:`PyBulletBatch` runs a policy mix on ``n_robots`` independent Create 2 bodies that
-share one ``DIRECT`` PyBullet world and its walls. The robots ignore each other (their links
-are in a collision group that only meets the walls and the floor), so each one moves exactly
-as it would alone: what is shared is the cost of every ``stepSimulation`` call and of the
-static walls.
+share one ``DIRECT`` PyBullet world and its walls. By default (``interact="off"``) the robots
+ignore each other (their links are in a collision group that only meets the walls and the
+floor), so each one moves exactly as it would alone: what is shared is the cost of every
+``stepSimulation`` call and of the static walls. With ``interact="bump"`` they are a team
+(docs/model.md §24): their disks collide, another robot's disk in the bumper arc presses the
+bumper as a wall does, the robots start in distinct position cells, every physics step is
+simulated (no fast-forward: a steady drive may meet a robot) and a robot whose run has ended
+stays where it stopped, an obstacle, until the others are done.
 
 Each robot runs the same program as :func:`bouncesim.runs.execute.execute` on a
 :class:`~bouncesim.robots.pybullet.PyBulletRobot` (a step drives h by the clock, polling the
@@ -50,7 +54,8 @@ from .bumper import read_bumper
 from .fastforward import DEFAULT_FAST_FORWARD, Coaster, FastForward
 from .robot import SETTLE_STEPS, PyBulletRobot
 
-__all__ = ["PyBulletBatch", "BatchRun", "BATCH_PHYSICS", "ROBOT_GROUP", "ROBOT_MASK"]
+__all__ = ["PyBulletBatch", "BatchRun", "BATCH_PHYSICS", "ROBOT_GROUP", "ROBOT_MASK",
+           "INTERACT"]
 
 BATCH_PHYSICS = {"contact_threshold": 0.002}
 """The batch's physics defaults (each can be overridden): a 2 mm contact breaking threshold
@@ -63,6 +68,10 @@ ROBOT_GROUP = 4
 ROBOT_MASK = 1 | 2
 """Robots collide with the default (1) and static (2) groups only: walls and floor, never
 another robot."""
+TEAM_MASK = ROBOT_MASK | ROBOT_GROUP
+"""``interact="bump"``: a robot's base also collides with the other robots' bases (their wheels
+keep ``ROBOT_MASK``, so a wheel meets no robot)."""
+INTERACT = ("off", "bump")
 
 
 class PyBulletBatch(ProgramBatch):
@@ -88,6 +97,9 @@ class PyBulletBatch(ProgramBatch):
         Skip the physics steps of steady drives far from the walls and of the steady
         middle of turns (docs/model.md Appendix C; default ``FastForward()``); None simulates
         every physics step.
+    interact : {"off", "bump"}
+        The robots pass through each other (default), or bump each other as a team (module
+        docstring; every physics step is then simulated, whatever ``fast_forward`` says).
     **robot_kw
         Physics settings of :class:`PyBulletRobot` (``time_step``, ``turn_speed``,
         ``solver``, ``solver_iterations``, ``wheel_torque``, ``bumper_arc_deg``,
@@ -98,10 +110,16 @@ class PyBulletBatch(ProgramBatch):
     def __init__(self, env: Environment | str, n_robots: int, rng=None, *,
                  cells: CellSpace | None = None, noise: NoiseModel | None = None,
                  speed: float = 0.3, rngs=None, starts=None,
-                 fast_forward: FastForward | None = DEFAULT_FAST_FORWARD, **robot_kw) -> None:
+                 fast_forward: FastForward | None = DEFAULT_FAST_FORWARD,
+                 interact: str = "off", **robot_kw) -> None:
         self.n = int(n_robots)
         if self.n < 1:
             raise UserError(f"a batch needs at least one robot, got {n_robots}.")
+        if interact not in INTERACT:
+            raise UserError(f"interact must be off or bump, got {interact!r}.")
+        self.interact = interact
+        if interact == "bump":
+            fast_forward = None
         for k in ("turn", "back_off", "gui", "record", "start"):
             if k in robot_kw:
                 raise UserError(f"PyBulletBatch does not take {k}= (turns by clock, no "
@@ -124,10 +142,12 @@ class PyBulletBatch(ProgramBatch):
             raise UserError(f"speed must lie in (0, {self.host.spec.max_wheel_speed:g}] m/s, "
                             f"got {self.speed:g}.")
         p, kw = self.host._p, self.host._kw
+        if self.interact == "bump" and self.starts is None and self.n > self.cells.P:
+            raise UserError(f"a team needs 1 to {self.cells.P} robots in {self.env.name} (one "
+                            f"per cell at the start), got {self.n}.")
         self.bodies = [self.host._robot] + [self.host._create_body() for _ in range(self.n - 1)]
         for b in self.bodies:
-            for link in (-1, 0, 1):
-                p.setCollisionFilterGroupMask(b, link, ROBOT_GROUP, ROBOT_MASK, **kw)
+            self._filter(b)
         self._steps = 0
         self.fast_forward = fast_forward
         self._coaster = None if fast_forward is None else Coaster(
@@ -158,20 +178,41 @@ class PyBulletBatch(ProgramBatch):
             p.resetJointState(body, j, p.getJointState(body, j, **kw)[0], 0.0, **kw)
         self._wheels(body, 0.0, 0.0)
 
+    def _filter(self, body: int) -> None:
+        """Put ``body``'s links in the robots' collision group (module docstring)."""
+        for link in (-1, 0, 1):
+            mask = TEAM_MASK if self.interact == "bump" and link == -1 else ROBOT_MASK
+            self.host._p.setCollisionFilterGroupMask(body, link, ROBOT_GROUP, mask,
+                                                     **self.host._kw)
+
     def _new_body(self) -> int:
         body = self.host._create_body()
-        for link in (-1, 0, 1):
-            self.host._p.setCollisionFilterGroupMask(body, link, ROBOT_GROUP, ROBOT_MASK,
-                                                     **self.host._kw)
+        self._filter(body)
         return body
 
     def _retire(self, i: int, out: dict) -> None:
-        """Robot i's program has ended: keep its pose and take its body out of the world, so
-        that it costs nothing while the others finish (:meth:`run` builds it anew).
+        """Robot i's program has ended: keep its pose and, unless the robots bump each other
+        (then it stays, an obstacle), take its body out of the world, so that it costs nothing
+        while the others finish (:meth:`run` builds it anew).
         """
         out["poses"][i] = self._pose(self.bodies[i])
+        if self.interact == "bump":
+            return
         self.host._p.removeBody(self.bodies[i], **self.host._kw)
         self.bodies[i] = -1
+
+    def _start_of(self, i: int, rng, taken: set) -> int:
+        """Robot i's start configuration: given, or drawn uniformly from its generator, again
+        while (``interact="bump"``) its cell holds an earlier robot's start.
+        """
+        if self.starts is not None:
+            return self.starts[i]
+        while True:
+            z = int(rng.integers(0, self.cells.N))
+            p = int(self.cells.pk(z)[0])
+            if self.interact == "off" or p not in taken:
+                taken.add(p)
+                return z
 
     # ------------------------------------------------------------------ the program
     def _program(self, i: int, angles, alpha, steps: int, epoch: int, burn_in: int,
@@ -244,10 +285,12 @@ class PyBulletBatch(ProgramBatch):
                             for tk, xk, yk, hk, k in track]
             return 1 if n > 0 else 0
 
-        z = self.starts[i] if self.starts is not None else int(rng.integers(0, cells.N))
-        self._place(body, *cells.pose(z))
+        self._place(body, *cells.pose(self._start_of(i, rng, out.setdefault("taken", set()))))
         points, wall_set, arc = out["points"][i], host._wall_set, host.bumper_arc_deg
         p, kw = host._p, host._kw
+        others = frozenset(b for b in self.bodies if b != body)
+        if self.interact == "bump":
+            wall_set = wall_set | others         # another robot presses the bumper too
         angle = float(angles[0])
         T = h / speed
         for s in range(burn_in + steps):
@@ -277,6 +320,8 @@ class PyBulletBatch(ProgramBatch):
             if s >= burn_in:
                 points.append(pose[:2])              # its cell: at the end, all at once
                 out["bumps"][i] += bump_step
+                if bump_step and self.interact == "bump":
+                    out["meetings"][i] += any(read_bumper(p, body, others, arc, kw))
             if not bump_step:
                 continue
             track.clear()
