@@ -3,11 +3,14 @@ that ignore each other (docs/model.md §20a, §24).
 
 The model's team metrics assume K independent robots. Here K = 4 kinematic twins run in one
 room (:func:`bouncesim.runs.team_runs.team_coverage`), once passing through each other
-(``interact="off"``: the prediction's assumption) and once bumping (``"bump"``: what real
-robots feel), from distinct uniform start cells. Reported per map and angle: the mean covered
-fraction C(t) at a few t (each robot's own steps), the mean T_90 over the runs that reach 90 %
-and the share that does, the meetings per 1000 steps of one robot, for the model (sampled,
-event model), the passing team and the bumping team. Writes team_cover.csv and config.json.
+(``interact="off"``: the prediction's assumption, each robot from its own uniform start) and
+once bumping (``"bump"``: what real robots feel, from distinct uniform start cells). Reported
+per map and angle: the mean covered fraction C(t) at a few t (each robot's own steps), the
+mean T_90 over the runs that reach 90 % and the share that does; the model's meetings (two
+robots counted in one cell at the same own step): the mean first one over the runs that
+meet and the share that do, and their number per 1000 steps of one robot (and the model's
+closed-form limit); and the bumping team's contacts (flights another robot ended): the mean
+first one and their number per 1000 steps. Writes team_cover.csv and config.json.
 
     python -m experiments.team_cover            # lab (3 angles) and complex (75°), ~10 min
     python -m experiments.team_cover --quick    # lab, 75°, few runs
@@ -90,29 +93,48 @@ def run(config: Config) -> pd.DataFrame:
                                 horizon=T, runs=config.model_runs, rng=model_rng, exact=False,
                                 times=fine)
         idx = [fine.index(t) for t in times]
-        t90 = rec.T["0.9"]
+        t90, met = rec.T["0.9"], rec.meeting
         rows.append({"map": name, "angle": angle, "mode": "model (independent)",
                      **{f"C({t})": float(rec.covered_mean[i]) for t, i in zip(times, idx)},
                      "T90_mean": t90["mean"], "reach90": 1 - t90["not_reached"],
-                     "meetings_per_1000": 0.0, "runs": config.model_runs})
+                     "meet_first": met["first"]["mean"],
+                     "meet_reached": 1 - met["first"]["not_reached"],
+                     "colocated_per_1000": met["per_1000"],
+                     "colocated_limit": met["per_1000_limit"],
+                     "contacts_per_1000": 0.0, "runs": config.model_runs})
         for mode, seeds in zip(("off", "bump"), sim_ss.spawn(2)):
-            cov, t90s, meet, steps = [], [], 0, 0
+            cov, t90s, meet, contact = [], [], [], []
+            colo = touches = steps = 0
             for s in seeds.spawn(config.runs):
+                rng = np.random.default_rng(s)
+                # passing robots start independently, as the prediction's; bumping robots
+                # in distinct cells (they are disks)
+                starts = rng.integers(cs.N, size=config.robots) if mode == "off" else None
                 res = team_coverage(env, angle, body_noise, robots=config.robots, steps=T,
-                                    burn_in=0, interact=mode, rng=np.random.default_rng(s),
-                                    cells=cs)
+                                    burn_in=0, interact=mode, rng=rng, cells=cs,
+                                    starts=starts)
                 cov.append(res.covered(fine))
                 t90s.append(_t90(res.first_visit, T))
-                meet += res.meetings
+                meet.append(res.first_meeting)
+                contact.append(res.first_contact)
+                colo += res.colocations
+                touches += res.meetings
                 steps += int(res.per_robot.sum()) + res.dropped
             cov = np.array(cov)
             got = [t for t in t90s if t is not None]
             mean_t90 = float(np.mean(got)) if got else float("nan")
             share = len(got) / len(t90s)
+            met_at = np.array([m for m in meet if m >= 0], dtype=float)
+            hits = np.array([c for c in contact if c >= 0], dtype=float)
             rows.append({"map": name, "angle": angle, "mode": f"twin team, {mode}",
                          **{f"C({t})": float(cov[:, i].mean()) for t, i in zip(times, idx)},
                          "T90_mean": mean_t90, "reach90": share,
-                         "meetings_per_1000": 1000.0 * meet / steps, "runs": config.runs})
+                         "meet_first": float(met_at.mean()) if met_at.size else float("nan"),
+                         "meet_reached": met_at.size / len(meet),
+                         "colocated_per_1000": 2000.0 * colo / (config.robots * T * config.runs),
+                         "colocated_limit": float("nan"),
+                         "contact_first": float(hits.mean()) if hits.size else float("nan"),
+                         "contacts_per_1000": 1000.0 * touches / steps, "runs": config.runs})
             print(f"{name} {angle:g}° {mode}: done", flush=True)
     table = pd.DataFrame(rows)
     table.to_csv(out / "team_cover.csv", index=False)

@@ -86,6 +86,11 @@ def test_team_cover_quick(tmp_path):
     assert team_cover.main(["--quick", "--out", str(tmp_path)]) == 0
     t = pd.read_csv(tmp_path / "team_cover.csv")
     assert t["mode"].tolist() == ["model (independent)", "twin team, off", "twin team, bump"]
-    assert t.meetings_per_1000.tolist()[:2] == [0.0, 0.0] and t.meetings_per_1000[2] > 0
+    assert t.contacts_per_1000.tolist()[:2] == [0.0, 0.0] and t.contacts_per_1000[2] > 0
+    # the model and the passing team meet (share a cell) often in lab's 48 cells; bumping
+    # robots are disks and share cells far less
+    assert (t.meet_reached[:2] > 0.9).all() and (t.colocated_per_1000[:2] > 50).all()
+    assert t.colocated_per_1000[2] < t.colocated_per_1000[1]
+    assert np.isnan(t.contact_first[:2]).all() and t.contact_first[2] >= 0
     c = t[[col for col in t.columns if col.startswith("C(")]].to_numpy()
     assert (np.diff(c, axis=1) >= 0).all() and (c <= 1).all()     # C(t) grows to at most 1

@@ -151,19 +151,26 @@ def write_metrics(out_dir, metrics: dict, plots: bool, figures: str) -> list[Pat
 
 
 def format_metrics(metrics: dict) -> str:
-    """A short table: per record C(T), T_0.9 and T_1.0, the worst idleness and the method."""
+    """A short table: per record C(T), T_0.9 and T_1.0, the worst idleness, a team's first
+    meeting and its meetings per 1000 steps, and the method.
+    """
     T = metrics["horizon"]
     lines = [f"coverage-time metrics over {T} steps per robot (docs/model.md section 20a):",
              f"{'policy':>7} {'robots':>6} {'C(T)':>7} {'T_0.9 mean':>11} {'not':>5} "
-             f"{'T_1.0 mean':>11} {'not':>5} {'idle':>7}  method"]
+             f"{'T_1.0 mean':>11} {'not':>5} {'idle':>7} {'meet':>6} {'/1000':>6}  method"]
     for r in metrics["records"]:
         t9, t10 = r["T"]["0.9"], r["T"]["1.0"]
+        m = r.get("meeting")
+        meet = (f"{_steps(m['first']['mean']):>6} {m['per_1000']:6.1f}" if m
+                else f"{'':>6} {'':>6}")
         lines.append(
             f"{str(r['angle']):>7} {r['robots']:>6} {r['covered_mean'][-1]:7.3f} "
             f"{_steps(t9['mean']):>11} {t9['not_reached']:5.2f} {_steps(t10['mean']):>11} "
-            f"{t10['not_reached']:5.2f} {r['idleness_worst']:7.0f}  {r['method']}")
+            f"{t10['not_reached']:5.2f} {r['idleness_worst']:7.0f} {meet}  {r['method']}")
     lines.append("not: share of runs that do not reach X within the horizon; idle: mean "
-                 "worst idleness [steps]")
+                 "worst idleness [steps]; meet: a team's mean first meeting (two robots "
+                 "counted in one cell at one step) [steps], /1000: meetings per 1000 steps "
+                 "of one robot")
     return "\n".join(lines)
 
 

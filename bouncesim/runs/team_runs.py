@@ -52,6 +52,13 @@ class TeamCoverage:
     seconds : float             the team's clock at the end [s]
     first_visit : (P,) int array   for each cell, the smallest own-step index (burn-in
                                 included) at which any robot counted a step in it; −1 never
+    first_meeting : int         the first own-step index (burn-in included) at which two
+                                robots counted their steps in one cell, the model's meeting
+                                (docs/model.md §20a); −1 none
+    colocations : int           (pair of robots, own step) meetings in that sense, over the
+                                own steps 0 … burn_in + steps − 1
+    first_contact : int         the own-step index of the first bump step that another robot
+                                ended (−1 none; always −1 with ``interact="off"``)
     """
 
     counts: np.ndarray
@@ -61,6 +68,9 @@ class TeamCoverage:
     meetings: int
     seconds: float
     first_visit: np.ndarray | None = None
+    first_meeting: int = -1
+    colocations: int = 0
+    first_contact: int = -1
 
     def covered(self, t) -> np.ndarray:
         """The team's covered fraction after each robot's first ``t`` own steps (§20a, burn-in
@@ -109,6 +119,8 @@ def team_coverage(env: Environment, angle_deg: float, noise: NoiseModel | None, 
     first = np.full(cells.P, np.iinfo(np.int64).max, dtype=np.int64)
     made = np.zeros(k, dtype=np.int64)             # steps made, burn-in included
     dropped = flights = meetings = 0
+    contact = np.iinfo(np.int64).max
+    walk: list[list] = [[] for _ in range(k)]      # each robot's cells, own step by step
     for i in range(k):
         team.launch(i)                             # the first flight: no turn before it
     while (made < burn_in + steps).any():
@@ -120,6 +132,9 @@ def team_coverage(env: Environment, angle_deg: float, noise: NoiseModel | None, 
             z = flight_cells(cells, e.start, e.end)
             seen = z >= 0
             np.minimum.at(first, z[seen], int(made[i]) + np.flatnonzero(seen))
+            walk[i].append(z)
+            if e.by == "robot":
+                contact = min(contact, int(made[i]) + len(z) - 1)
             lo = max(0, burn_in - int(made[i]))
             hi = max(0, min(len(z), burn_in + steps - int(made[i])))
             made[i] += len(z)
@@ -132,5 +147,25 @@ def team_coverage(env: Environment, angle_deg: float, noise: NoiseModel | None, 
                 meetings += e.by == "robot"
             team.launch(i, angle_deg)
     first[first == np.iinfo(np.int64).max] = -1
+    met, pairs = _colocations([np.concatenate(w)[:burn_in + steps] for w in walk])
     return TeamCoverage(per_robot.sum(0), per_robot, dropped, flights, meetings, team.time,
-                        first)
+                        first, met, pairs,
+                        -1 if contact == np.iinfo(np.int64).max else contact)
+
+
+def _colocations(walks: list) -> tuple[int, int]:
+    """(first own step at which two robots are counted in one cell or −1, and the number of
+    (pair, step) such meetings) of equally long cell walks (−1: a dropped step).
+    """
+    if len(walks) < 2:
+        return -1, 0
+    w = np.sort(np.stack(walks), axis=0)
+    same = (w[1:] == w[:-1]) & (w[1:] >= 0)        # robots beside each other, sorted by cell
+    # a cell held by m robots has m − 1 adjacent equal entries but m (m − 1) / 2 pairs
+    pairs = 0
+    run = np.zeros(w.shape[1], dtype=np.int64)
+    for row in same:
+        run = np.where(row, run + 1, 0)
+        pairs += int(run.sum())
+    hit = np.flatnonzero(same.any(axis=0))
+    return (int(hit[0]) if hit.size else -1), pairs

@@ -13,6 +13,10 @@ independent reference.
 A team of K independent robots from the same start: the union of K independent visited
 sets, whose distribution follows from one robot's by the subset (zeta) transform,
 Pr(V_1 ∪ … ∪ V_K ⊆ S) = Pr(V ⊆ S)^K, and its inverse (Möbius).
+
+Two robots meet at a step when both count it in the same cell. Their first meeting is the
+absorption time of the product chain on (unit, unit), absorbed where the two units' cells
+agree (:func:`meeting_survival`: n_units² numbers per step, for small chains).
 """
 
 from __future__ import annotations
@@ -20,9 +24,11 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["EXACT_MAX", "exact_distribution", "exact_size", "subset_union"]
+__all__ = ["EXACT_MAX", "MEET_EXACT_MAX", "exact_distribution", "exact_size", "meeting_size",
+           "meeting_survival", "subset_union"]
 
 EXACT_MAX = 1 << 18      # largest n_units · 2^P the exact path takes (method "auto")
+MEET_EXACT_MAX = 1 << 30  # largest n_units² · horizon the exact first meeting takes
 
 
 def _units(tables):
@@ -34,6 +40,47 @@ def _units(tables):
 def exact_size(tables, P: int) -> int:
     """n_units · 2^P: the numbers the exact path propagates per step."""
     return int(tables.delay.sum()) << int(P)
+
+
+def meeting_size(tables, horizon: int) -> int:
+    """n_units² · horizon: the work of :func:`meeting_survival`."""
+    return int(tables.delay.sum()) ** 2 * int(horizon)
+
+
+def _start_units(tables, start_states, start_weights) -> np.ndarray:
+    """The distribution over units of step 0 (the first flight's first step) of a robot
+    that departs from ``start_states`` with probabilities ``start_weights``.
+    """
+    n_units, first, _ = _units(tables)
+    dist = np.zeros(n_units)
+    w = np.asarray(start_weights, dtype=float)
+    w = w / w.sum()
+    fw = _weights(tables)
+    for s, ws in zip(np.asarray(start_states).tolist(), w.tolist()):
+        lo, hi = tables.fptr[s], tables.fptr[s + 1]
+        np.add.at(dist, first[tables.fidx[lo:hi]], ws * fw[lo:hi])
+    return dist
+
+
+def meeting_survival(tables, turn, start_states, start_weights, horizon: int) -> np.ndarray:
+    """Pr(τ > t) for t = 0 … horizon − 1, τ the first step at which two independent robots
+    of one angle (turn matrix ``turn``), each from the start distribution, are counted in
+    the same cell: the product chain on (unit, unit) propagated exactly, its meeting pairs
+    absorbed at every step.
+    """
+    _, _, cell = _units(tables)
+    n_states = tables.fptr.size - 1
+    U = _unit_matrix(tables, turn, n_states)
+    UT = sp.csr_matrix(U.T)
+    a = _start_units(tables, start_states, start_weights)
+    joint = np.outer(a, a)
+    met = (cell[:, None] == cell[None, :]) & (cell[:, None] >= 0)
+    out = np.empty(int(horizon))
+    for t in range(int(horizon)):
+        joint[met] = 0.0
+        out[t] = joint.sum()
+        joint = np.asarray(UT @ np.asarray(UT @ joint).T).T     # Uᵀ · joint · U
+    return np.clip(out, 0.0, 1.0)
 
 
 def _unit_matrix(tables, W, n_states: int) -> sp.csr_matrix:
@@ -89,13 +136,7 @@ def exact_distribution(tables, turns, alpha, epoch, start_states, start_weights,
     U = [sp.csr_matrix(_unit_matrix(tables, W, n_states).T) for W in turns]
     S = 1 << P
     dist = np.zeros((n_units, S))
-    w = np.asarray(start_weights, dtype=float)
-    w = w / w.sum()
-    fw = _weights(tables)
-    for s, ws in zip(np.asarray(start_states).tolist(), w.tolist()):
-        lo, hi = tables.fptr[s], tables.fptr[s + 1]
-        for k in range(lo, hi):
-            dist[first[tables.fidx[k]], 0] += ws * fw[k]
+    dist[:, 0] = _start_units(tables, start_states, start_weights)
     bits = np.arange(S)
     by_cell = [(c, np.flatnonzero(cell == c), bits[(bits >> c) & 1 == 0]) for c in range(P)]
     ep = int(epoch) if epoch is not None and alpha.size > 1 else int(horizon) + 1

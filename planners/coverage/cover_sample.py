@@ -6,8 +6,10 @@ and the offset of its next step); the step is counted in the flight's cell at th
 (or in none: a dropped step); after a flight's last step (the bump step) the robot lands,
 turns by its current angle (a row of the angle's turn matrix) and picks its next flight
 (by weight). The team's visited cells are one set; what a run reports is read off it at
-given steps. Compiled with numba: a step of one robot costs a few nanoseconds, and the runs
-are spread over the cores (``numba.prange``), each from its own seed.
+given steps. Two robots of the team *meet* at a step when both count it in the same cell
+(§20a): a run also reports its first meeting and how many (pair, step) meetings it had.
+Compiled with numba: a step of one robot costs a few nanoseconds, and the runs are spread
+over the cores (``numba.prange``), each from its own seed.
 
 The tables are flat arrays (CSR-like) built once per chain by :class:`SampleTables`.
 """
@@ -17,12 +19,13 @@ from __future__ import annotations
 import os
 import threading
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numba
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["SampleTables", "sample_runs", "turn_tables"]
+__all__ = ["SampleTables", "SampledRuns", "sample_runs", "turn_tables"]
 
 # numba's built-in thread pool unless the user chose one: GNU OpenMP (numba's "omp" layer,
 # picked first where libgomp is installed) kills every child a process forks after it ran
@@ -128,11 +131,13 @@ def _kernel(fptr, fidx, fcum, dst, delay, cptr, cells, tptr, tcol, tcum, acum, e
     reach = np.full((runs, nk), -1, dtype=np.int64)
     idle = np.zeros(runs, dtype=np.int64)
     first = np.empty((runs, P), dtype=np.int32)
+    meet = np.full(runs, -1, dtype=np.int64)
+    pairs = np.zeros(runs, dtype=np.int64)
     for run in numba.prange(runs):
-        counts[run], reach[run], idle[run], first[run] = _run(
+        counts[run], reach[run], idle[run], first[run], meet[run], pairs[run] = _run(
             fptr, fidx, fcum, dst, delay, cptr, cells, tptr, tcol, tcum, acum, epoch,
             sstate, scum, P, robots, horizon, times, kneed, seed + run)
-    return counts, reach, idle, first
+    return counts, reach, idle, first, meet, pairs
 
 
 @numba.njit(cache=True)
@@ -147,6 +152,8 @@ def _run(fptr, fidx, fcum, dst, delay, cptr, cells, tptr, tcol, tcum, acum, epoc
     reach = np.full(nk, -1, dtype=np.int64)
     first = np.full(P, -1, dtype=np.int32)
     last = np.full(P, -1, dtype=np.int64)
+    here = np.zeros(P, dtype=np.int64)         # robots counted in the cell at step last[c]
+    meet, pairs = -1, 0
     fl = np.empty(robots, dtype=np.int64)
     pos = np.empty(robots, dtype=np.int64)
     cur = np.zeros(robots, dtype=np.int64)
@@ -173,6 +180,13 @@ def _run(fptr, fidx, fcum, dst, delay, cptr, cells, tptr, tcol, tcum, acum, epoc
                     while ki < nk and covered >= kneed[ki]:
                         reach[ki] = t + 1
                         ki += 1
+                if last[c] == t:                   # another robot counted this step here
+                    pairs += here[c]
+                    here[c] += 1
+                    if meet < 0:
+                        meet = t
+                else:
+                    here[c] = 1
                 gap = t - last[c] - 1
                 if gap > worst:
                     worst = gap
@@ -192,7 +206,18 @@ def _run(fptr, fidx, fcum, dst, delay, cptr, cells, tptr, tcol, tcum, acum, epoc
         gap = horizon - 1 - last[c]
         if gap > worst:
             worst = gap
-    return counts, reach, worst, first
+    return counts, reach, worst, first, meet, pairs
+
+
+class SampledRuns(NamedTuple):
+    """What :func:`sample_runs` returns, per run (see there)."""
+
+    counts: np.ndarray
+    reach: np.ndarray
+    idle: np.ndarray
+    first: np.ndarray
+    meet: np.ndarray
+    pairs: np.ndarray
 
 
 def sample_runs(tables: SampleTables, turns, alpha, epoch: int | None, start_states,
@@ -225,6 +250,9 @@ def sample_runs(tables: SampleTables, turns, alpha, epoch: int | None, start_sta
                                not visited by any robot of the team
     first (runs, P) int32      the step at which each cell is first visited by the team
                                (−1: not within the horizon)
+    meet (runs,) int64         the first step at which two robots of the team are counted in
+                               one cell (−1: none within the horizon)
+    pairs (runs,) int64        the (pair of robots, step) meetings in [0, horizon)
     """
     tptr, tcol, tcum = turns if isinstance(turns, tuple) else turn_tables(turns)
     a = np.asarray(alpha, dtype=float)
@@ -235,8 +263,8 @@ def sample_runs(tables: SampleTables, turns, alpha, epoch: int | None, start_sta
     scum[-1] = 1.0
     ep = int(epoch) if epoch is not None and a.size > 1 else int(horizon) + 1
     with _PARALLEL:
-        return _kernel(tables.fptr, tables.fidx, tables.fcum, tables.dst, tables.delay,
+        return SampledRuns(*_kernel(tables.fptr, tables.fidx, tables.fcum, tables.dst, tables.delay,
                        tables.cptr, tables.cells, tptr, tcol, tcum, acum, ep,
                        np.asarray(start_states, dtype=np.int64), scum, int(P), int(robots),
                        int(runs), int(horizon), np.asarray(times, dtype=np.int64),
-                       np.asarray(kneed, dtype=np.int64), int(seed))
+                       np.asarray(kneed, dtype=np.int64), int(seed)))

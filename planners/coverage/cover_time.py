@@ -8,7 +8,9 @@ with every flight's steps counted where §20 counts them):
   first t steps (mean, 10th and 90th percentiles over runs);
 - T_X, the first t with C(t) ≥ X, for X in :data:`LEVELS`;
 - each cell's mean return time (Kac: 1 / its share of the steps in the limit) and the worst
-  idleness (the longest stretch of steps in which some cell is not visited).
+  idleness (the longest stretch of steps in which some cell is not visited);
+- for a team, its robots' meetings (two robots counted in one cell at the same step): the
+  first one, how often, and how often in the limit (closed form).
 
 Exactly (:mod:`.cover_exact`: the chain on (unit, visited set)) when that chain is small,
 otherwise by sampling runs of the chain (:mod:`.cover_sample`), with the standard error.
@@ -41,7 +43,15 @@ from envs import UserError
 
 from ..noise import TurnNoise
 from ..plan import PolicyMix
-from .cover_exact import EXACT_MAX, exact_distribution, exact_size, subset_union
+from .cover_exact import (
+    EXACT_MAX,
+    MEET_EXACT_MAX,
+    exact_distribution,
+    exact_size,
+    meeting_size,
+    meeting_survival,
+    subset_union,
+)
 from .cover_sample import SampleTables, sample_runs, turn_tables
 from .event_flights import started_chain
 from .horizon import start_distribution
@@ -95,6 +105,13 @@ class CoverMetrics:
     cell_visited : (G, P)     the share of runs in which the team has visited cell p in
                               steps 0 … t−1, for every t of :attr:`t` (always sampled; not in
                               ``metrics.json``): which places a run is likely to miss
+    meeting : dict or None    a team's meetings (None for one robot): "first" (the first
+                              step with two robots counted in one cell: "mean", "median",
+                              "not_reached", "mean_se", and "method": exact for two robots
+                              on a small chain, else sampled), "per_1000" and its "per_1000_se"
+                              (meetings per 1000 steps of one robot within the horizon,
+                              sampled: a pair's meeting counts for both), "per_1000_limit"
+                              (the same in the limit, 1000 (K − 1) Σ_p s_p², closed form)
     """
 
     angle: float | None
@@ -114,6 +131,7 @@ class CoverMetrics:
     seed: int
     details: dict = field(default_factory=dict)
     cell_visited: np.ndarray | None = None
+    meeting: dict | None = None
 
     def covered_at(self, t: int) -> float:
         """covered_mean at a step of :attr:`t`."""
@@ -129,6 +147,9 @@ class CoverMetrics:
                 "T": {k: {kk: _val(vv) for kk, vv in v.items()} for k, v in self.T.items()},
                 "return_time_mean": _list(self.return_time),
                 "idleness_worst": self.idleness_worst, "idleness_se": self.idleness_se,
+                **({} if self.meeting is None else {"meeting": {
+                    k: {kk: _val(vv) if kk != "method" else vv for kk, vv in v.items()}
+                    if isinstance(v, dict) else _val(v) for k, v in self.meeting.items()}}),
                 "runs": self.runs, "seed": self.seed, **self.details}
 
 
@@ -266,16 +287,24 @@ def coverage_metrics(model, policy, noise: TurnNoise | None = None, *, robots=1,
             kept[i] = (turns, turn_tables(turns))
         turns, tt = kept[i]
         seed = int(rng.integers(2 ** 31 - 1))
-        counts, reach, idle, first = sample_runs(prep.tables, tt, alpha, epoch, sstates, sweights,
-                                          cs.P, k, int(runs), T, times, kneed, seed)
+        sampled = sample_runs(prep.tables, tt, alpha, epoch, sstates, sweights, cs.P, k,
+                              int(runs), T, times, kneed, seed)
         if exact:
             cov, Ts = _exact_stats(prep.tables, turns, alpha, epoch, sstates, sweights, cs.P,
                                    k, T, times, kneed)
         else:
-            cov, Ts = _sampled_stats(counts, reach, cs.P)
+            cov, Ts = _sampled_stats(sampled.counts, sampled.reach, cs.P)
         pol = policy if isinstance(policy, PolicyMix) else angle
         lim = None if limits is None else limits[i]
         rt = return_times(model, noise, pol, epoch, lim)
+        meeting = None
+        if k > 1:
+            meet_exact = (exact and k == 2 and len(angs) == 1
+                          and meeting_size(prep.tables, T) <= MEET_EXACT_MAX)
+            surv = meeting_survival(prep.tables, turns[0], sstates, sweights, T) \
+                if meet_exact else None
+            meeting = _meeting_stats(sampled, surv, k, T, rt)
+        idle = sampled.idle
         details = {"angles": [_num(a) for a in angs], "alpha": [float(a) for a in alpha],
                    "epoch": epoch if angle is None else None, "noise": str(noise),
                    "start": "uniform" if start is None else (
@@ -287,7 +316,8 @@ def coverage_metrics(model, policy, noise: TurnNoise | None = None, *, robots=1,
                                 idleness_se=float(idle.std(ddof=1) / math.sqrt(idle.size)),
                                 method="exact" if exact else "sampled", runs=int(runs),
                                 seed=seed, details=details,
-                                cell_visited=visited_by(first, times)))
+                                cell_visited=visited_by(sampled.first, times),
+                                meeting=meeting))
     return out
 
 
@@ -307,16 +337,47 @@ def _sampled_stats(counts, reach, P: int) -> tuple[dict, dict]:
            "covered_p10": np.quantile(frac, 0.1, axis=0, method="inverted_cdf"),
            "covered_p90": np.quantile(frac, 0.9, axis=0, method="inverted_cdf"),
            "covered_se": frac.std(axis=0, ddof=1) / math.sqrt(n)}
-    Ts = {}
-    for x, col in zip(LEVELS, reach.T):
-        ok = col[col >= 0].astype(float)
-        med = np.quantile(np.where(col >= 0, col, np.inf), 0.5, method="inverted_cdf")
-        Ts[_key(x)] = {"mean": float(ok.mean()) if ok.size else None,
-                       "median": float(med) if np.isfinite(med) else None,
-                       "not_reached": float(1 - ok.size / col.size),
-                       "mean_se": float(ok.std(ddof=1) / math.sqrt(ok.size))
-                       if ok.size > 1 else None}
-    return cov, Ts
+    return cov, {_key(x): _time_stats(col) for x, col in zip(LEVELS, reach.T)}
+
+
+def _time_stats(col: np.ndarray) -> dict:
+    """The mean over the runs whose time ``col`` was reached (not −1), the median over all
+    (None when half were not), the share not reached and the mean's standard error.
+    """
+    ok = col[col >= 0].astype(float)
+    med = np.quantile(np.where(col >= 0, col, np.inf), 0.5, method="inverted_cdf")
+    return {"mean": float(ok.mean()) if ok.size else None,
+            "median": float(med) if np.isfinite(med) else None,
+            "not_reached": float(1 - ok.size / col.size),
+            "mean_se": float(ok.std(ddof=1) / math.sqrt(ok.size)) if ok.size > 1 else None}
+
+
+def _cdf_stats(F: np.ndarray) -> dict:
+    """:func:`_time_stats` of an exact distribution: ``F[t]`` = Pr(time ≤ t), t = 0, 1, …
+    (the horizon's end: what is left is not reached); the standard error is 0.
+    """
+    F = np.maximum.accumulate(np.clip(F, 0.0, 1.0))
+    pmf = np.diff(np.concatenate([[0.0], F]))
+    got = float(F[-1])
+    med = np.flatnonzero(F >= 0.5 - 1e-12)
+    return {"mean": float(pmf @ np.arange(F.size)) / got if got > 1e-12 else None,
+            "median": float(med[0]) if med.size else None,
+            "not_reached": max(0.0, 1.0 - got), "mean_se": 0.0}
+
+
+def _meeting_stats(sampled, survival, K: int, T: int, return_time) -> dict:
+    """The ``meeting`` record of a team of K (:class:`CoverMetrics`): the first meeting exactly
+    from the product chain's ``survival`` (Pr(τ > t)) when given, else from the sampled runs;
+    the meetings per 1000 steps sampled, and in the limit from the cells' shares s = 1/return
+    time.
+    """
+    first = (dict(_cdf_stats(1.0 - survival), method="exact") if survival is not None
+             else dict(_time_stats(sampled.meet), method="sampled"))
+    per = 2000.0 * sampled.pairs / (K * T)          # each pair's meeting counts for both
+    s = np.where(np.isfinite(return_time), 1.0 / return_time, 0.0)
+    return {"first": first, "per_1000": float(per.mean()),
+            "per_1000_se": float(per.std(ddof=1) / math.sqrt(per.size)),
+            "per_1000_limit": 1000.0 * (K - 1) * float(s @ s)}
 
 
 def _key(x: float) -> str:
@@ -343,16 +404,7 @@ def _exact_stats(tables, turns, alpha, epoch, sstates, sweights, P, K, T, times,
             cov["covered_p10"][gi] = _inv_cdf(cdf, 0.1) / P
             cov["covered_p90"][gi] = _inv_cdf(cdf, 0.9) / P
             gi += 1
-    Ts = {}
-    for x, F in zip(LEVELS, reach_cdf):
-        F = np.maximum.accumulate(np.clip(F, 0.0, 1.0))
-        pmf = np.diff(F)
-        got = float(F[-1])
-        med = np.flatnonzero(F >= 0.5 - 1e-12)
-        Ts[_key(x)] = {"mean": float(pmf @ np.arange(1, T + 1)) / got if got > 1e-12 else None,
-                       "median": float(med[0]) if med.size else None,
-                       "not_reached": max(0.0, 1.0 - got), "mean_se": 0.0}
-    return cov, Ts
+    return cov, {_key(x): _cdf_stats(F) for x, F in zip(LEVELS, reach_cdf)}
 
 
 def _inv_cdf(cdf: np.ndarray, p: float) -> float:
