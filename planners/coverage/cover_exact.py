@@ -43,8 +43,12 @@ def exact_size(tables, P: int) -> int:
 
 
 def meeting_size(tables, horizon: int) -> int:
-    """n_units² · horizon: the work of :func:`meeting_survival`."""
-    return int(tables.delay.sum()) ** 2 * int(horizon)
+    """n_units² · horizon, the work of :func:`meeting_survival`; more than
+    :data:`MEET_EXACT_MAX` when its joint distribution alone (n_units² numbers) would exceed
+    2^24 (128 MB).
+    """
+    n = int(tables.delay.sum())
+    return n * n * int(horizon) if n * n <= 1 << 24 else MEET_EXACT_MAX + 1
 
 
 def _start_units(tables, start_states, start_weights) -> np.ndarray:
