@@ -201,3 +201,15 @@ def test_contact_rule_reaches_the_event_model(tmp_path, capsys):
                        "not the step model.")
     assert main(["coverage", "lab", "--angles", "90", "--noise", "gauss:45"]) == 0
     assert "noise=gauss:45 " in capsys.readouterr().out
+
+
+def test_epoch_takes_gaussian_noise(tmp_path, capsys):
+    """--noise gauss:σ with --epoch: long epochs reach the sum rule A α (§16); a time-shared
+    prediction that dropped σ turned exactly (0.25 from the one-angle limit at 75°).
+    """
+    out = tmp_path / "g"
+    assert main(["coverage", "lab", "--orientations", "72", "--noise", "gauss:3", "--angles",
+                 "30,75", "--model", "event", "--epoch", "20000", "--no-plots", "--json",
+                 "--out", str(out)]) == 0
+    ts = json.loads(capsys.readouterr().out)["timeshared"]
+    assert ts["converged"] and ts["tv_to_A_alpha"] < 0.005

@@ -181,6 +181,26 @@ def test_one_angle_is_that_angles_limit(model):
     assert tv_distance(ts.q, q) < 1e-4
 
 
+def test_a_bodys_own_turns_reach_the_time_shared_prediction():
+    """``noise=`` with a body's turn offset (§11b): one angle's time-shared q is that angle's
+    limit under the same noise, not under the mix's plain ε and r (validate's mix
+    prediction for a MuJoCo body takes its declared turns this way).
+    """
+    cs = CellSpace(envs.load("lab", orientations=72))
+    model = model_for(cs, "event")
+    body = TurnNoise(5, 0.8).with_body("gauss:0.5,offset=-3")
+    mix = PolicyMix([75], [1.0], 5, 0.8)
+    q_body = model.analyse(75, body).q
+    ts = timeshared_coverage(model, mix, epoch=200, tol=1e-6, noise=body)
+    plain = timeshared_coverage(model, mix, epoch=200, tol=1e-6)
+    assert tv_distance(ts.q, q_body) < 1e-4
+    assert tv_distance(plain.q, q_body) > 0.01     # the offset matters here
+    # a Gaussian mix's own σ: the event model's continuous-heading flights (§11a)
+    gauss = PolicyMix([75], [1.0], 0, 1, 3.0)
+    ts = timeshared_coverage(model, gauss, epoch=200, tol=1e-6)
+    assert tv_distance(ts.q, model.analyse(75, gauss.noise).q) < 1e-4
+
+
 @pytest.mark.parametrize("model", ["step", "event"])
 def test_long_epochs_tend_to_the_sum_rule(model):
     """E ≫ mixing time: docs/model.md §16's Σ α_i q_i; E = 1 differs from it."""

@@ -208,8 +208,6 @@ def run(args) -> int:
         if not noise.exact:
             raise UserError("give the rotation noise either as --noise or as --eps/--r.")
         noise = TurnNoise.from_spec(args.noise)
-        if noise.gaussian and args.epoch is not None:
-            raise UserError("--epoch does not support Gaussian noise yet; use --eps/--r.")
     angles = check_angles(cs.K, parse_angles(args.angles), noise)   # before any heavy work
     target, target_desc = None, f"uniform over {args.target_space}"
     if args.target is not None:
@@ -265,7 +263,7 @@ def run(args) -> int:
             for k, v in ((f.name, getattr(settings, f.name)) for f in fields(settings))}
     timeshared = ts_limit = None
     if args.epoch is not None:
-        ts = timeshared_coverage(model, result.mix, epoch=args.epoch,
+        ts = timeshared_coverage(model, result.mix, epoch=args.epoch, noise=noise,
                                  progress=_progress(None, "epochs", "epoch"))
         timeshared, ts_limit = ts.q, (ts.q, ts.counted_fraction)
         summary["timeshared"] = {

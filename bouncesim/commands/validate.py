@@ -470,7 +470,7 @@ def run(args) -> int:
     bumps_model = {lab: model.bump_rate(ac) for (lab, _, _), ac in zip(policies, per)}
     if alpha is not None:
         mix = PolicyMix(tuple(angles), alpha, args.eps, args.r)
-        q["mix"] = timeshared_coverage(model, mix, epoch=args.epoch).q
+        q["mix"] = timeshared_coverage(model, mix, epoch=args.epoch, noise=noise).q
         bumps_model["mix"] = float(sum(a * bumps_model[_label(x)]
                                        for x, a in zip(angles, alpha)))
     run_q = protocol_prediction(model, policies, noise, args.burn_in, per_robot, args.epoch)

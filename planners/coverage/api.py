@@ -229,8 +229,8 @@ def design_mix(model: CoverageModel, angles: Iterable[float], noise: TurnNoise =
                            start=start)
 
 
-def timeshared_coverage(model: CoverageModel, mix: PolicyMix, epoch: int = 1000, **kw
-                        ) -> TimeSharedCoverage:
+def timeshared_coverage(model: CoverageModel, mix: PolicyMix, epoch: int = 1000, *,
+                        noise: TurnNoise | None = None, **kw) -> TimeSharedCoverage:
     """Predicted coverage of a policy mix executed in epochs of ``epoch`` steps (docs/model.md §19).
 
     docs/model.md §16's Σ α_i q_i assumes every epoch reaches its angle's limiting distribution;
@@ -244,9 +244,13 @@ def timeshared_coverage(model: CoverageModel, mix: PolicyMix, epoch: int = 1000,
     model : CoverageModel
     mix : PolicyMix         angles, α and the rotation noise (ε, r), e.g. ``design.mix``
     epoch : int             steps per epoch
+    noise : TurnNoise, optional   the rotation noise (default the mix's ε, r and σ); pass one
+                            with a body's own turn errors (§11b) to predict that body
     **kw : tol, max_epochs, progress (see :meth:`planners.coverage.timeshare.TimeShared.run`)
     """
-    noise = TurnNoise(mix.eps, mix.r)
+    noise = noise if noise is not None else mix.noise
     angles = check_angles(model.cs.K, mix.angles, noise)
     turns = [model.turn_matrix(a, noise) for a in angles]
-    return timeshared(model.delay_chain(), turns, mix.alpha, epoch, **kw)
+    # the event model's flights depend on the noise (Gaussian or a body's turns, §11a, §11b)
+    chain = model.delay_chain(noise) if model.steps_in_flights else model.delay_chain()
+    return timeshared(chain, turns, mix.alpha, epoch, **kw)
