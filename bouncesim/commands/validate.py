@@ -37,7 +37,7 @@ from planners.coverage import (
     model_for,
     timeshared_coverage,
 )
-from planners.metrics import tv_distance
+from planners.metrics import floors, tv_distance
 from planners.plan import PolicyMix
 
 from ..runs.executors import add_executor_args, make_executor
@@ -68,8 +68,6 @@ DEFAULT_FLOOR = {"kinematic": None, "pybullet": 0.02, "mujoco": 0.02}
 """The floor target of a run without --steps (None: the steps are fixed)."""
 MAX_STEPS = 1_000_000
 """Default cap on the steps per angle of a run with a floor target."""
-SPLITS = 200
-"""Random balanced splits of the trials behind ``floor_splits``."""
 ROBOTS = {"kinematic": 200, "pybullet": 16, "mujoco": 16}
 """Robots per simulated batch (one sweep trial)."""
 PER_ROBOT = {"kinematic": 2500, "pybullet": 625, "mujoco": 625}
@@ -246,38 +244,6 @@ def simulate_trial(params: dict, rng: np.random.Generator) -> dict:
 
 
 # ----------------------------------------------------------------------------- predict
-def floors(counts: np.ndarray, half: np.ndarray, rng: np.random.Generator,
-           splits: int = SPLITS) -> tuple[float, float]:
-    """The noise floor of one policy's trials and its mean over random splits.
-
-    Parameters
-    ----------
-    counts : (T, P) array       per trial, the steps counted in each position cell
-    half : (T,) int array        the half (0 or 1) of each trial: trials alternate
-    rng : numpy.random.Generator draws the random splits
-    splits : int                 random balanced splits averaged in the second number
-
-    Returns
-    -------
-    (floor, floor_splits)
-        TV between the sums of the trials of half 0 and of half 1 (docs/model.md §22: two
-        independent halves, since every trial is a batch of independent robots with its own
-        seed), and the mean of the same TV over ``splits`` random splits of the trials into
-        two groups of ⌊T/2⌋ and ⌈T/2⌉ (each split is again two independent halves; the mean
-        has less of the single split's luck).
-    """
-    counts = np.asarray(counts, dtype=float)
-    half = np.asarray(half)
-    floor = float(tv_distance(counts[half == 0].sum(axis=0), counts[half == 1].sum(axis=0)))
-    T = len(counts)
-    vals = []
-    for _ in range(splits):
-        perm = rng.permutation(T)
-        vals.append(tv_distance(counts[perm[:T // 2]].sum(axis=0),
-                                counts[perm[T // 2:]].sum(axis=0)))
-    return floor, float(np.mean(vals))
-
-
 def more_trials(floor: float, steps: int, trial_steps: int, target: float,
                 cap: int) -> int:
     """Trials to add to a policy whose floor is ``floor`` after ``steps`` steps.
