@@ -14,6 +14,7 @@ first one and their number per 1000 steps. Writes team_cover.csv and config.json
 
     python -m experiments.team_cover            # lab (3 angles) and complex (75°), ~10 min
     python -m experiments.team_cover --quick    # lab, 75°, few runs
+    python -m experiments.team_cover --case experiments/maps/lroom.json:75:400   # any map
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ import pandas as pd
 import envs
 from bouncesim.robots.noise import parse_noise
 from bouncesim.runs.team_runs import team_coverage
+from envs import UserError
 from planners.cells import CellSpace
 from planners.coverage import TurnNoise, model_for
 from planners.coverage.cover_time import coverage_metrics
@@ -144,12 +146,32 @@ def run(config: Config) -> pd.DataFrame:
     return table
 
 
+def _case(text: str) -> tuple:
+    """``MAP:ANGLE:T`` as a case of :class:`Config` (the map may hold no colon)."""
+    try:
+        name, angle, T = text.rsplit(":", 2)
+        angle, T = float(angle), int(T)
+    except ValueError:
+        raise UserError(f"--case takes MAP:ANGLE:T, got {text!r}.") from None
+    if T < 16:
+        raise UserError(f"--case needs a horizon of at least 16 steps, got {T}.")
+    return name, angle, T, tuple(sorted({T // 16, T // 8, T // 4, T // 2, T}))
+
+
 def main(argv=None) -> int:
     """Command line: ``python -m experiments.team_cover``."""
     p = experiment_parser("team_cover", __doc__.split("\n\n")[0])
+    p.add_argument("--case", action="append", default=None, metavar="MAP:ANGLE:T",
+                   help="run this map (catalogue name or file), angle [deg] and horizon T "
+                   "[steps] instead of the default cases (C(t) at T/16, T/8, T/4, T/2, T); "
+                   "repeat for more")
     args = p.parse_args(argv)
 
     def make():
+        if args.case:
+            return Config(cases=tuple(_case(c) for c in args.case), seed=args.seed,
+                          out=args.out, **({"runs": 10, "model_runs": 200}
+                                           if args.quick else {}))
         if args.quick:
             return Config(cases=(("lab", 75.0, 200, (25, 50, 100, 200)),), runs=10,
                           model_runs=200, seed=args.seed, out=args.out)

@@ -94,3 +94,16 @@ def test_team_cover_quick(tmp_path):
     assert np.isnan(t.contact_first[:2]).all() and t.contact_first[2] >= 0
     c = t[[col for col in t.columns if col.startswith("C(")]].to_numpy()
     assert (np.diff(c, axis=1) >= 0).all() and (c <= 1).all()     # C(t) grows to at most 1
+
+
+def test_team_cover_runs_a_map_given_on_the_command_line(tmp_path, capsys):
+    import pandas as pd
+
+    from experiments import team_cover
+    assert team_cover.main(["--quick", "--case", "lab:90:32", "--out", str(tmp_path)]) == 0
+    t = pd.read_csv(tmp_path / "team_cover.csv")
+    assert t["map"].tolist() == ["lab"] * 3 and (t.angle == 90).all()
+    assert [c for c in t.columns if c.startswith("C(")] == ["C(2)", "C(4)", "C(8)", "C(16)",
+                                                             "C(32)"]
+    assert team_cover.main(["--case", "lab:90", "--out", str(tmp_path)]) == 2
+    assert "MAP:ANGLE:T" in capsys.readouterr().err
