@@ -564,10 +564,12 @@ class ContactParams:
         return float(np.interp(left_m, ell[::-1], a[::-1]))
 
 
-PYBULLET_CONTACT = ContactParams()
-"""The PyBullet Create 2's fitted contact rule (±80° bumper arc, frictionless walls; fit of
-144 trials at 0.3 m/s: β = 9.62°, μ = 0.0062, rounded). Its slides below 10.44° turn into
-the wall and bump after 5.7–0.05 m (docs/model.md Appendix B), not modelled here."""
+PYBULLET_CONTACT = ContactParams(beta_deg=10.5, slide_friction=0.0)
+"""The PyBullet Create 2's fitted contact rule (±79.5° bumper arc read by the contact normal,
+frictionless walls, regularised contacts; ``python -m experiments.contact_calibration``, at
+0.3 and 0.2 m/s alike): every trial up to 10.45° slid 3 m with its heading kept (within
+0.03°) at the speed factor cos α, every one from 10.55° bumped; the fit's μ, 0.0004, is
+stored as 0. β is the geometric 90° − 79.5° (docs/model.md Appendix B)."""
 
 MUJOCO_CONTACT = ContactParams(
     beta_deg=10.44, slide_friction=0.14,

@@ -118,26 +118,31 @@ class OnWall:
         return (*self._turn(X, Y, -1.0), (H - self.phi + 180.0) % 360.0 - 180.0)
 
 
-def make_body(backend: str, bumper_arc_deg: float, slide_budget: float = 3.0,
-              wall: str = "south", solver: str | None = None):
+def make_body(backend: str, bumper_arc_deg: float | None = None, slide_budget: float = 3.0,
+              wall: str = "south", solver: str | None = None, cfm: float | None = None):
     """The calibrated body: a PyBullet or a MuJoCo Create 2 in a :func:`wall_room` long
     enough for a ``slide_budget`` [m] slide from x = 0.5 m, or for another ``wall`` than
     the south one, in a square room of that side seen from that wall (:class:`OnWall`).
     ``solver`` (PyBullet only): "dantzig" (its default) or "si", the sequential-impulse
-    solver at PyBullet's default 50 iterations.
+    solver at PyBullet's default 50 iterations; ``cfm`` (PyBullet only): the world's
+    constraint force mixing (None: the body's default; 0: Bullet's, whose Dantzig slides
+    depend on the wall's direction).
     """
     side = max(6.0, slide_budget + 1.5)
     room = wall_room(side) if wall == "south" else envs.Environment.from_dict(
         {"name": "square", "boundary": [[0, 0], [side, 0], [side, side], [0, side]],
          "robot_radius": 0.17})
+    arc = {} if bumper_arc_deg is None else {"bumper_arc_deg": float(bumper_arc_deg)}
     if backend == "mujoco":
         from bouncesim.robots.mujoco import MuJoCoRobot
-        bot = MuJoCoRobot(room, bumper_arc_deg=bumper_arc_deg)
+        bot = MuJoCoRobot(room, **arc)
     else:
         from bouncesim.robots.pybullet import PyBulletRobot
         kw = {} if solver in (None, "dantzig") else {"solver": solver,
                                                      "solver_iterations": SI_ITERATIONS}
-        bot = PyBulletRobot(room, bumper_arc_deg=bumper_arc_deg, **kw)
+        if cfm is not None:
+            kw["cfm"] = float(cfm)
+        bot = PyBulletRobot(room, **arc, **kw)
     return bot if wall == "south" else OnWall(bot, wall, side)
 
 
@@ -288,11 +293,13 @@ class Config:
     repeats : int                 trials per incidence (random gaps)
     speed : float                 drive speed [m/s]
     slide_budget : float          along-wall travel [m] after which a slide ends unbumped
-    bumper_arc_deg : float        the bumper arc [deg]
+    bumper_arc_deg : float        the bumper arc [deg] (None: the body's own default)
     backend : str                 the physics engine: "pybullet" or "mujoco"
     wall : str                    the calibration wall (:data:`WALLS`; south: the long room)
     solver : str                  PyBullet's constraint solver: "dantzig" (the body's
                                   default) or "si" (:func:`make_body`)
+    cfm : float or None           PyBullet's constraint force mixing (None: the body's
+                                  default; 0: Bullet's own, :func:`make_body`)
     quick : bool
     seed : int
     out : Path
@@ -302,10 +309,11 @@ class Config:
     repeats: int = 6
     speed: float = 0.3
     slide_budget: float = 3.0
-    bumper_arc_deg: float = 80.0
+    bumper_arc_deg: float | None = None
     backend: str = "pybullet"
     wall: str = "south"
     solver: str = "dantzig"
+    cfm: float | None = None
     quick: bool = False
     seed: int = 0
     out: Path = Path("results") / NAME
@@ -317,7 +325,8 @@ def run(config: Config) -> Path:
     rng = np.random.default_rng(config.seed)
     rows = []
     with make_body(config.backend, config.bumper_arc_deg, config.slide_budget,
-                   config.wall, config.solver) as bot:
+                   config.wall, config.solver, config.cfm) as bot:
+        arc = float(bot.bumper_arc_deg)
         for inc in config.incidences:
             for rep in range(config.repeats):
                 gap = float(rng.uniform(0.0005, 0.005))
@@ -332,7 +341,7 @@ def run(config: Config) -> Path:
     summary.to_csv(out / "fit.csv", index=False, float_format="%.6g")
     result = fit(trials)
     cfg = asdict(config)
-    cfg.update(experiment=NAME, out=str(config.out), fit=result,
+    cfg.update(experiment=NAME, out=str(config.out), fit=result, bumper_arc_deg=arc,
                defaults_in_code=asdict({"pybullet": PYBULLET_CONTACT,
                                         "mujoco": MUJOCO_CONTACT}[config.backend]),
                create2_facts="one spring-loaded front bumper over the front half (±90°), "
@@ -365,6 +374,10 @@ def main(argv=None) -> int:
                    help="PyBullet's constraint solver: dantzig (the body's default) or si "
                    f"(sequential impulse, {SI_ITERATIONS} iterations: slides that do not "
                    "depend on their direction in the world, docs/model.md Appendix B)")
+    p.add_argument("--cfm", type=float, default=None, metavar="C",
+                   help="PyBullet's constraint force mixing (default: the body's, 1e-7; 0 is "
+                   "Bullet's own, whose Dantzig slides turn into walls along y faster than "
+                   "into walls along x, docs/model.md Appendix B)")
     p.add_argument("--incidences", type=name_list, default=None, metavar="A,B,...",
                    help="incidences [deg] to try (default: 24 from 0.5 to 90, quick 12)")
     args = p.parse_args(argv)
@@ -378,13 +391,16 @@ def main(argv=None) -> int:
         p.error(f"--slide-budget must be positive, got {args.slide_budget}")
     if args.solver != "dantzig" and args.backend != "pybullet":
         p.error("--solver chooses PyBullet's constraint solver: give --backend pybullet.")
+    if args.cfm is not None and (args.backend != "pybullet" or not args.cfm >= 0):
+        p.error("--cfm is PyBullet's constraint force mixing, a number >= 0: give --backend "
+                "pybullet.")
     q = args.quick
     if args.backend != "pybullet" and args.out == Path("results") / NAME:
         args.out = Path("results") / f"{NAME}_{args.backend}"
     config = Config(incidences=incs or (QUICK_INCIDENCES if q else INCIDENCES),
                     repeats=args.repeats or (2 if q else 6), speed=args.speed,
                     slide_budget=args.slide_budget, wall=args.wall, solver=args.solver,
-                    backend=args.backend, quick=q,
+                    cfm=args.cfm, backend=args.backend, quick=q,
                     seed=args.seed, out=args.out)
     run(config)
     return 0

@@ -38,11 +38,11 @@ from ..base import CREATE2, Robot, RobotSpec
 from ..noise import NoiseModel, noise_and_rng
 from ..stepped import SETTLE_STEPS, SteppedWheels
 from ..wall_pieces import WALL_THICKNESS, convex_pieces, wall_pieces
-from .bumper import CONTACT_TOLERANCE, contact_bearing, read_bumper
+from .bumper import CONTACT_TOLERANCE, normal_bearing, read_bumper
 from .video import Recorder, check_record_format
 
 __all__ = ["PyBulletRobot", "DEFAULT_SPEED", "DEFAULT_TURN_SPEED", "DEFAULT_TIME_STEP",
-           "import_pybullet"]
+           "import_pybullet", "DEFAULT_CFM"]
 
 DEFAULT_SPEED = 0.2
 """Default forward speed [m/s]: 3 mm of travel per 15 ms bumper poll, so a bump is caught
@@ -53,6 +53,12 @@ DEFAULT_TURN_SPEED = 0.1
 
 DEFAULT_TIME_STEP = 1 / 200
 """Physics step [s]: 5 ms, so the 15 ms sensor period is exactly 3 steps."""
+
+DEFAULT_CFM = 1e-7
+"""Bullet's global constraint force mixing of the body's world (``PyBulletRobot(cfm=)``): a
+regularisation of the contact problem that makes a glancing slide's solution unique, the
+same on every wall (Bullet's default 0 made it depend on the wall's direction in the world;
+docs/model.md Appendix B)."""
 
 _WALL_HEIGHT = 0.2          # [m]
 _BODY_HEIGHT = 0.09         # [m]
@@ -137,8 +143,11 @@ class PyBulletRobot(SteppedWheels, Robot):
         Maximum wheel motor torque [N m] of the velocity controllers.
     bumper_arc_deg : float
         Contacts within ± this angle of the heading close the bumper. The Create 2's bumper
-        spans the front half (±90°); the default 80° leaves out contacts with a wall the robot
-        runs parallel to (after a 90° turn at a wall), which do not press a real bumper.
+        spans the front half (±90°); the default 79.5° leaves out contacts with a wall the
+        robot runs parallel to (after a 90° turn at a wall), which do not press a real bumper,
+        and puts the incidence below which a wall is slid along (90° − arc = 10.5°) half-way
+        between whole degrees: with 80° the headings of a 1° grid met walls at exactly the
+        threshold, where a quarter-degree turn error decided (docs/model.md Appendix B).
     spec : RobotSpec, optional
         Body and drive figures (default the Create 2 with the environment's robot radius).
     record_period : float
@@ -155,6 +164,15 @@ class PyBulletRobot(SteppedWheels, Robot):
         Speed setting [m]: Bullet's contact breaking threshold (default 0.02 m) and no
         speculative contacts in the solver (robot links' contact processing threshold 0).
         None (default) keeps Bullet's defaults. :class:`.batch.PyBulletBatch` uses 0.002.
+    cfm : float
+        Bullet's global constraint force mixing [s · m/N-like units of the solver]: added (over
+        the time step) to the diagonal of the contact problem, a regularisation far below
+        anything the body feels (1e-7 / 5 ms = 2e-5 against the 0.2–0.5 of a 4 kg body's
+        inverse mass). With Bullet's default 0, the Dantzig solver's problem of a body that
+        pushes along a frictionless wall is degenerate, and the solution it picks turned the
+        body into walls along y 3–10 times faster than into walls along x (docs/model.md
+        Appendix B); with any cfm from 1e-9 to 1e-4 every wall gives the same slide, the
+        heading kept. Turns, bump gaps and speed do not change (``bench_pybullet``).
     start : (x, y, heading_deg), optional
         Initial pose; default the centre of the first free cell (p = 0) facing east.
 
@@ -183,10 +201,10 @@ class PyBulletRobot(SteppedWheels, Robot):
                  time_step: float = DEFAULT_TIME_STEP,
                  turn_speed: float = DEFAULT_TURN_SPEED, solver: str = "dantzig",
                  solver_iterations: int = 10,
-                 wheel_torque: float = 2.0, bumper_arc_deg: float = 80.0,
+                 wheel_torque: float = 2.0, bumper_arc_deg: float = 79.5,
                  spec: RobotSpec | None = None, record_period: float = 0.1,
                  record_width: int = 640, clearance: float = 0.002,
-                 contact_threshold: float | None = None,
+                 contact_threshold: float | None = None, cfm: float = DEFAULT_CFM,
                  start: tuple[float, float, float] | None = None) -> None:
         self._cid = None
         if isinstance(env, (str, Path)):
@@ -220,6 +238,9 @@ class PyBulletRobot(SteppedWheels, Robot):
             raise UserError(f"clearance must be in [0, {spec.radius / 2}) m, got {clearance}.")
         self.body_radius = spec.radius - float(clearance)
         self.contact_threshold = None if contact_threshold is None else float(contact_threshold)
+        if not (math.isfinite(cfm) and cfm >= 0):
+            raise UserError(f"cfm must be a non-negative number, got {cfm}.")
+        self.cfm = float(cfm)
         self._record = Path(record) if record is not None else None
         self._record_every = max(1, round(record_period / self.time_step))
         self.recorder: Recorder | None = None
@@ -274,7 +295,8 @@ class PyBulletRobot(SteppedWheels, Robot):
         p.setGravity(0, 0, -9.81, **kw)
         p.setPhysicsEngineParameter(fixedTimeStep=self.time_step,
                                     numSolverIterations=int(solver_iterations),
-                                    deterministicOverlappingPairs=1, **kw)
+                                    deterministicOverlappingPairs=1, globalCFM=self.cfm,
+                                    **kw)
         if self.contact_threshold is not None:
             p.setPhysicsEngineParameter(contactBreakingThreshold=self.contact_threshold, **kw)
         if self.solver == "dantzig":
@@ -515,8 +537,8 @@ class PyBulletRobot(SteppedWheels, Robot):
         """
         self._check_open()
         p, kw = self._p, self._kw
-        x, y, yaw = self.true_pose()
-        return [(contact_bearing(c[5], x, y, yaw), c[8])
+        yaw = self.true_pose()[2]
+        return [(normal_bearing(c[7], yaw), c[8])
                 for c in p.getContactPoints(bodyA=self._robot, linkIndexA=-1, **kw)
                 if c[2] in self._wall_set and c[8] <= CONTACT_TOLERANCE]
 
