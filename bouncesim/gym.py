@@ -64,6 +64,7 @@ except ModuleNotFoundError as exc:          # the optional extra is not installe
 import envs
 from envs import Environment, UserError
 from planners.cells import CellSpace
+from planners.measures import wrap180
 from planners.metrics import tv_distance
 
 from .robots.factory import make_robot
@@ -236,7 +237,7 @@ class BounceEnv(gymnasium.Env):
         if not self.action_space.contains(action):
             raise UserError(f"action {action!r} is not an index into the "
                             f"{len(self.angles)} bouncing angles.")
-        self._robot.turn(self.angles[int(action)])
+        self._robot.turn(wrap180(self.angles[int(action)]))   # the shorter way (§8)
         obs, before, after = self._fly()
         self._steps += 1
         if self.task == "navigate":

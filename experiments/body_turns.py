@@ -28,7 +28,9 @@ import numpy as np
 import pandas as pd
 
 import envs
+from planners.measures import wrap180
 from planners.noise import parse_noise_spec
+from planners.turn_offsets import spin_sign
 
 from .common import experiment_parser, name_list
 
@@ -66,7 +68,7 @@ def measure(kind: str, env, trials: int, rng: np.random.Generator,
             a = float(rng.choice(angles))
             row = {"body": kind, "arrival": "flight"}
             if rest and i % 2:
-                body.turn(a)
+                body.turn(wrap180(a))                    # the shorter way (§21)
                 x1, y1, h0 = body.true_pose()
                 body.drive_until_bump(speed, 30.0)       # from rest
                 x2, y2, _ = body.true_pose()
@@ -74,7 +76,7 @@ def measure(kind: str, env, trials: int, rng: np.random.Generator,
                 if row["rest_flight_m"] >= BODY_REST_FLIGHT:
                     continue
             h1 = body.true_pose()[2]
-            body.turn(a)
+            body.turn(wrap180(a))
             rows.append(row | {"angle": a,
                                "turn_error_deg": _wrap(body.true_pose()[2] - h1 - a),
                                "flight_rotation_deg": _wrap(h1 - h0)})
@@ -97,12 +99,14 @@ def table(runs: pd.DataFrame) -> pd.DataFrame:
 
 def declaration(runs: pd.DataFrame, factor: bool | float = False) -> str:
     """The noise spec a body with these trials (one body's rows of :func:`measure`) would
-    declare as its ``turn_errors``: ``gauss:S,offset=O`` with O the mean turn error and S the
-    standard deviations of the turn errors and of the flights' rotations in quadrature
-    (rounded to 0.01°; "none" for a body whose errors round to zero).
+    declare as its ``turn_errors``: ``gauss:S,offset=O`` with O the mean lag (the turn error
+    in the sense of the spin ρ = wrap180(φ), the shorter way: a body lags the same either
+    way, docs/model.md §11b) and S the standard deviations of the lags and of the flights'
+    rotations in quadrature (rounded to 0.01°; "none" for a body whose errors round to zero;
+    trials without an angle count as counter-clockwise).
 
-    With ``factor`` True the turn error is fitted by least squares as (F − 1)·φ + O over
-    the trials' angles (at least two), ``gauss:S,offset=O,factor=F`` with S from the fit's
+    With ``factor`` True the lag is fitted by least squares as (F − 1)·|ρ| + O over the
+    trials' angles (at least two), ``gauss:S,offset=O,factor=F`` with S from the fit's
     residuals (F rounded to 1e-4); with ``factor`` a number F, O is fitted with F fixed
     (a body's turns after a bump from rest, declared with the factor of its turns after a
     flight: the coverage chain shifts the one by the difference of the offsets, §11b).
@@ -111,21 +115,23 @@ def declaration(runs: pd.DataFrame, factor: bool | float = False) -> str:
     ...                           "flight_rotation_deg": [0.0, 0.0]}))
     'gauss:0.25,offset=-1.25'
     >>> declaration(pd.DataFrame({"angle": [30.0, 90.0, 300.0], "turn_error_deg": [-1.03,
-    ...                           -1.09, -1.3], "flight_rotation_deg": [0.0, 0.0, 0.0]}), True)
+    ...                           -1.09, 1.06], "flight_rotation_deg": [0.0, 0.0, 0.0]}), True)
     'gauss:0,offset=-1,factor=0.999'
     """
     err = runs.turn_error_deg.to_numpy(dtype=float)
+    rho = (wrap180(runs.angle.to_numpy(dtype=float)) if "angle" in runs
+           else np.zeros(err.size))
+    err, spin = err * spin_sign(rho), np.abs(rho)      # the lag, in the sense of the spin
     f = 1.0
     if factor is True:
-        phi = runs.angle.to_numpy(dtype=float)
-        if np.unique(phi).size < 2:
-            raise ValueError("a turn factor needs trials at two angles or more.")
-        slope, off = np.polyfit(phi, err, 1)
-        f, resid = round(1.0 + float(slope), 4), err - (slope * phi + off)
+        if np.unique(spin).size < 2:
+            raise ValueError("a turn factor needs trials at two spins or more.")
+        slope, off = np.polyfit(spin, err, 1)
+        f, resid = round(1.0 + float(slope), 4), err - (slope * spin + off)
         err = resid + off
     elif factor is not False:
         f = float(factor)
-        err = err - (f - 1.0) * runs.angle.to_numpy(dtype=float)
+        err = err - (f - 1.0) * spin
     off = round(float(err.mean()), 2)
     sd = round(float(np.hypot(err.std(ddof=0), runs.flight_rotation_deg.std(ddof=0))), 2)
     if sd == 0 and off == 0 and f == 1.0:

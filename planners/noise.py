@@ -47,7 +47,8 @@ from numpy.typing import ArrayLike
 from envs import UserError
 
 from .cells import angle_steps
-from .turn_offsets import gauss_support, quanta_of, stepped_support
+from .measures import wrap180
+from .turn_offsets import body_errors, gauss_support, quanta_of, spin_sign, stepped_support
 
 __all__ = ["NOISE_FORMS", "NoiseSpec", "NoiseView", "R_RESOLUTION", "SCALE_MAX", "TURN_KEYS",
            "TurnNoise", "as_commands", "parse_noise_spec", "spec_text"]
@@ -75,6 +76,7 @@ R_RESOLUTION = 1e-9
 SCALE_MAX = 0.5
 """The half-range S of an unknown turn factor (``scale=S``) must lie in [0, SCALE_MAX)."""
 
+
 @dataclass(frozen=True)
 class TurnNoise:
     """docs/model.md §11 rotation noise: exact with probability ``r``, else off by a uniform
@@ -93,15 +95,19 @@ class TurnNoise:
                       a whole run (default 0: b = 0); B >= 0
     body_sigma_deg, body_offset_deg : float
                       the executing body's own turn errors, known (docs/model.md §11b): every
-                      turn also adds N(body_offset, body_sigma²) [deg], e.g. MuJoCo's
-                      measured 1.26° short with 0.6° of scatter (:meth:`with_body`). Default
-                      0: none. The coverage models use them; with either set, headings
-                      leave the Δ grid as under Gaussian noise (:attr:`gaussian`).
+                      counter-clockwise spin also adds N(body_offset, body_sigma²) [deg], e.g.
+                      MuJoCo's measured 1.26° short with 0.6° of scatter (:meth:`with_body`),
+                      and a clockwise spin the mirror image (a body lags in the sense it
+                      spins). Default 0: none. The coverage models use them; with either set,
+                      headings leave the Δ grid as under Gaussian noise (:attr:`gaussian`).
     body_factor, body_rest_deg : float
-                      the body's known turn factor F (default 1: a turn by φ adds (F − 1)·φ to
-                      the offset), and how much further [deg] it turns after a bump from rest
+                      the body's known turn factor F (default 1: a spin by ρ adds (F − 1)·ρ to
+                      the error), and how much further [deg] it spins after a bump from rest
                       than after a flight (default 0; the event model's zero-length flights,
                       docs/model.md §11b, §17).
+
+    A bump by φ spins the body by ρ = wrap180(φ), the shorter way (docs/model.md §21): a
+    body's error on it has mean sign(ρ)·O + (F − 1)·ρ (:meth:`body_mean_deg`).
 
     A run turns by f·φ + b plus the scatter (ε, r or σ). Scale and bias are what a planner or
     filter declares (navigation); the coverage models assume an unbiased turn and refuse them
@@ -233,13 +239,36 @@ class TurnNoise:
         return spec
 
     def body_mean_deg(self, angle_deg: float = 0.0) -> float:
-        """The mean of the body's own error [deg] on a turn by ``angle_deg``:
-        O + (F − 1)·φ (:attr:`body_offset_deg`, :attr:`body_factor`).
+        """The mean of the body's own error [deg] on a bump by ``angle_deg``: the body spins
+        ρ = wrap180(φ), the shorter way, and lags in that sense, sign(ρ)·O + (F − 1)·ρ
+        (:attr:`body_offset_deg`, :attr:`body_factor`; docs/model.md §11b).
 
-        >>> TurnNoise(body_offset_deg=-1.0, body_factor=0.998).body_mean_deg(300)
-        -1.6
+        >>> TurnNoise(body_offset_deg=-1.0, body_factor=0.998).body_mean_deg(100)
+        -1.2
+        >>> TurnNoise(body_offset_deg=-1.0, body_factor=0.998).body_mean_deg(300)   # ρ = −60°
+        1.12
         """
-        return round(self.body_offset_deg + (self.body_factor - 1.0) * float(angle_deg), 12)
+        rho = wrap180(float(angle_deg))
+        return round(spin_sign(rho) * self.body_offset_deg + (self.body_factor - 1.0) * rho, 12)
+
+    def rest_for(self, angles=None) -> float:
+        """How much further [deg] the body spins after a bump from rest, on bumps by
+        ``angles`` [deg]: :attr:`body_rest_deg` in the sense of their spins ρ = wrap180(φ)
+        (docs/model.md §11b); None: a counter-clockwise spin's. Angles that spin both ways
+        cannot share one value: a one-sentence UserError when the body has a rest turn.
+
+        >>> n = TurnNoise(body_rest_deg=0.7)
+        >>> n.rest_for([30, 75]), n.rest_for([315])
+        (0.7, -0.7)
+        """
+        if angles is None or self.body_rest_deg == 0:
+            return self.body_rest_deg
+        senses = {spin_sign(wrap180(float(a))) for a in np.atleast_1d(angles)}
+        if len(senses) > 1:
+            raise UserError(f"a body's turns after a bump from rest differ by the sense of the "
+                            f"spin; angles {sorted(float(a) for a in np.atleast_1d(angles))} "
+                            f"spin both ways (the shorter way), so give them one at a time.")
+        return senses.pop() * self.body_rest_deg
 
     @property
     def has_body(self) -> bool:
@@ -378,8 +407,8 @@ class TurnNoise:
         if self.has_body:               # the scatter, then the body's own error (BodyErrors)
             t = replace(self, body_sigma_deg=0.0, body_offset_deg=0.0, body_factor=1.0,
                         body_rest_deg=0.0).sample(rng, c, delta_deg=delta_deg)
-            return t + (self.body_factor - 1.0) * c + rng.normal(
-                self.body_offset_deg, self.body_sigma_deg, size=t.shape)
+            return t + body_errors(rng, c, t.shape, self.body_sigma_deg, self.body_offset_deg,
+                                   self.body_factor)
         if self.sigma_deg > 0:
             return c + rng.normal(0.0, self.sigma_deg, size=c.shape)
         m = self.quanta(delta_deg=delta_deg)

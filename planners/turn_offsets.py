@@ -1,5 +1,6 @@
 """The offset distributions behind :class:`planners.noise.TurnNoise` (docs/model.md §11,
-§11a): §11's stepped offsets, the Gaussian on the orientation grid, and ε in quanta.
+§11a): §11's stepped offsets, the Gaussian on the orientation grid, and ε in quanta; and a
+body's own errors on its spins (§11b: it lags in the sense it spins, the shorter way).
 """
 
 from __future__ import annotations
@@ -11,7 +12,10 @@ from scipy.special import ndtr, ndtri
 
 from envs import UserError
 
-__all__ = ["GAUSS_TAIL", "gauss_support", "quanta_of", "stepped_support"]
+from .measures import wrap180
+
+__all__ = ["GAUSS_TAIL", "body_errors", "gauss_support", "quanta_of", "spin_sign",
+           "stepped_support"]
 
 GAUSS_TAIL = 1e-6
 """Gaussian noise on the K grid: offsets are kept out to the smallest ±M whose two tails
@@ -56,3 +60,19 @@ def quanta_of(eps_deg: float, delta_deg: float) -> int:
         raise UserError(f"error range eps = {eps_deg:g}° is not a multiple of the "
                         f"orientation step {delta_deg:g}°.")
     return int(round(m))
+
+
+def spin_sign(rho):
+    """+1 for a counter-clockwise spin ρ ≥ 0 [deg], −1 for a clockwise one (scalars or arrays)."""
+    return np.where(np.asarray(rho) < 0, -1.0, 1.0) if np.ndim(rho) else (-1.0 if rho < 0 else 1.0)
+
+
+def body_errors(rng: np.random.Generator, commanded, shape, sigma_deg: float,
+                offset_deg: float, factor: float) -> np.ndarray:
+    """A body's own errors [deg] on bumps by ``commanded`` [deg] (docs/model.md §11b): each
+    spins ρ = wrap180(φ), the shorter way, and lags in its sense, sign(ρ)·O + (F − 1)·ρ plus
+    N(0, S²), drawn as one array of ``shape`` from ``rng``.
+    """
+    rho = wrap180(np.broadcast_to(np.asarray(commanded, dtype=float), shape))
+    return (spin_sign(rho) * offset_deg + (factor - 1.0) * rho
+            + rng.normal(0.0, sigma_deg, size=shape))

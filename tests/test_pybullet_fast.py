@@ -84,7 +84,9 @@ def test_fast_forward_bumps_where_every_step_bumps():
     65°, 160°, no corner on their first paths): the first bump, reached by a fast-forwarded
     drive, is where the run through every physics step bumps (within 5 mm; measured ≤ 1.1 mm)
     with the same heading (0.05°); every later bump has the plain batch test's bounds (edge
-    within 1 cm of a wall, never 2 mm into it; turns within 1.5°, mean 0.25°). Later bumps
+    within 1 cm of a wall, never 2 mm into it; turns within 1.5°), and the turns, simulated
+    in both (the default fast-forward does not jump them), end short by the same on average
+    (within 0.1°; measured 0.25° and 0.27°, all 11 short). Later bumps
     are not compared point by point: a turn that starts touching a wall varies by a few
     tenths of a degree with the contact's details (plain physics: −0.67° to +0.04° here), so
     the two runs part after the first turn, as two plain runs from starts 1 mm apart would.
@@ -102,9 +104,11 @@ def test_fast_forward_bumps_where_every_step_bumps():
     xy = np.array([(x, y) for x, y, *_ in rows])
     gaps = shapely.distance(shapely.points(xy), env.walls) - (env.robot_radius - 0.002)
     assert gaps.min() >= -0.002 and gaps.max() <= 0.01
-    err = np.abs([(after - before - turn + 180.0) % 360.0 - 180.0
-                  for _, _, before, turn, after in rows])
-    assert err.max() <= 1.5 and err.mean() <= 0.25
+    def errors(run):
+        return np.array([(after - before - turn + 180.0) % 360.0 - 180.0
+                         for per in run.turns for _, _, before, turn, after in per])
+    err = errors(fast)
+    assert np.abs(err).max() <= 1.5 and abs(err.mean() - errors(plain).mean()) <= 0.1
     assert fast.skipped.sum() > 0.5 * plain.physics_steps * len(starts)
 
 

@@ -78,6 +78,21 @@ TEAM_STEPS = 100_000
 TEAM_PER_ROBOT = 2500
 BACKEND_TEAMS = {"kinematic": True, "pybullet": True, "mujoco": False}
 """Backends whose worlds run teams that bump each other (--robots K)."""
+FAST_FORWARD = {"on": {}, "turns": {"turns": True}, "no-slides": {"slides": False},
+                "off": None}
+"""``--fast-forward``: the :class:`FastForward` settings changed from the default, or None
+(every physics step simulated)."""
+
+
+def fast_forward(name: str):
+    """The PyBulletBatch ``fast_forward`` of a ``--fast-forward`` choice.
+
+    >>> fast_forward("off") is None, fast_forward("on").turns, fast_forward("turns").turns
+    (True, False, True)
+    """
+    from ..robots.pybullet.fastforward import FastForward
+    changes = FAST_FORWARD[name]
+    return None if changes is None else FastForward(**changes)
 
 DESCRIPTION = """\
 For every bouncing angle: the coverage q predicted by --model and the step-sampled visit
@@ -161,6 +176,12 @@ def register(sub) -> None:
     p.add_argument("--interact", choices=("bump", "off"), default=None,
                    help="with --robots: robot-robot contact is a bump (default) or the robots "
                    "pass through each other")
+    p.add_argument("--fast-forward", choices=tuple(FAST_FORWARD), default="on",
+                   help="PyBullet: skip the physics steps of steady motion (on, the default: "
+                   "free drives and slides along one wall), not the slides' (no-slides), "
+                   "also the middle of turns (turns: faster, but it drops the push-off of a "
+                   "body spinning at its wall), or simulate every step (off, about 2x "
+                   "slower than on; docs/model.md Appendix C)")
     p.add_argument("--speed", type=float, default=0.3, metavar="M/S",
                    help="PyBullet and MuJoCo drive speed [m/s] (default 0.3)")
     add_contact_arg(p, auto=True, what=" of the event model and the twin")
@@ -168,8 +189,8 @@ def register(sub) -> None:
                    help="auto (default): the model adds the simulated body's own declared "
                    "turn errors at --speed to --eps/--r, and to the event model its errors "
                    "after a bump from rest (docs/model.md section 11b; MuJoCo's at 0.3 m/s: "
-                   "gauss:0.45,offset=-1.04,factor=0.9982, its turns by clock 1.04 deg + "
-                   "0.18%% of the angle short, 0.68 deg less after a bump from rest; at 0.2 "
+                   "gauss:0.45,offset=-1,factor=0.9979, its turns by clock lag 1.00 deg + "
+                   "0.21%% of the spin, 0.72 deg less after a bump from rest; at 0.2 "
                    "m/s 0.77 deg; none declared at other speeds); off: the model assumes "
                    "the body turns exactly as --eps/--r say; a spec gauss:S,offset=O: the "
                    "model adds these errors, and on --backend kinematic the twin turns with "
@@ -232,8 +253,10 @@ def simulate_trial(params: dict, rng: np.random.Generator) -> dict:
             from ..robots.mujoco.batch import MuJoCoBatch as Batch
         else:
             from ..robots.pybullet.batch import PyBulletBatch as Batch
-        with Batch(env, n, rng, cells=cs, speed=float(params["speed"]),
-                   **({"interact": params["interact"]} if team else {})) as batch:
+        extra = {"interact": params["interact"]} if team else {}
+        if params["backend"] == "pybullet":
+            extra["fast_forward"] = fast_forward(params.get("fast_forward", "on"))
+        with Batch(env, n, rng, cells=cs, speed=float(params["speed"]), **extra) as batch:
             res = batch.run(mix, steps, epoch=epoch, burn_in=burn_in)
         counts, dropped, bumps = res.pooled, int(res.dropped.sum()), int(res.bumps.sum())
         meetings = int(res.meetings.sum()) if team else None
@@ -309,6 +332,8 @@ def _check(args) -> None:
         raise UserError(f"--speed must lie in (0, 0.5] m/s, got {args.speed:g}.")
     if args.seed < 0:
         raise UserError(f"--seed must be a non-negative integer, got {args.seed}.")
+    if args.fast_forward != "on" and args.backend != "pybullet":
+        raise UserError("--fast-forward is for --backend pybullet.")
     if args.body_turns_rest is not None and not explicit_body_turns(args):
         raise UserError("--body-turns-rest goes with an explicit --body-turns SPEC.")
     if args.body_turns_rest is not None and not MODELS[args.model].rest_turns:
@@ -399,6 +424,7 @@ def run(args) -> int:
                 "speed": float(args.speed), "contact": contact_text,
                 **({"team": robots, "interact": args.interact} if team else {}),
                 **({"body_turns": twin_turns} if twin_turns else {}),
+                **({"fast_forward": args.fast_forward} if args.fast_forward != "on" else {}),
                 **({"body_turns_rest": twin_rest} if twin_rest else {})}
 
     # the sweep's identity: what decides the trials and their meaning, never a timing (a

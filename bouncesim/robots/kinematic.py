@@ -81,8 +81,10 @@ from envs.motion import (  # noqa: F401
     unit,
 )
 from planners.cells import CellSpace
+from planners.measures import wrap180
 from planners.metrics import tv_distance
 from planners.plan import PolicyMix
+from planners.turn_offsets import spin_sign
 
 from .base import CREATE2, BumpEvent, Robot, RobotSpec
 from .noise import NoiseModel, NoNoise, noise_and_rng, noise_for_mix
@@ -513,8 +515,9 @@ class KinematicBatch:
             counted[idx] = self.cell_of(self.pos[idx])
             ang = np.broadcast_to(np.asarray(angles_deg, dtype=float), (self.n,))[idx]
             turn = noise.sample_many(self.rng, ang)
-            if rest:                 # a bump from rest: no flight since the last turn
-                turn = turn + rest * (self._flown[idx] < REST_FLIGHT)
+            if rest:                 # a bump from rest: no flight since the last turn; the
+                # body spins further in the sense of its spin, the shorter way (§11b)
+                turn = turn + rest * spin_sign(wrap180(ang)) * (self._flown[idx] < REST_FLIGHT)
                 self._flown[idx] = 0.0
             self.heading[idx] = (self.heading[idx] + turn) % 360.0
             u[idx] = unit(self.heading[idx])

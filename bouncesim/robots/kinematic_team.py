@@ -47,6 +47,7 @@ import numpy as np
 from envs import Environment, UserError
 from envs.contact import switches
 from envs.motion import BUMP_RANGE, CONTACT_GAP, unit
+from planners.measures import wrap180
 
 from .base import BumpEvent
 from .kinematic import KinematicRobot
@@ -171,8 +172,9 @@ class KinematicTeam:
         bot = self.robots[i]
         turn = 0.0
         if angle_deg is not None:
-            bot.turn(float(angle_deg))
-            turn = bot.spec.turn_time(float(angle_deg), bot.turn_speed)
+            spin = wrap180(float(angle_deg))          # the shorter way (docs/model.md §8)
+            bot.turn(spin)
+            turn = bot.spec.turn_time(spin, bot.turn_speed)
         start = bot.true_pose()
         ev = bot.drive_until_bump(self.speed, self.max_flight / self.speed)
         end = bot.true_pose()

@@ -50,6 +50,7 @@ import numpy as np
 from envs import UserError
 from planners.noise import TurnNoise, parse_noise_spec, spec_text
 from planners.noise import as_commands as _commands
+from planners.turn_offsets import body_errors
 
 if TYPE_CHECKING:
     from planners.plan import PolicyMix
@@ -203,11 +204,13 @@ class GaussianNoise(NoiseModel):
 
 @dataclass(frozen=True)
 class BodyErrors(NoiseModel):
-    """A body's own turn errors on top of a base model (docs/model.md §11b): every turn by φ
-    is the base's draw plus (``factor`` − 1)·φ + N(``offset_deg``, ``sigma_deg``²) [deg],
-    drawn after the base's. ``rest_deg``: how much further the body turns after a bump from
-    rest (no flight since its last turn); the draws here do not know the flight, so a
-    simulation that does adds it (:class:`~bouncesim.robots.kinematic.KinematicBatch`).
+    """A body's own turn errors on top of a base model (docs/model.md §11b): every bump by φ
+    spins ρ = wrap180(φ) and is the base's draw plus sign(ρ)·``offset_deg`` +
+    (``factor`` − 1)·ρ + N(0, ``sigma_deg``²) [deg] (the body lags in the sense it spins,
+    :func:`planners.noise.body_errors`), drawn after the base's. ``rest_deg``: how much
+    further the body spins after a bump from rest (no flight since its last turn), in the
+    sense of its spin; the draws here do not know the flight, so a simulation that does adds
+    it (:class:`~bouncesim.robots.kinematic.KinematicBatch`).
     """
 
     base: NoiseModel
@@ -219,8 +222,8 @@ class BodyErrors(NoiseModel):
     def sample_many(self, rng, commanded, n=None) -> np.ndarray:
         """The base's executed turns [deg] plus the body's error."""
         t = self.base.sample_many(rng, commanded, n)
-        scaled = (self.factor - 1.0) * np.broadcast_to(np.asarray(commanded, float), np.shape(t))
-        return t + scaled + rng.normal(self.offset_deg, self.sigma_deg, size=np.shape(t))
+        return t + body_errors(rng, commanded, np.shape(t), self.sigma_deg, self.offset_deg,
+                               self.factor)
 
     def __str__(self) -> str:
         return (f"{self.base} + body gauss:{self.sigma_deg:g},offset={self.offset_deg:g}"

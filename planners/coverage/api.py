@@ -252,5 +252,6 @@ def timeshared_coverage(model: CoverageModel, mix: PolicyMix, epoch: int = 1000,
     angles = check_angles(model.cs.K, mix.angles, noise)
     turns = [model.turn_matrix(a, noise) for a in angles]
     # the event model's flights depend on the noise (Gaussian or a body's turns, §11a, §11b)
-    chain = model.delay_chain(noise) if model.steps_in_flights else model.delay_chain()
+    chain = (model.delay_chain(noise, angles) if model.steps_in_flights
+             else model.delay_chain())
     return timeshared(chain, turns, mix.alpha, epoch, **kw)

@@ -169,8 +169,8 @@ def _list(a) -> list:
 class _Prepared:
     """A model's started chain and its sampling tables (per noise's kind of flights)."""
 
-    def __init__(self, model, noise: TurnNoise) -> None:
-        self.sc = started_chain(model, noise)
+    def __init__(self, model, noise: TurnNoise, angles=None) -> None:
+        self.sc = started_chain(model, noise, angles)
         self.tables = SampleTables.of(self.sc)
 
 
@@ -193,7 +193,7 @@ def return_times(model, noise: TurnNoise, policy, epoch: int | None = None,
         limit = (s, 1.0)
     elif limit is None or hasattr(limit, "pi"):
         cov = limit if limit is not None else model.analyse(float(policy), noise)
-        ch = _prepared(model, noise).sc.chain
+        ch = _prepared(model, noise, [float(policy)]).sc.chain
         nb = cov.pi.size
         length = np.bincount(ch.src, weights=ch.weight * ch.delay, minlength=ch.n)[:nb]
         counted = float(np.asarray(ch.reward[:nb].sum(axis=1)).ravel() @ cov.pi)
@@ -207,13 +207,17 @@ def return_times(model, noise: TurnNoise, policy, epoch: int | None = None,
 _CACHE: dict = {}
 
 
-def _prepared(model, noise: TurnNoise) -> _Prepared:
-    key = (id(model), bool(noise.gaussian) and model.steps_in_flights)
+def _prepared(model, noise: TurnNoise, angles) -> _Prepared:
+    """The started chain of ``model`` for bumps by ``angles`` under ``noise``, kept per kind
+    of flights (Gaussian or not, and the body's rest turn in the sense they spin, §11b).
+    """
+    key = (id(model), bool(noise.gaussian) and model.steps_in_flights,
+           noise.rest_for(angles) if model.steps_in_flights else 0.0)
     hit = _CACHE.get(key)
     if hit is None or hit[0] is not model:
         if len(_CACHE) >= 4:
             _CACHE.pop(next(iter(_CACHE)))
-        hit = _CACHE[key] = (model, _Prepared(model, noise))
+        hit = _CACHE[key] = (model, _Prepared(model, noise, angles))
     return hit[1]
 
 
@@ -268,7 +272,7 @@ def coverage_metrics(model, policy, noise: TurnNoise | None = None, *, robots=1,
     if not times or times[0] < 1 or times[-1] > T:
         raise UserError(f"the steps of C(t) must lie in 1 … {T}.")
     p0 = start_distribution(cs, start)
-    prep = _prepared(model, noise)
+    prep = _prepared(model, noise, [a for _, angs, _ in policies for a in angs])
     z = np.flatnonzero(p0 > 0)
     sstates, sweights = prep.sc.offset + z, p0[z]
     kneed = np.array([max(1, math.ceil(x * cs.P - 1e-9)) for x in LEVELS])

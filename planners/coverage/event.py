@@ -245,11 +245,12 @@ class EventModel:
         self.flight, self.flights, self.reward = fs.flight, fs.flights, fs.reward
         self.length, self.mean_flight = fs.length, fs.mean_flight
 
-    def _flights_for(self, noise: TurnNoise) -> "_Flights":
+    def _flights_for(self, noise: TurnNoise, angles=None) -> "_Flights":
         """The flight set of ``noise``: continuous headings for Gaussian noise or a body's
-        errors, with the body's extra turn after a bump from rest (:meth:`_flight_set`).
+        errors, with the body's extra turn after a bump from rest (:meth:`_flight_set`) in
+        the sense the bumps by ``angles`` spin (``TurnNoise.rest_for``).
         """
-        return self._flight_set(noise.gaussian, noise.body_rest_deg)
+        return self._flight_set(noise.gaussian, noise.rest_for(angles))
 
     def _flight_set(self, continuous: bool, rest_deg: float = 0.0) -> "_Flights":
         """The sampled flights: from the exact grid headings θ_k (grid noise, docs/model.md
@@ -342,30 +343,30 @@ class EventModel:
         data = np.broadcast_to(kp[None], (n // K, K, len(steps))).reshape(-1)
         return sp.csr_matrix((data, indices, np.arange(n + 1) * len(steps)), shape=(n, n))
 
-    def delay_chain(self, noise: TurnNoise = _EXACT) -> DelayChain:
+    def delay_chain(self, noise: TurnNoise = _EXACT, angles=None) -> DelayChain:
         """The model as a :class:`planners.coverage.timeshare.DelayChain`: the sampled flights with
         their steps (forward steps + the bump step), the flight rewards and the first landing
         (for Gaussian ``noise`` the flights with headings inside their bins, §11a).
         """
-        fs = self._flights_for(noise)
+        fs = self._flights_for(noise, angles)
         src, dst, delay, w = fs.flights
         return DelayChain(src=src, dst=dst, delay=delay, weight=w, reward=fs.reward,
                           start=self.start_pre)
 
-    def flight_cells(self, noise: TurnNoise = _EXACT) -> FlightCells:
+    def flight_cells(self, noise: TurnNoise = _EXACT, angles=None) -> FlightCells:
         """The flights of :meth:`delay_chain` (same ``noise``) and the first flights from the
         cell centres, step by step: what the horizon coverage counts (docs/model.md §20).
         """
         paths, land0 = self._start
         n0 = flight_steps(paths.clock, self.cs.h)
-        return FlightCells(steps=self._flights_for(noise).steps, start_delay=n0 + 1,
+        return FlightCells(steps=self._flights_for(noise, angles).steps, start_delay=n0 + 1,
                            start_land=land0, start_steps=step_table(self.cs, n0, paths))
 
     def chain(self, angle_deg: float, noise: TurnNoise = _EXACT
               ) -> tuple[sp.csr_matrix, np.ndarray]:
         """(transition matrix over contact states, start distribution) of one angle."""
         W = self.turn_matrix(angle_deg, noise)
-        T = sp.csr_matrix(self._flights_for(noise).flight @ W)
+        T = sp.csr_matrix(self._flights_for(noise, [angle_deg]).flight @ W)
         mu = np.asarray(W.T @ self.start_pre).ravel()
         return T, mu
 
@@ -385,7 +386,7 @@ class EventModel:
         T, mu = self.chain(angle_deg, noise)
         res = analyse_contact_chain(T, mu, np.arange(self.n_states) // self.cs.K,
                                     method=self.stationary_method)
-        fs = self._flights_for(noise)
+        fs = self._flights_for(noise, [angle_deg])
         q = np.zeros(fs.reward.shape[1])
         for idx, a in zip(res.groups, res.absorption):
             qg = np.asarray(fs.reward[idx].T @ res.stationary[idx]).ravel()

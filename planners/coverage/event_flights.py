@@ -144,7 +144,7 @@ class StartedChain:
     offset: int
 
 
-def started_chain(model, noise) -> StartedChain:
+def started_chain(model, noise, angles=None) -> StartedChain:
     """The delay chain of ``model`` (turn noise ``noise``; the event model's flights depend on
     it only for Gaussian noise, §11a) with the first flights of a run and each flight's counted
     steps: what the horizon coverage (docs/model.md §20) and the cover times (§20a) step
@@ -174,7 +174,7 @@ def started_chain(model, noise) -> StartedChain:
                            weight=weight, reward=steps.reward(src, weight, n, cs.P),
                            start=np.zeros(n))
         return StartedChain(chain=chain, steps=steps, offset=0)
-    base, fc = model.delay_chain(noise), model.flight_cells(noise)
+    base, fc = model.delay_chain(noise, angles), model.flight_cells(noise, angles)
     n, F = base.n, base.src.size
     nt = n + cs.N
     src = np.concatenate([base.src, n + np.arange(cs.N)])

@@ -154,14 +154,14 @@ class _Recursion:
         return self.chain.n
 
     @classmethod
-    def build(cls, model, noise: TurnNoise) -> "_Recursion":
+    def build(cls, model, noise: TurnNoise, angles=None) -> "_Recursion":
         """The recursion of ``model`` with the flights of ``noise`` (event model: §11a)."""
         cs = model.cs
         if not model.steps_in_flights:                    # step, sampled: D = 1
             base = model.delay_chain()
             ts = TimeShared(base)
             return cls(chain=base, ts=ts, offset=0, tailsT=sp.csr_matrix(ts.RT))
-        sc = started_chain(model, noise)
+        sc = started_chain(model, noise, angles)
         chain, steps, src, weight = sc.chain, sc.steps, sc.chain.src, sc.chain.weight
         nt = chain.n
         ts = TimeShared(chain)
@@ -306,7 +306,7 @@ class Horizon:
         if key not in self._runs:
             if len(self._runs) >= KEPT_RUNS:            # each holds D·n floats: forget the
                 self._runs.pop(next(iter(self._runs)))  # oldest (a fresh run replaces it)
-            rec = self._prepare(noise)
+            rec = self._prepare(noise, [angle])
             self._runs[key] = _Trajectory(rec, self._turns([angle], rec, noise)[0], p0)
         return self._runs[key]
 
@@ -324,14 +324,16 @@ class Horizon:
         runs = {float(a): self._trajectory(float(a), noise, p0) for a in angles}
         return [partial(run.counts, T, 1) for run in runs.values()]
 
-    def _prepare(self, noise: TurnNoise) -> "_Recursion":
+    def _prepare(self, noise: TurnNoise, angles) -> "_Recursion":
         """The recursion of ``noise``'s flights (the event model casts Gaussian noise's
-        flights at sub-bin headings, docs/model.md §11a), built once per kind of flights.
+        flights at sub-bin headings, docs/model.md §11a, and turns a bump from rest by the
+        body's rest turn in the sense ``angles`` spin, §11b), built once per kind of flights.
         """
-        kind = bool(noise.gaussian) and self.model.steps_in_flights
+        kind = (bool(noise.gaussian) and self.model.steps_in_flights,
+                noise.rest_for(angles) if self.model.steps_in_flights else 0.0)
         if kind not in self._prepared:
             t0 = time.perf_counter()
-            self._prepared[kind] = _Recursion.build(self.model, noise)
+            self._prepared[kind] = _Recursion.build(self.model, noise, angles)
             self.seconds += time.perf_counter() - t0
         return self._prepared[kind]
 
@@ -385,7 +387,7 @@ class Horizon:
             for T in horizons:
                 yield T, np.column_stack([r.counts(T, limit=q) for r, q in zip(runs, lims)]), a
             return
-        rec = self._prepare(noise)
+        rec = self._prepare(noise, [angles[i] for i in use])
         WT = self._turns([angles[i] for i in use], rec, noise)
         D, n, m = rec.ts.D, rec.n, len(use)
         hist = np.zeros((D, n, m), dtype=np.float32)

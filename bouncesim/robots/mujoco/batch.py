@@ -30,6 +30,7 @@ import numpy as np
 from envs import Environment, UserError
 from envs.motion import step as step_rule
 from planners.cells import CellSpace
+from planners.measures import wrap180
 
 from ..batch_run import BatchRun, ProgramBatch
 from ..noise import NoiseModel
@@ -157,7 +158,7 @@ class MuJoCoBatch(ProgramBatch):
                 out["bumps"][i] += bump_step
             if not bump_step:
                 continue
-            actual = float(noise.sample(rng, angle))               # turn(angle), by clock
+            actual = float(noise.sample(rng, wrap180(angle)))      # turn, the shorter way
             if out["turns"] is not None:
                 out["turns"][i].append(pose + (actual,))
             if actual == 0:

@@ -22,8 +22,9 @@ single ``PyBulletRobot`` run by ``execute`` with the same g (the test suite chec
 points and turns against that path).
 
 By default (``fast_forward=FastForward()``, docs/model.md Appendix C) a robot skips the physics
-steps of steady motion: straight drives clear of the walls, steady slides along one wall side and
-the steady middle of turns in place are advanced in one move
+steps of steady motion: straight drives clear of the walls and steady slides along one wall side
+are advanced in one move (the steady middle of turns in place too with
+``FastForward(turns=True)``, which drops a spinning body's push-off from its wall)
 (:class:`~bouncesim.robots.pybullet.fastforward.Coaster`), and the robot's own step clock
 runs on by the steps skipped. Robots ignore each other, so their clocks need not agree; a
 robot whose program has ended leaves the world.
@@ -47,6 +48,7 @@ import numpy as np
 from envs import Environment, UserError
 from envs.motion import step as step_rule
 from planners.cells import CellSpace
+from planners.measures import wrap180
 
 from ..batch_run import BatchRun, ProgramBatch
 from ..noise import NoiseModel
@@ -94,9 +96,9 @@ class PyBulletBatch(ProgramBatch):
         Start configurations z (default: each robot draws one uniformly from its generator,
         as ``execute`` does).
     fast_forward : FastForward or None
-        Skip the physics steps of steady drives far from the walls and of the steady
-        middle of turns (docs/model.md Appendix C; default ``FastForward()``); None simulates
-        every physics step.
+        Skip the physics steps of steady drives far from the walls and of steady slides
+        (docs/model.md Appendix C; default ``FastForward()``, which simulates turns); None
+        simulates every physics step.
     interact : {"off", "bump"}
         The robots pass through each other (default), or bump each other as a team (module
         docstring; every physics step is then simulated, whatever ``fast_forward`` says).
@@ -325,7 +327,7 @@ class PyBulletBatch(ProgramBatch):
             if not bump_step:
                 continue
             track.clear()
-            actual = float(noise.sample(rng, angle))                # turn(angle), by clock
+            actual = float(noise.sample(rng, wrap180(angle)))       # turn, the shorter way
             if out["turns"] is not None:
                 out["turns"][i].append(pose + (actual,))
             if actual == 0:

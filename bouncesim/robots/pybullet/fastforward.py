@@ -20,11 +20,13 @@ The mechanism is honest only where it is safe, and :class:`FastForward` says whe
 - **slides** along one straight wall side (``slides``) jump when the last two sensor
   periods measured the same speed along the side and none across it, and the incidence
   stays inside (0.5°, β − 0.5°), until ``margin`` before the side's end or another wall;
-- **turns** run ``turn_steps`` physics steps at a time (the spin-up, and any push-off from
-  the wall just bumped) until the wheels and the body turn at the commanded rate (within
-  ``yaw_rate_tol``) and the centre moves slower than ``speed_tol``, then jump the rest of
-  the spin; the stop and the settling are simulated. A disk turning about its own centre
-  sweeps no new area, so a spin never meets a wall it did not touch already.
+- **turns** (``turns=True``, off by default) run ``turn_steps`` physics steps at a time
+  (the spin-up, and any push-off from the wall just bumped) until the wheels and the body
+  turn at the commanded rate (within ``yaw_rate_tol``) and the centre moves slower than
+  ``speed_tol``, then jump the rest of the spin; the stop and the settling are simulated.
+  A disk turning about its own centre sweeps no new area, so a spin never meets a wall it
+  did not touch already; but the jump drops the centre's slow push-off from that wall,
+  which decides the next bump (docs/model.md Appendix C), so the default simulates turns.
 
 Examples
 --------
@@ -57,7 +59,9 @@ class FastForward:
                           (out of contact: beyond the 0.1-0.3 mm at which a bump leaves it)
     (the margin is raised to the world's contact breaking distance where that is larger, so
     no wall the body approaches has a contact point during a jump)
-    turns : bool          also jump the steady middle of turns in place
+    turns : bool          also jump the steady middle of turns in place (default off: the
+                          jump drops the push-off of a body spinning at its wall, which
+                          decides its next bump; docs/model.md Appendix C)
     slides : bool         also jump steady slides along one straight wall side
     slide_tol : float     [m/s] steady slide: the speed along the wall of the last two polls
                           agrees within this, the speed across it is below it; [rad/s] the
@@ -69,7 +73,7 @@ class FastForward:
 
     margin: float = 0.01
     clearance: float = 0.0005
-    turns: bool = True
+    turns: bool = False
     slides: bool = True
     slide_tol: float = 0.001
     turn_steps: int = 3

@@ -167,7 +167,8 @@ class PyBulletRobot(SteppedWheels, Robot):
     cfm : float
         Bullet's global constraint force mixing (``globalCFM``): cfm / time step is added to
         the diagonal of the contact problem, a regularisation far below anything the body
-        feels (1e-7 / 5 ms = 2e-5 against the 0.2–0.5 of a 4 kg body's inverse mass). With Bullet's default 0, the Dantzig solver's problem of a body that
+        feels (1e-7 / 5 ms = 2e-5 against the 0.2–0.5 of a 4 kg body's inverse mass). With
+        Bullet's default 0, the Dantzig solver's problem of a body that
         pushes along a frictionless wall is degenerate, and the solution it picks turned the
         body into walls along y 3–10 times faster than into walls along x (docs/model.md
         Appendix B); with any cfm from 1e-9 to 1e-4 every wall gives the same slide, the
