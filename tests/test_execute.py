@@ -376,3 +376,39 @@ def test_docstring_examples(name):
     import importlib
     result = doctest.testmod(importlib.import_module(name), optionflags=doctest.ELLIPSIS)
     assert result.attempted > 0 and result.failed == 0
+
+
+def test_a_bump_spins_the_shorter_way(lab, lab_cells):
+    """docs/model.md §21: a bump by 315° is a 45° clockwise spin (the body is told −45°), one
+    by 135° a counter-clockwise spin; the twin reaches the same headings either way.
+    """
+    told = []
+
+    class Spy(KinematicRobot):
+        def turn(self, angle_deg):
+            told.append(float(angle_deg))
+            super().turn(angle_deg)
+    for angle, spin in ((315.0, -45.0), (135.0, 135.0), (180.0, 180.0)):
+        told.clear()
+        run = execute(angle, Spy(lab), steps=60, epoch=60, rng=np.random.default_rng(0),
+                      start=5, cells=lab_cells, record_trace=False)
+        assert run.bumps > 0 and set(told) == {spin}
+        ref = KinematicBatch(lab, 1, np.random.default_rng(5), starts=[5]).run(angle, 60)
+        assert np.array_equal(run.counts, ref.counts)
+
+
+def test_a_feedback_filter_commands_the_shorter_spin(lab):
+    # a known factor f = 0.9 (no scatter): the command for an actual 300° is the spin
+    # −60 / 0.9, and the particles turn by f times it, −60°; 175° needs a spin of 194.4°,
+    # commanded as such (the body spins as told); without a factor 315° is commanded −45°
+    from planners.navigation.feedback.config import FeedbackConfig
+    from planners.navigation.feedback.filter import ParticleFilter
+    pf = ParticleFilter(lab, FeedbackConfig(turn_factor=0.9, particles=4),
+                        np.random.default_rng(0), start=(1.0, 1.0, 100.0))
+    assert pf.command_for(300.0) == pytest.approx(-60.0 / 0.9)
+    assert pf.command_for(175.0) == pytest.approx(175.0 / 0.9)
+    pf.turn(pf.command_for(300.0))
+    assert np.allclose(pf.heading, 40.0)
+    plain = ParticleFilter(lab, FeedbackConfig(particles=4), np.random.default_rng(0),
+                           start=(1.0, 1.0, 100.0))
+    assert plain.command_for(315.0) == -45.0 and plain.command_for(90.0) == 90.0

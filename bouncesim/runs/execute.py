@@ -60,7 +60,6 @@ import numpy as np
 
 from envs import Environment, UserError
 from planners.cells import CellSpace
-from planners.measures import wrap180
 from planners.navigation.feedback import (
     DEFAULT_MAX_BUMPS,
     FeedbackConfig,
@@ -234,7 +233,7 @@ def _drive(runner, robot: Robot, trace: Trace, t0: float, speed: float,
                 ev = robot.drive_for(speed, move.distance_m / speed)
             answer = Moved(ev, speed * ev.elapsed, robot.true_pose(), robot.clock() - t0)
         elif kind is Turn:
-            robot.turn(wrap180(move.angle_deg))      # the shorter way (docs/model.md §8)
+            robot.turn(move.angle_deg)
             answer = Moved(None, 0.0, robot.true_pose(), robot.clock() - t0)
             if record:
                 trace.add(answer.t, answer.pose, "turn", f"{move.angle_deg:g}")

@@ -37,7 +37,9 @@ class Drive(NamedTuple):
 
 
 class Turn(NamedTuple):
-    """Turn in place by ``angle_deg`` [deg], counter-clockwise positive."""
+    """Spin in place by ``angle_deg`` [deg], counter-clockwise positive (a bump by φ is a
+    spin by wrap180(φ), the shorter way: docs/model.md §21).
+    """
 
     angle_deg: float
 

@@ -165,7 +165,7 @@ class PlanRunner:
                            res.pose)
             if self.back_off > 0:
                 yield BackOff(self.back_off)
-            yield Turn(angle)
+            yield Turn(wrap180(angle))            # the shorter way (docs/model.md §21)
             self._report(i, len(segs), travelled, ev.elapsed, True, angle)
         self.completed = True
         return ""
@@ -301,7 +301,7 @@ class MixRunner:
                     return f"stuck: {stuck} bumps in a row without moving"
                 if self.back_off > 0:
                     yield BackOff(self.back_off)
-                res = yield Turn(angle)
+                res = yield Turn(wrap180(angle))  # the shorter way (docs/model.md §21)
                 pose, t = res.pose, res.t
             self.done += 1
         return ""

@@ -181,13 +181,13 @@ class ParticleFilter:
         return np.column_stack([self.pos, self.heading])
 
     def turn(self, angle_deg: float) -> None:
-        """Predict a commanded CCW turn by ``angle_deg`` [deg]: the body spins the shorter
-        way, ρ = wrap180(φ) (docs/model.md §8), and each particle turns by its own f·ρ + b
-        plus the declared noise.
+        """Predict a commanded spin by ``angle_deg`` [deg] (CCW positive, the body spins as
+        told: :meth:`command_for`): each particle turns by its own f·φ + b plus the declared
+        noise.
         """
         s = self.cfg.turn_spread_deg
         noise = self.rng.normal(0.0, s, self.n) if s > 0 else 0.0
-        self.heading = (self.heading + self.factor * wrap180(float(angle_deg)) + self.offset
+        self.heading = (self.heading + self.factor * float(angle_deg) + self.offset
                         + noise) % 360.0
 
     def turn_estimate(self) -> tuple[float, float, float, float]:
@@ -209,20 +209,14 @@ class ParticleFilter:
                     and c.turn_offset_deg == 0)
 
     def command_for(self, angle_deg: float) -> float:
-        """The turn to command for an actual turn of ``angle_deg`` [deg] under the estimated
-        factor and offset: ρ = (wrap180(φ) − b̂) / f̂, moved by a full turn of the body
-        (360° / f̂) when that brings it into (−180°, 180°], the spins the body makes (φ itself
-        when nothing is unknown or off).
+        """The spin to command for an actual turn of ``angle_deg`` [deg], the shorter way
+        (docs/model.md §21), under the estimated factor and offset: (wrap180(φ) − b̂) / f̂
+        (wrap180(φ) itself when nothing is unknown or off).
         """
         if not self.turns_uncertain:
-            return float(angle_deg)
+            return wrap180(float(angle_deg))
         f, _, b, _ = self.turn_estimate()
-        rho = (wrap180(float(angle_deg)) - b) / f
-        if rho > 180.0:
-            rho -= 360.0 / f
-        elif rho <= -180.0:
-            rho += 360.0 / f
-        return rho
+        return (wrap180(float(angle_deg)) - b) / f
 
     def back_off(self, distance: float) -> None:
         """Predict a reverse drive of ``distance`` [m] (the executor's back-off)."""
