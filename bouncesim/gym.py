@@ -237,7 +237,7 @@ class BounceEnv(gymnasium.Env):
         if not self.action_space.contains(action):
             raise UserError(f"action {action!r} is not an index into the "
                             f"{len(self.angles)} bouncing angles.")
-        self._robot.turn(wrap180(self.angles[int(action)]))   # the shorter way (§8)
+        self._robot.turn(wrap180(self.angles[int(action)]))   # the shorter way (§21)
         obs, before, after = self._fly()
         self._steps += 1
         if self.task == "navigate":

@@ -172,7 +172,7 @@ class KinematicTeam:
         bot = self.robots[i]
         turn = 0.0
         if angle_deg is not None:
-            spin = wrap180(float(angle_deg))          # the shorter way (docs/model.md §8)
+            spin = wrap180(float(angle_deg))          # the shorter way (docs/model.md §21)
             bot.turn(spin)
             turn = bot.spec.turn_time(spin, bot.turn_speed)
         start = bot.true_pose()

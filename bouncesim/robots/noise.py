@@ -207,7 +207,7 @@ class BodyErrors(NoiseModel):
     """A body's own turn errors on top of a base model (docs/model.md §11b): every bump by φ
     spins ρ = wrap180(φ) and is the base's draw plus sign(ρ)·``offset_deg`` +
     (``factor`` − 1)·ρ + N(0, ``sigma_deg``²) [deg] (the body lags in the sense it spins,
-    :func:`planners.noise.body_errors`), drawn after the base's. ``rest_deg``: how much
+    :func:`planners.turn_offsets.body_errors`), drawn after the base's. ``rest_deg``: how much
     further the body spins after a bump from rest (no flight since its last turn), in the
     sense of its spin; the draws here do not know the flight, so a simulation that does adds
     it (:class:`~bouncesim.robots.kinematic.KinematicBatch`).
