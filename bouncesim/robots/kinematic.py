@@ -513,11 +513,12 @@ class KinematicBatch:
         if bumped.any():
             idx = np.flatnonzero(bumped)
             counted[idx] = self.cell_of(self.pos[idx])
-            ang = np.broadcast_to(np.asarray(angles_deg, dtype=float), (self.n,))[idx]
-            turn = noise.sample_many(self.rng, ang)
+            # every bump spins the shorter way, as the physics batches' (docs/model.md §21)
+            spin = wrap180(np.broadcast_to(np.asarray(angles_deg, dtype=float), (self.n,))[idx])
+            turn = noise.sample_many(self.rng, spin)
             if rest:                 # a bump from rest: no flight since the last turn; the
-                # body spins further in the sense of its spin, the shorter way (§11b)
-                turn = turn + rest * spin_sign(wrap180(ang)) * (self._flown[idx] < REST_FLIGHT)
+                # body spins further in the sense of its spin (§11b)
+                turn = turn + rest * spin_sign(spin) * (self._flown[idx] < REST_FLIGHT)
                 self._flown[idx] = 0.0
             self.heading[idx] = (self.heading[idx] + turn) % 360.0
             u[idx] = unit(self.heading[idx])
